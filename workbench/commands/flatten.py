@@ -1,0 +1,152 @@
+"""``workbench flatten``: conformal map of a mesh onto a rectangle, written as flat.obj + flatten.json."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from workbench import __version__
+from workbench.atomic import write_files
+from workbench.conformal.distortion import weighted_quantiles
+from workbench.conformal.flatten import FlattenOptions, FlattenResult, ScaleMode, flatten
+from workbench.errors import UsageError
+from workbench.figures import stretch_figure
+from workbench.mesh.io import UNITS_MM, format_obj, read_mesh
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "flatten",
+        help="map a disc-shaped mesh conformally onto a rectangle (CETM)",
+        description=(
+            "Map a disc-shaped mesh conformally onto a rectangle at physical scale "
+            "(Springborn, Schröder, Pinkall 2008). Writes DIR/flat.obj (same vertices and "
+            "faces, z = 0, mm, corner A at the origin, A→B along +x), DIR/flatten.json and "
+            "DIR/flatten.png (film stretch over the print)."
+        ),
+    )
+    p.add_argument(
+        "mesh",
+        metavar="MESH",
+        help="OBJ, PLY, STL, OFF or GLB file; faces counter-clockwise seen from the decorated side",
+    )
+    p.add_argument(
+        "--corners",
+        metavar="A,B,C,D",
+        help="four boundary vertex indices (0-based), counter-clockwise; default: chosen automatically",
+    )
+    p.add_argument(
+        "--scale", default="isometric", metavar="MODE", help="isometric (default), no-shrink, width=MM or height=MM"
+    )
+    p.add_argument(
+        "--units", default="mm", choices=sorted(UNITS_MM), help="unit of the mesh file's coordinates (default mm)"
+    )
+    p.add_argument("--out", metavar="DIR", help="output directory (default: flatten-<mesh name>)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=run)
+
+
+def parse_corners(text: str | None) -> tuple[int, int, int, int] | None:
+    """``'A,B,C,D'`` → four ints; None stays None."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        corners = tuple(int(p) for p in parts)
+    except ValueError:
+        corners = ()
+    if len(corners) != 4:
+        raise UsageError(f"--corners {text!r}: give four vertex indices, e.g. --corners 0,99,9999,9900")
+    return corners  # type: ignore[return-value]
+
+
+def summary(result: FlattenResult, V: np.ndarray, F: np.ndarray) -> dict:
+    """The figures of flatten.json (everything but inputs and timings)."""
+    stretch, dist, w = result.stretch, result.conformal_distortion, result.area_3d
+    p50, p95 = weighted_quantiles(stretch, w, [0.5, 0.95])
+    return {
+        "corners": [int(c) for c in result.corners],
+        "corner_rule": result.corner_rule,
+        "width_mm": result.width_mm,
+        "height_mm": result.height_mm,
+        "scale_mode": str(result.scale),
+        "angle_residual_max_rad": result.newton.residual_rad,
+        "newton_iterations": result.newton.iterations,
+        "newton_residual_history_rad": result.newton.history,
+        "flipped_faces": result.flipped_faces,
+        "rectangle_side_mismatch": result.rectangle_mismatch,
+        "stretch": {
+            "min": float(stretch.min()),
+            "p50": float(p50),
+            "p95": float(p95),
+            "max": float(stretch.max()),
+            "weighting": "surface area",
+        },
+        "conformal_distortion": {"mean": float(np.average(dist, weights=w)), "max": float(dist.max())},
+        "surface_area_mm2": float(w.sum()),
+        "print_area_mm2": result.width_mm * result.height_mm,
+        "mesh": {"vertices": len(V), "faces": len(F)},
+    }
+
+
+def run(args) -> int:
+    log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    corners = parse_corners(args.corners)
+    scale = ScaleMode.parse(args.scale)
+    mesh_path = Path(args.mesh)
+    out = Path(args.out) if args.out else Path(f"flatten-{mesh_path.stem}")
+
+    t0 = time.perf_counter()
+    V, F = read_mesh(mesh_path, args.units)
+    t_read = time.perf_counter() - t0
+    log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
+    result = flatten(V, F, FlattenOptions(corners=corners, scale=scale), name=str(mesh_path), log=log)
+
+    t0 = time.perf_counter()
+    info = {
+        "software": {"name": "workbench", "version": __version__},
+        "input": {
+            "mesh": str(mesh_path),
+            "sha256": hashlib.sha256(mesh_path.read_bytes()).hexdigest(),
+            "units": args.units,
+        },
+        **summary(result, V, F),
+    }
+    flat = np.column_stack([result.uv, np.zeros(len(V))])
+    obj = format_obj(
+        flat,
+        F,
+        header=f"workbench {__version__} flatten of {mesh_path.name}\nmm, corner A at the origin, A->B along +x",
+    )
+    png = stretch_figure(
+        result.uv,
+        F,
+        result.stretch,
+        result.corners,
+        result.width_mm,
+        result.height_mm,
+        title=f"{mesh_path.name}: {result.width_mm:.2f} x {result.height_mm:.2f} mm, scale {result.scale}",
+    )
+    t_write = time.perf_counter() - t0
+    timings = {"read": t_read, **result.timings_s, "write": t_write}
+    # timings are the one field that differs between two runs on the same input
+    info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
+    write_files(
+        {
+            out / "flat.obj": obj,
+            out / "flatten.json": (json.dumps(info, indent=2) + "\n").encode(),
+            out / "flatten.png": png,
+        }
+    )
+    log(
+        f"{result.width_mm:.3f} x {result.height_mm:.3f} mm ({result.scale}); "
+        f"{result.newton.iterations} Newton steps, residual {result.newton.residual_rad:.1e} rad; "
+        f"stretch {info['stretch']['min']:.4f}..{info['stretch']['max']:.4f}; flipped faces {result.flipped_faces}"
+    )
+    log(f"wrote {out / 'flat.obj'}, {out / 'flatten.json'}, {out / 'flatten.png'}")
+    return 0

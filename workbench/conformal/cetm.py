@@ -1,0 +1,338 @@
+"""Discrete conformal equivalence by Newton's method on the CETM energy.
+
+Springborn, Schröder, Pinkall, "Conformal Equivalence of Triangle Meshes" (2008):
+given edge lengths ``l`` and per-vertex target angle sums ``Θ``, find logarithmic
+scale factors ``u`` such that the lengths ``l̃_ij = exp((u_i + u_j) / 2) l_ij`` have
+angle sum ``Θ_i`` at every vertex. The ``u`` are the minimiser of a convex energy
+whose gradient is ``Θ - (angle sums)`` and whose Hessian is the cotangent Laplacian
+of the current metric.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from workbench.errors import WorkbenchError
+from workbench.mesh.topology import unique_edges
+from workbench.sparse import SPDSolver
+
+
+def triangle_angles(l: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Interior angles and their cotangents from edge lengths, extended to 0/π.
+
+    Parameters
+    ----------
+    l : (#F, 3) float
+        ``l[f, k]`` is the length of the edge opposite corner ``k``.
+
+    Returns
+    -------
+    alpha : (#F, 3) float
+        Angle at each corner, in radians. Where the lengths violate the triangle
+        inequality the angle opposite the too-long edge is π and the others 0, the
+        continuous extension that keeps the energy convex (CETM §4.2).
+    cot : (#F, 3) float
+        ``cot(alpha)``; 0 for degenerate triangles, whose extended energy is linear.
+    degenerate : (#F,) bool
+        Faces whose lengths violate (or meet) the triangle inequality.
+    """
+    a, b, c = l[:, 0], l[:, 1], l[:, 2]
+    s = a + b + c
+    # Half-angle form of the law of cosines: tan(α_a / 2) = sqrt((s-2b)(s-2c) / (s (s-2a))),
+    # with s - 2a = b + c - a etc.; accurate for needle triangles where acos is not.
+    p = np.stack([b + c - a, c + a - b, a + b - c], axis=1)
+    degenerate = (p <= 0).any(axis=1)
+    p = np.maximum(p, 0.0)
+    num = np.sqrt(p[:, [1, 2, 0]] * p[:, [2, 0, 1]])
+    den = np.sqrt(s[:, None] * p)
+    alpha = 2.0 * np.arctan2(num, den)
+    # cot α = (1 - t²) / (2 t) with t = num / den
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cot = (den * den - num * num) / (2.0 * num * den)
+    cot[degenerate] = 0.0
+    return alpha, cot, degenerate
+
+
+def _clausen_coefficients(n_terms: int = 30) -> np.ndarray:
+    # Cl₂(θ) = θ - θ log θ + Σ_{k≥1} |B_2k| θ^(2k+1) / (2k (2k+1)!), valid for |θ| < 2π
+    from math import factorial
+
+    from scipy.special import bernoulli
+
+    B = bernoulli(2 * n_terms)
+    return np.array([abs(B[2 * k]) / (2 * k * factorial(2 * k + 1)) for k in range(1, n_terms + 1)], dtype=np.float64)
+
+
+_CLAUSEN = _clausen_coefficients()
+
+
+def lobachevsky(x: np.ndarray) -> np.ndarray:
+    """Milnor's Lobachevsky function ``Л(x) = -∫_0^x log|2 sin t| dt``.
+
+    Parameters
+    ----------
+    x : array of float
+        Angles in radians, in [0, π].
+
+    Returns
+    -------
+    array of float
+        ``Л(x) = Cl₂(2x) / 2`` with Clausen's function ``Cl₂``, from its power series
+        on [0, π] (30 terms: the ratio of successive terms is at most 1/4 there, so
+        the truncation error is below 1e-17) and ``Cl₂(2π - θ) = -Cl₂(θ)``. 50 times
+        faster than ``Im Li₂(e^{2ix}) / 2`` through SciPy's complex ``spence``.
+    """
+    theta = 2.0 * np.asarray(x, dtype=np.float64)
+    sign = np.where(theta > np.pi, -1.0, 1.0)
+    theta = np.where(theta > np.pi, 2.0 * np.pi - theta, theta)
+    t2 = theta * theta
+    acc = np.zeros_like(theta)
+    for c in _CLAUSEN[::-1]:
+        acc = acc * t2 + c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        head = np.where(theta > 0, theta * (1.0 - np.log(theta)), 0.0)
+    return 0.5 * sign * (head + acc * t2 * theta)
+
+
+@dataclass(frozen=True)
+class Metric:
+    """Edge log-lengths of a mesh and the face-to-edge map that reads them.
+
+    Attributes
+    ----------
+    F : (#F, 3) int
+        Triangles.
+    E : (#E, 2) int
+        Undirected edges.
+    FE : (#F, 3) int
+        Edge opposite each corner, rows of ``E``.
+    lam : (#E,) float
+        ``2 log l`` of every edge.
+    n_vertices : int
+        #V.
+    """
+
+    F: np.ndarray
+    E: np.ndarray
+    FE: np.ndarray
+    lam: np.ndarray
+    n_vertices: int
+
+    @classmethod
+    def from_mesh(cls, V: np.ndarray, F: np.ndarray) -> Metric:
+        """The metric of a mesh embedded in space: ``V`` (#V, 3), ``F`` (#F, 3)."""
+        E, FE, _ = unique_edges(F)
+        lam = 2.0 * np.log(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1))
+        return cls(F=F, E=E, FE=FE, lam=lam, n_vertices=len(V))
+
+    def edge_lengths(self, u: np.ndarray) -> np.ndarray:
+        """Lengths ``exp((λ + u_i + u_j) / 2)`` of every edge of the scaled metric; (#E,)."""
+        return np.exp(0.5 * (self.lam + u[self.E[:, 0]] + u[self.E[:, 1]]))
+
+    def face_log_lengths(self, u: np.ndarray) -> np.ndarray:
+        """``λ̃[f, k] = λ + u_i + u_j`` for the edge (i, j) opposite corner k; (#F, 3)."""
+        F = self.F
+        return self.lam[self.FE] + u[F[:, [1, 2, 0]]] + u[F[:, [2, 0, 1]]]
+
+    def face_lengths(self, u: np.ndarray) -> np.ndarray:
+        """Edge lengths of the scaled metric, opposite each corner; (#F, 3)."""
+        lt = self.face_log_lengths(u)
+        # lengths are only compared within a triangle: removing the face's mean
+        # log-length avoids overflow without changing any angle
+        return np.exp(0.5 * (lt - lt.mean(axis=1, keepdims=True)))
+
+
+def angle_sums(F: np.ndarray, alpha: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Sum of the corner angles at every vertex; (#V,) float, radians."""
+    return np.bincount(F.ravel(), weights=alpha.ravel(), minlength=n_vertices)
+
+
+def cotan_laplacian(F: np.ndarray, cot: np.ndarray, n_vertices: int) -> sp.csc_matrix:
+    """Positive semi-definite cotangent Laplacian.
+
+    Parameters
+    ----------
+    F : (#F, 3) int
+        Triangles.
+    cot : (#F, 3) float
+        Cotangent of the angle at each corner.
+    n_vertices : int
+        #V.
+
+    Returns
+    -------
+    L : (#V, #V) sparse float
+        ``L_ij = -w_ij``, ``L_ii = Σ_j w_ij`` with ``w_ij = (cot α + cot β) / 2`` over
+        the corners facing edge ij. Equals the CETM Hessian.
+    """
+    i = F[:, [1, 2, 0]].ravel()
+    j = F[:, [2, 0, 1]].ravel()
+    w = 0.5 * cot.ravel()
+    rows = np.concatenate([i, j, i, j])
+    cols = np.concatenate([j, i, i, j])
+    vals = np.concatenate([-w, -w, w, w])
+    return sp.csc_matrix((vals, (rows, cols)), shape=(n_vertices, n_vertices))
+
+
+def cetm_energy(metric: Metric, u: np.ndarray, theta: np.ndarray) -> float:
+    """The convex CETM energy whose gradient is ``Θ - (angle sums)``.
+
+    Parameters
+    ----------
+    metric : Metric
+        Original edge log-lengths.
+    u : (#V,) float
+        Log scale factors.
+    theta : (#V,) float
+        Target angle sums, radians.
+
+    Returns
+    -------
+    float
+        ``E(u) = Σ_f Σ_k (α_k λ̃_k + 2 Л(α_k) - π/2 λ̃_k) + Σ_i Θ_i u_i``.
+        Its derivative in ``λ̃_k`` is ``α_k`` (Schläfli-type identity, because
+        ``l_k / sin α_k`` is the same for the three edges), so ``∂E/∂u_i`` collects
+        ``(π - α_i) - π = -α_i`` from every face at ``i``.
+    """
+    lt = metric.face_log_lengths(u)
+    alpha, _, _ = triangle_angles(metric.face_lengths(u))
+    tri = (alpha - 0.5 * np.pi) * lt + 2.0 * lobachevsky(alpha)
+    return float(tri.sum() + theta @ u)
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Stopping rule of the CETM Newton solve.
+
+    Attributes
+    ----------
+    tol_rad : float
+        Stop when every vertex's angle sum is within this of its target.
+    max_iterations : int
+        Give up (with an error) after this many Newton steps.
+    """
+
+    tol_rad: float = 1e-9
+    max_iterations: int = 50
+
+
+@dataclass(frozen=True)
+class NewtonResult:
+    """Outcome of :func:`conformal_scale_factors`.
+
+    Attributes
+    ----------
+    u : (#V,) float
+        Log scale factors, ``u[fixed] == 0``.
+    alpha : (#F, 3) float
+        Corner angles of the scaled metric.
+    cot : (#F, 3) float
+        Their cotangents.
+    iterations : int
+        Newton steps taken.
+    residual_rad : float
+        Final max |Θ - angle sum|.
+    history : list of float
+        Residual before each step and after the last.
+    """
+
+    u: np.ndarray
+    alpha: np.ndarray
+    cot: np.ndarray
+    iterations: int
+    residual_rad: float
+    history: list[float]
+
+
+def conformal_scale_factors(
+    metric: Metric,
+    theta: np.ndarray,
+    fixed: int = 0,
+    options: NewtonOptions = NewtonOptions(),
+    progress: Callable[[int, float], None] | None = None,
+) -> NewtonResult:
+    """Log scale factors giving prescribed angle sums, by damped Newton.
+
+    Parameters
+    ----------
+    metric : Metric
+        Original edge log-lengths.
+    theta : (#V,) float
+        Target angle sum at every vertex, radians. Must satisfy Gauss-Bonnet
+        (``Σ Θ = π #F``), otherwise no solution exists.
+    fixed : int
+        Vertex whose ``u`` stays 0 (the energy is invariant under adding a
+        constant to ``u``; fixing one removes the Hessian's null space).
+    options : NewtonOptions
+        Stopping rule.
+    progress : callable(iteration, residual_rad), optional
+        Called before every step.
+
+    Returns
+    -------
+    NewtonResult
+
+    Raises
+    ------
+    WorkbenchError
+        No convergence, or a minimiser with degenerate triangles (slivers).
+    """
+    F, n = metric.F, metric.n_vertices
+    if abs(theta.sum() - np.pi * len(F)) > 1e-6 * len(F):
+        raise WorkbenchError(
+            f"target angles violate Gauss-Bonnet: sum {theta.sum():.6f} rad, needed π·#F = {np.pi * len(F):.6f}"
+        )
+    free = np.setdiff1d(np.arange(n), [fixed])
+    u = np.zeros(n)
+    solver: SPDSolver | None = None
+    history: list[float] = []
+    energy = cetm_energy(metric, u, theta)
+    for it in range(options.max_iterations + 1):
+        alpha, cot, _ = triangle_angles(metric.face_lengths(u))
+        g = theta - angle_sums(F, alpha, n)
+        res = float(np.abs(g).max())
+        history.append(res)
+        if progress is not None:
+            progress(it, res)
+        if res <= options.tol_rad:
+            break
+        if it == options.max_iterations:
+            raise WorkbenchError(f"conformal map did not converge in {it} Newton steps (angle residual {res:.2e} rad)")
+        H = cotan_laplacian(F, cot, n)[free][:, free]
+        # tiny diagonal shift: a vertex whose every triangle is degenerate has no
+        # curvature in the extended energy, which would leave H singular
+        H = H + sp.identity(len(free), format="csc") * (1e-12 * H.diagonal().max())
+        if solver is None:
+            solver = SPDSolver(H)
+        else:
+            solver.refactor(H)
+        step = np.zeros(n)
+        step[free] = solver.solve(-g[free])
+        slope = float(g @ step)  # directional derivative of E, negative
+        t = 1.0
+        for _ in range(40):
+            trial = u + t * step
+            e_trial = cetm_energy(metric, trial, theta)
+            if e_trial <= energy + 1e-4 * t * slope:
+                break
+            # near the minimum the energy decrease drops below its rounding error;
+            # then the gradient is the reliable merit function
+            if abs(e_trial - energy) <= 1e-12 * (abs(energy) + 1.0):
+                a_t, _, _ = triangle_angles(metric.face_lengths(trial))
+                if np.abs(theta - angle_sums(F, a_t, n)).max() < res:
+                    break
+            t *= 0.5
+        else:
+            raise WorkbenchError(f"conformal map: line search failed at angle residual {res:.2e} rad")
+        u, energy = trial, e_trial
+    degenerate = np.flatnonzero(triangle_angles(metric.face_lengths(u))[2])
+    if len(degenerate):
+        raise WorkbenchError(
+            f"the conformal metric degenerates in {len(degenerate)} triangles (face {int(degenerate[0])}): "
+            "the mesh has slivers that a conformal map cannot keep; remesh it (isotropic remeshing) and retry"
+        )
+    return NewtonResult(u=u, alpha=alpha, cot=cot, iterations=it, residual_rad=res, history=history)

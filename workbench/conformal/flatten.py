@@ -1,0 +1,261 @@
+"""Conformal map of a disc-shaped mesh onto a rectangle at physical scale."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from workbench.conformal.cetm import Metric, NewtonOptions, NewtonResult, conformal_scale_factors
+from workbench.conformal.corners import choose_corners, corner_positions
+from workbench.conformal.distortion import flat_to_surface_singular_values
+from workbench.conformal.layout import harmonic_interior, rectangle_boundary, signed_areas
+from workbench.errors import UsageError
+from workbench.mesh.validate import check_disc, face_areas
+
+
+@dataclass(frozen=True)
+class ScaleMode:
+    """How the conformal map's free scale is fixed.
+
+    Attributes
+    ----------
+    kind : {'isometric', 'no-shrink', 'width', 'height'}
+        ``isometric``: area-weighted mean of log(3D length / flat length) is 0,
+        exact for developable surfaces. ``no-shrink``: the flat print is nowhere
+        larger than the surface in any direction (film only stretches).
+        ``width``/``height``: the rectangle's width or height is ``value_mm``.
+    value_mm : float or None
+        Size for ``width``/``height``.
+    """
+
+    kind: str = "isometric"
+    value_mm: float | None = None
+
+    @classmethod
+    def parse(cls, text: str) -> ScaleMode:
+        """Read ``isometric``, ``no-shrink``, ``width=MM`` or ``height=MM``."""
+        if text in ("isometric", "no-shrink"):
+            return cls(text)
+        key, sep, value = text.partition("=")
+        if sep and key in ("width", "height"):
+            try:
+                mm = float(value)
+            except ValueError:
+                mm = float("nan")
+            if not (np.isfinite(mm) and mm > 0):
+                raise UsageError(f"--scale {text}: {key} must be a positive number of mm")
+            return cls(key, mm)
+        raise UsageError(f"--scale {text!r}: use isometric, no-shrink, width=MM or height=MM")
+
+    def __str__(self) -> str:
+        return self.kind if self.value_mm is None else f"{self.kind}={self.value_mm:g}"
+
+
+@dataclass(frozen=True)
+class FlattenOptions:
+    """Settings of :func:`flatten`.
+
+    Attributes
+    ----------
+    corners : tuple of 4 int, or None
+        Corner vertices A, B, C, D (counter-clockwise); None chooses them.
+    scale : ScaleMode
+        How the physical size is fixed.
+    newton : NewtonOptions
+        Convergence rule of the conformal solve.
+    """
+
+    corners: tuple[int, int, int, int] | None = None
+    scale: ScaleMode = ScaleMode()
+    newton: NewtonOptions = NewtonOptions()
+
+
+@dataclass
+class FlattenResult:
+    """A mesh mapped conformally onto a rectangle.
+
+    Attributes
+    ----------
+    uv : (#V, 2) float
+        Flat positions in mm, corner A at the origin, A→B along +x, in the input's
+        vertex order.
+    corners : (4,) int
+        Vertices A, B, C, D.
+    corner_rule : str
+        ``'given'``, ``'sharpest-turns'`` or ``'bounding-box'``.
+    width_mm, height_mm : float
+        Rectangle size.
+    scale : ScaleMode
+        Scale mode applied.
+    newton : NewtonResult
+        The conformal solve.
+    sigma : (#F, 2) float
+        Singular values of the flat-to-surface map per face (see
+        :func:`flat_to_surface_singular_values`).
+    area_3d : (#F,) float
+        Surface area of each face, mm².
+    flipped_faces : int
+        Faces with non-positive area in the plane.
+    rectangle_mismatch : float
+        Relative length difference of opposite sides before they are equalised.
+    timings_s : dict
+        Seconds per stage.
+    """
+
+    uv: np.ndarray
+    corners: np.ndarray
+    corner_rule: str
+    width_mm: float
+    height_mm: float
+    scale: ScaleMode
+    newton: NewtonResult
+    sigma: np.ndarray
+    area_3d: np.ndarray
+    flipped_faces: int
+    rectangle_mismatch: float
+    timings_s: dict = field(default_factory=dict)
+
+    @property
+    def stretch(self) -> np.ndarray:
+        """Isotropic film stretch per face, 3D length / flat length = sqrt(σ₁σ₂); (#F,)."""
+        return np.sqrt(self.sigma[:, 0] * self.sigma[:, 1])
+
+    @property
+    def conformal_distortion(self) -> np.ndarray:
+        """``σ₁ / σ₂`` per face, 1 for a perfectly conformal triangle; (#F,)."""
+        return self.sigma[:, 0] / self.sigma[:, 1]
+
+
+def scale_factor(mode: ScaleMode, sigma: np.ndarray, area_3d: np.ndarray, width: float, height: float) -> float:
+    """Factor to multiply flat positions by so that the layout meets a scale mode.
+
+    Parameters
+    ----------
+    mode : ScaleMode
+        Requested scale.
+    sigma : (#F, 2) float
+        Singular values of the current flat-to-surface map.
+    area_3d : (#F,) float
+        Surface face areas, the weights of the isometric mean.
+    width, height : float
+        Current rectangle size.
+
+    Returns
+    -------
+    float
+        ``s``; scaling the layout by ``s`` divides every σ by ``s``.
+    """
+    if mode.kind == "isometric":
+        # mean log stretch after scaling, Σ A log(√(σ₁σ₂)/s) / Σ A, is zero for this s
+        log_stretch = 0.5 * np.log(sigma[:, 0] * sigma[:, 1])
+        return float(np.exp(np.average(log_stretch, weights=area_3d)))
+    if mode.kind == "no-shrink":
+        return float(sigma[:, 1].min())  # smallest σ₂ becomes exactly 1
+    if mode.kind == "width":
+        return mode.value_mm / width
+    if mode.kind == "height":
+        return mode.value_mm / height
+    raise UsageError(f"unknown scale mode {mode.kind!r}")
+
+
+def flatten(
+    V: np.ndarray,
+    F: np.ndarray,
+    options: FlattenOptions = FlattenOptions(),
+    name: str = "mesh",
+    log: Callable[[str], None] | None = None,
+) -> FlattenResult:
+    """Map a disc-shaped mesh conformally onto a rectangle at physical scale.
+
+    Target angle sums: 2π inside, π on the boundary, π/2 at the four corners
+    (CETM); Newton's method to a max angle residual of ``options.newton.tol_rad``;
+    the boundary placed on the rectangle by arc length and the interior by one
+    harmonic solve with the flat metric's cotangent weights; then scaled.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions in mm.
+    F : (#F, 3) int
+        Triangles, counter-clockwise seen from the decorated side.
+    options : FlattenOptions
+        Corners, scale, convergence.
+    name : str
+        The mesh's name in error messages.
+    log : callable(str), optional
+        Receives progress lines.
+
+    Returns
+    -------
+    FlattenResult
+
+    Raises
+    ------
+    WorkbenchError
+        The mesh is not a clean disc, the corners are invalid, or the solve fails.
+    """
+    say = log or (lambda _msg: None)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    loop = check_disc(V, F, name)
+    if options.corners is None:
+        corners, rule = choose_corners(V, F, loop)
+    else:
+        corners, rule = np.asarray(options.corners, dtype=np.int64), "given"
+    pos = corner_positions(loop, corners, len(V))
+    start = int(np.flatnonzero(loop == corners[0])[0])
+    loop = np.roll(loop, -start)
+    say(f"corners A,B,C,D = {','.join(map(str, corners.tolist()))} ({rule})")
+    timings["check"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    metric = Metric.from_mesh(V, F)
+    theta = np.full(len(V), 2.0 * np.pi)
+    theta[loop] = np.pi
+    theta[corners] = 0.5 * np.pi
+    newton = conformal_scale_factors(
+        metric,
+        theta,
+        fixed=int(corners[0]),
+        options=options.newton,
+        progress=lambda it, res: say(f"Newton step {it}: max angle residual {res:.2e} rad"),
+    )
+    timings["newton"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    lengths = metric.edge_lengths(newton.u)
+    key = np.sort(np.stack([loop, np.roll(loop, -1)], axis=1), axis=1)
+    edge_id = np.searchsorted(metric.E[:, 0] * len(V) + metric.E[:, 1], key[:, 0] * len(V) + key[:, 1])
+    boundary_xy, width, height, mismatch = rectangle_boundary(lengths[edge_id], pos)
+    uv = harmonic_interior(F, newton.cot, loop, boundary_xy, len(V))
+    timings["layout"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    area_3d = face_areas(V, F)
+    sigma = flat_to_surface_singular_values(V, F, uv)
+    s = scale_factor(options.scale, sigma, area_3d, width, height)
+    uv *= s
+    sigma /= s
+    flipped = int((signed_areas(uv, F) <= 0).sum())
+    if flipped:
+        say(f"warning: {flipped} faces are flipped in the layout")
+    timings["metrics"] = time.perf_counter() - t0
+    return FlattenResult(
+        uv=uv,
+        corners=corners,
+        corner_rule=rule,
+        width_mm=width * s,
+        height_mm=height * s,
+        scale=options.scale,
+        newton=newton,
+        sigma=sigma,
+        area_3d=area_3d,
+        flipped_faces=flipped,
+        rectangle_mismatch=mismatch,
+        timings_s=timings,
+    )

@@ -1,0 +1,122 @@
+"""Pictures of results, for people who would rather look than read."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+from workbench.raster import rasterize_triangles
+
+
+def _figure():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def face_image(
+    uv: np.ndarray, F: np.ndarray, values: np.ndarray, width_mm: float, height_mm: float, max_px: int = 1200
+) -> np.ndarray:
+    """Rasterise per-face values over the flat rectangle, top row = top of the print.
+
+    Parameters
+    ----------
+    uv : (#V, 2) float
+        Flat positions, mm, y up, rectangle [0, width_mm] x [0, height_mm].
+    F : (#F, 3) int
+        Triangles.
+    values : (#F,) float
+        Value per face.
+    width_mm, height_mm : float
+        Rectangle size.
+    max_px : int
+        Size of the longer side of the image.
+
+    Returns
+    -------
+    img : (h, w) float
+        Values per pixel, NaN outside the mesh.
+    """
+    px_per_mm = max_px / max(width_mm, height_mm)
+    w = max(int(round(width_mm * px_per_mm)), 1)
+    h = max(int(round(height_mm * px_per_mm)), 1)
+    # pixel centre (j, i) sits at x = (j + 0.5) / px_per_mm, y = height - (i + 0.5) / px_per_mm
+    P = np.stack([uv[:, 0] * px_per_mm - 0.5, (height_mm - uv[:, 1]) * px_per_mm - 0.5], axis=1)
+    face, _ = rasterize_triangles(P, F, w, h)
+    img = np.full(face.shape, np.nan)
+    img[face >= 0] = values[face[face >= 0]]
+    return img
+
+
+def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=None) -> bytes:
+    """PNG of the film stretch over the flat print, with a colour bar and the corners.
+
+    Parameters
+    ----------
+    uv : (#V, 2) float
+        Flat positions, mm.
+    F : (#F, 3) int
+        Triangles.
+    stretch : (#F,) float
+        3D length / flat length per face.
+    corners : (4,) int
+        Vertices A, B, C, D.
+    width_mm, height_mm : float
+        Rectangle size.
+    title : str
+        Figure title.
+    limit : float, optional
+        The material's stretch limit, marked on the colour bar.
+
+    Returns
+    -------
+    bytes
+        PNG file content (reproducible for the same inputs and library versions).
+    """
+    plt = _figure()
+    img = face_image(uv, F, stretch, width_mm, height_mm)
+    aspect = height_mm / width_mm
+    fig, ax = plt.subplots(figsize=(8, max(8 * aspect, 3) + 0.8), dpi=120)
+    lo, hi = np.nanmin(img) if np.isfinite(img).any() else 1.0, np.nanmax(img) if np.isfinite(img).any() else 1.0
+    if hi - lo < 1e-6:
+        lo, hi = lo - 1e-3, hi + 1e-3
+    im = ax.imshow(
+        img,
+        extent=(0, width_mm, 0, height_mm),
+        origin="upper",
+        cmap="viridis",
+        vmin=lo,
+        vmax=hi,
+        interpolation="nearest",
+    )
+    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    bar.set_label("film stretch (3D length / print length)")
+    if limit is not None:
+        bar.ax.axhline(limit, color="red", lw=2)
+    for name, v in zip("ABCD", corners, strict=True):
+        x, y = uv[v]
+        ax.plot([x], [y], "o", color="red", ms=6, clip_on=False)
+        # labels point inwards so they stay clear of the colour bar and the title
+        right, top = x > 0.5 * width_mm, y > 0.5 * height_mm
+        ax.annotate(
+            f"{name} ({v})",
+            (x, y),
+            textcoords="offset points",
+            xytext=(-6 if right else 6, -6 if top else 6),
+            ha="right" if right else "left",
+            va="top" if top else "bottom",
+            color="red",
+            fontsize=10,
+            fontweight="bold",
+        )
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title, fontsize=10)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", metadata={"Software": None})
+    plt.close(fig)
+    return buf.getvalue()

@@ -1,0 +1,144 @@
+"""Reading and writing triangle meshes without reordering their vertices."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+
+UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+
+
+def read_mesh(path: str | Path, units: str = "mm") -> tuple[np.ndarray, np.ndarray]:
+    """Read a triangle mesh, keeping the file's vertex order.
+
+    OBJ is parsed here: trimesh's OBJ loader splits vertices at texture seams and
+    drops unreferenced ones, which would renumber vertices silently. Polygons are
+    fan-triangulated in file order. STL stores no shared vertices: identical
+    positions are merged and numbered by first appearance. Other formats go through
+    trimesh with ``process=False``.
+
+    Parameters
+    ----------
+    path : str or Path
+        OBJ, PLY, STL, OFF or GLB/glTF file.
+    units : {'mm', 'cm', 'm', 'in'}
+        Unit of the file's coordinates; the result is in millimetres.
+
+    Returns
+    -------
+    V : (#V, 3) float64
+        Vertex positions in mm.
+    F : (#F, 3) int64
+        Triangles, as in the file.
+
+    Raises
+    ------
+    WorkbenchError
+        The file is missing, unreadable, of an unknown type or holds no triangles.
+    """
+    path = Path(path)
+    if units not in UNITS_MM:
+        raise WorkbenchError(f"unknown units {units!r}; use one of {', '.join(UNITS_MM)}")
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise WorkbenchError(f"{path}: unknown mesh type {suffix!r}; use {', '.join(MESH_SUFFIXES)}")
+    try:
+        if suffix == ".obj":
+            V, F = _read_obj(path)
+        else:
+            V, F = _read_trimesh(path, suffix)
+    except WorkbenchError:
+        raise
+    except Exception as exc:  # every parser failure is the file's fault here
+        raise WorkbenchError(f"{path}: cannot read mesh: {exc}") from None
+    if len(F) == 0:
+        raise WorkbenchError(f"{path}: the file holds no triangles")
+    if F.min() < 0 or F.max() >= len(V):
+        bad = int(np.flatnonzero((F < 0).any(1) | (F >= len(V)).any(1))[0])
+        raise WorkbenchError(f"{path}: face {bad} refers to a vertex that does not exist")
+    return V * UNITS_MM[units], F
+
+
+def _read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    verts: list[str] = []
+    tris: list[tuple[int, int, int]] = []
+    with open(path, "rb") as fh:
+        data = fh.read()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise WorkbenchError(f"{path}: not a text OBJ file") from None
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if line.startswith("v "):
+            verts.append(line[2:])
+        elif line.startswith("f "):
+            try:
+                idx = [int(tok.split("/", 1)[0]) for tok in line[2:].split()]
+            except ValueError:
+                raise WorkbenchError(f"{path}:{lineno}: malformed face line {line.strip()!r}") from None
+            if len(idx) < 3:
+                raise WorkbenchError(f"{path}:{lineno}: a face needs at least 3 vertices")
+            n = len(verts)
+            # OBJ indices are 1-based; negative ones count back from the last vertex
+            idx = [i - 1 if i > 0 else n + i for i in idx]
+            tris.extend((idx[0], idx[j], idx[j + 1]) for j in range(1, len(idx) - 1))
+    try:
+        V = np.array([row.split()[:3] for row in verts], dtype=np.float64)
+    except ValueError:
+        raise WorkbenchError(f"{path}: malformed vertex line") from None
+    if V.ndim != 2 or (len(V) and V.shape[1] != 3):
+        raise WorkbenchError(f"{path}: every vertex needs x, y and z")
+    return V.reshape(-1, 3), np.array(tris, dtype=np.int64).reshape(-1, 3)
+
+
+def _read_trimesh(path: Path, suffix: str) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
+    loaded = trimesh.load(path, process=False, force=None)
+    if isinstance(loaded, trimesh.Scene):
+        meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+        if len(meshes) != 1:
+            raise WorkbenchError(f"{path}: the scene holds {len(meshes)} meshes; give one mesh")
+        loaded = meshes[0]
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise WorkbenchError(f"{path}: holds no triangle mesh")
+    V = np.asarray(loaded.vertices, dtype=np.float64)
+    F = np.asarray(loaded.faces, dtype=np.int64)
+    if suffix == ".stl":
+        # STL is a triangle soup: merge exact duplicates, numbered by first appearance
+        _, first, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
+        rank = np.empty(len(first), dtype=np.int64)
+        rank[np.argsort(first)] = np.arange(len(first))
+        V = V[np.sort(first)]
+        F = rank[inverse.ravel()][F]
+    return V, F
+
+
+def format_obj(V: np.ndarray, F: np.ndarray, header: str = "") -> bytes:
+    """OBJ text of a triangle mesh, byte-for-byte reproducible.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions.
+    F : (#F, 3) int
+        Triangles (0-based; written 1-based).
+    header : str
+        Comment lines to put first (without the leading '#').
+
+    Returns
+    -------
+    data : bytes
+        The file's content.
+    """
+    lines = [f"# {h}" for h in header.splitlines()]
+    # %.17g would round-trip exactly but doubles the size; 1e-9 mm is below any print
+    vtxt = "\n".join(f"v {x:.12g} {y:.12g} {z:.12g}" for x, y, z in V.tolist())
+    ftxt = "\n".join(f"f {a} {b} {c}" for a, b, c in (F + 1).tolist())
+    return ("\n".join(lines + [vtxt, ftxt]) + "\n").encode()

@@ -12,7 +12,7 @@ from workbench.conformal.cetm import Metric, NewtonOptions, NewtonResult, confor
 from workbench.conformal.corners import choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values
 from workbench.conformal.layout import harmonic_interior, rectangle_boundary, signed_areas
-from workbench.errors import UsageError
+from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.validate import check_disc, face_areas
 
 
@@ -208,6 +208,15 @@ def flatten(
     else:
         corners, rule = np.asarray(options.corners, dtype=np.int64), "given"
     pos = corner_positions(loop, corners, len(V))
+    # a boundary vertex with one face must open that face's angle to the vertex's
+    # target: 180° is a degenerate triangle, so only a corner (90°) can be such a vertex
+    valence = np.bincount(F.ravel(), minlength=len(V))
+    ears = np.setdiff1d(loop[valence[loop] == 1], corners)
+    if len(ears):
+        raise WorkbenchError(
+            f"{name}: boundary vertex {int(ears[0])} belongs to a single face, which would have to open to 180° "
+            f"({len(ears)} such vertices); make it a corner (--corners) or split that face"
+        )
     start = int(np.flatnonzero(loop == corners[0])[0])
     loop = np.roll(loop, -start)
     say(f"corners A,B,C,D = {','.join(map(str, corners.tolist()))} ({rule})")

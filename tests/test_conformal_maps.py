@@ -1,0 +1,89 @@
+"""workbench flatten against closed-form conformal maps (100 x 100 jittered grids, random splits)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import annulus_sector, cylinder_patch, grid_corners, mercator_patch
+
+from workbench.conformal.cetm import Metric, angle_sums
+from workbench.conformal.flatten import FlattenOptions, flatten
+from workbench.conformal.layout import signed_areas
+
+N = 100
+
+
+def similarity_error(uv: np.ndarray, exact: np.ndarray) -> float:
+    """Max vertex distance after the best complex similarity uv -> exact, over the exact diagonal."""
+    zu = uv[:, 0] + 1j * uv[:, 1]
+    ze = exact[:, 0] + 1j * exact[:, 1]
+    A = np.stack([zu, np.ones_like(zu)], 1)
+    coef = np.linalg.lstsq(A, ze, rcond=None)[0]
+    diag = np.hypot(*(exact.max(0) - exact.min(0)))
+    return float(np.abs(A @ coef - ze).max() / diag)
+
+
+def layout_corner_angles(uv, F, corners):
+    """Angle sum at each corner vertex measured from the laid-out positions."""
+    e = uv[F[:, [2, 0, 1]]] - uv[F[:, [1, 2, 0]]]
+    la = np.linalg.norm(e, axis=2)
+    # law of cosines on the laid-out triangles (independent of the solver's angles)
+    a, b, c = la[:, 0], la[:, 1], la[:, 2]
+    alpha = np.stack(
+        [np.arccos((b * b + c * c - a * a) / (2 * b * c)),
+         np.arccos((c * c + a * a - b * b) / (2 * c * a)),
+         np.arccos((a * a + b * b - c * c) / (2 * a * b))], 1)
+    return angle_sums(F, alpha, len(uv))[list(corners)]
+
+
+@pytest.mark.parametrize("surface", [annulus_sector, mercator_patch], ids=["annulus-log", "sphere-mercator"])
+def test_matches_closed_form_map(surface):
+    V, F, exact = surface(N)
+    corners = grid_corners(N, N)
+    r = flatten(V, F, FlattenOptions(corners=corners))
+    assert similarity_error(r.uv, exact) <= 1e-5
+    assert r.newton.residual_rad <= 1e-9
+    assert r.flipped_faces == 0 and (signed_areas(r.uv, F) > 0).all()
+    # the metric's corner angles, and the corners of the laid-out rectangle
+    metric_corner = angle_sums(F, r.newton.alpha, len(V))[list(corners)]
+    np.testing.assert_allclose(metric_corner, np.pi / 2, atol=1e-9)
+    np.testing.assert_allclose(layout_corner_angles(r.uv, F, corners), np.pi / 2, atol=1e-9)
+    # the rectangle has the exact map's aspect ratio
+    ext = exact.max(0) - exact.min(0)
+    assert r.width_mm / r.height_mm == pytest.approx(ext[0] / ext[1], rel=2e-5)
+
+
+def test_cylinder_unrolls_isometrically_in_mm():
+    V, F, exact = cylinder_patch(N)
+    r = flatten(V, F, FlattenOptions(corners=grid_corners(N, N)))  # default scale: isometric
+    # rigid fit only (rotation + translation, no scale): the print is true size
+    zu = r.uv[:, 0] + 1j * r.uv[:, 1]
+    ze = exact[:, 0] + 1j * exact[:, 1]
+    rot = np.exp(1j * np.angle(np.sum((ze - ze.mean()) * np.conj(zu - zu.mean()))))
+    err = np.abs(rot * (zu - zu.mean()) - (ze - ze.mean())).max()
+    assert err <= 0.005
+    assert r.width_mm == pytest.approx(80.0, abs=0.005)
+    assert r.height_mm == pytest.approx(60.0, abs=0.005)
+    assert r.flipped_faces == 0
+
+
+def test_layout_reproduces_the_flat_metric():
+    V, F, _ = mercator_patch(60, seed=3)
+    r = flatten(V, F, FlattenOptions(corners=grid_corners(60, 60)))
+    metric = Metric.from_mesh(V, F)
+    flat_lengths = metric.edge_lengths(r.newton.u)
+    laid = np.linalg.norm(r.uv[metric.E[:, 0]] - r.uv[metric.E[:, 1]], axis=1)
+    ratio = laid / flat_lengths  # one global scale factor, nothing accumulated
+    assert ratio.std() / ratio.mean() <= 1e-9
+
+
+def test_corners_follow_the_convention():
+    V, F, _ = annulus_sector(40, seed=5)
+    corners = grid_corners(40, 40)
+    r = flatten(V, F, FlattenOptions(corners=corners))
+    A, B, C, D = (r.uv[c] for c in corners)
+    np.testing.assert_allclose(A, [0, 0], atol=1e-9)
+    np.testing.assert_allclose(B, [r.width_mm, 0], atol=1e-9)
+    np.testing.assert_allclose(C, [r.width_mm, r.height_mm], atol=1e-9)
+    np.testing.assert_allclose(D, [0, r.height_mm], atol=1e-9)
+    assert r.uv[:, 0].min() >= -1e-9 and r.uv[:, 1].min() >= -1e-9

@@ -183,11 +183,13 @@ def test_usage_error_without_mesh(capsys):
 
 
 def test_slivers_whose_conformal_metric_degenerates_are_refused(capsys, tmp_path, grid):
-    # a square grid squashed onto a disc: its four former corners become boundary
-    # vertices whose few faces would have to open to 180°
-    P, F = grid(25, 25, np.random.default_rng(2))
+    # a square grid squashed onto a disc, its corners taken at the middle of the sides:
+    # the former corners are now boundary vertices whose two squashed faces would have
+    # to open to 180° (seed 9: both faces there, so the single-face check does not apply)
+    P, F = grid(25, 25, np.random.default_rng(9))
+    assert (np.bincount(F.ravel())[[0, 24, 624, 600]] == 2).all()
     q = 2 * P - 1
     d = q / np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-12) * np.abs(q).max(1, keepdims=True)
     path = write(tmp_path, np.column_stack([d * 30, np.zeros(len(d))]), F)
-    err = expect(capsys, tmp_path, path, "the conformal metric degenerates in")
+    err = expect(capsys, tmp_path, path, "the conformal metric degenerates in", "--corners", "12,324,612,300")
     assert "remesh" in err

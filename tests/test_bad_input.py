@@ -168,28 +168,40 @@ def test_unreadable_files(capsys, tmp_path):
     expect(capsys, tmp_path, out_of_range, "face 0 refers to a vertex that does not exist")
 
 
-def test_single_face_boundary_vertex_must_be_a_corner(capsys, tmp_path):
-    # an ear: vertex 4 has one face; as a non-corner it would need a 180° angle
-    V = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0], [1, -1, 0]], float)
-    F = np.array([[0, 1, 2], [0, 2, 3], [0, 4, 1]])
-    err = expect(capsys, tmp_path, write(tmp_path, V, F), "boundary vertex 4 belongs to a single face",
-                 "--corners", "0,1,2,3")
-    assert "make it a corner" in err
+def test_large_face_that_would_collapse_is_refused(capsys, tmp_path, square):
+    # an ear below side AB: its apex has one face; as a non-corner its angle must open
+    # to 180°, so the ear (0.5 % of the surface) collapses onto AB and gets no print
+    V, F = square
+    ear = len(V)
+    V = np.vstack([V, [[5.0, -0.5, 0.0]]])
+    F = np.vstack([F, [[2, ear, 3]]])
+    err = expect(
+        capsys,
+        tmp_path,
+        write(tmp_path, V, F),
+        f"largest face {len(F) - 1} with vertices 2, {ear}, 3) collapse onto a line in the print",
+        "--corners",
+        "0,5,29,24",
+    )
+    assert "make the boundary vertex of such a face a corner" in err
+
+
+def test_metric_that_degenerates_even_after_flips_is_refused(capsys, tmp_path, square):
+    # a long ear: its apex would need a 180° angle and no Delaunay flip can give it one
+    V, F = square
+    V = np.vstack([V, [[5.0, -20.0, 0.0]]])
+    F = np.vstack([F, [[2, len(V) - 1, 3]]])
+    err = expect(
+        capsys,
+        tmp_path,
+        write(tmp_path, V, F),
+        "even on the intrinsic Delaunay triangulation",
+        "--corners",
+        "0,5,29,24",
+    )
+    assert "remesh it" in err
 
 
 def test_usage_error_without_mesh(capsys):
     assert main(["flatten"]) == 2
     assert "the following arguments are required: MESH" in capsys.readouterr().err
-
-
-def test_slivers_whose_conformal_metric_degenerates_are_refused(capsys, tmp_path, grid):
-    # a square grid squashed onto a disc, its corners taken at the middle of the sides:
-    # the former corners are now boundary vertices whose two squashed faces would have
-    # to open to 180° (seed 9: both faces there, so the single-face check does not apply)
-    P, F = grid(25, 25, np.random.default_rng(9))
-    assert (np.bincount(F.ravel())[[0, 24, 624, 600]] == 2).all()
-    q = 2 * P - 1
-    d = q / np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-12) * np.abs(q).max(1, keepdims=True)
-    path = write(tmp_path, np.column_stack([d * 30, np.zeros(len(d))]), F)
-    err = expect(capsys, tmp_path, path, "the conformal metric degenerates in", "--corners", "12,324,612,300")
-    assert "remesh" in err

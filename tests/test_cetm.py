@@ -61,8 +61,9 @@ def test_gradient_is_target_minus_angle_sum(spread):
         assert degenerate.any()  # the extension is exercised
     g = theta - angle_sums(metric.F, alpha, n)
     h = 1e-6
-    fd = np.array([(cetm_energy(metric, u + h * e, theta) - cetm_energy(metric, u - h * e, theta)) / (2 * h)
-                   for e in np.eye(n)])
+    fd = np.array(
+        [(cetm_energy(metric, u + h * e, theta) - cetm_energy(metric, u - h * e, theta)) / (2 * h) for e in np.eye(n)]
+    )
     np.testing.assert_allclose(fd, g, atol=1e-6)
 
 

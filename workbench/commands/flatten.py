@@ -67,7 +67,8 @@ def parse_corners(text: str | None) -> tuple[int, int, int, int] | None:
 
 def summary(result: FlattenResult, V: np.ndarray, F: np.ndarray) -> dict:
     """The figures of flatten.json (everything but inputs and timings)."""
-    stretch, dist, w = result.stretch, result.conformal_distortion, result.area_3d
+    ok = ~result.collapsed
+    stretch, dist, w = result.stretch[ok], result.conformal_distortion[ok], result.area_3d[ok]
     p50, p95 = weighted_quantiles(stretch, w, [0.5, 0.95])
     return {
         "corners": [int(c) for c in result.corners],
@@ -79,6 +80,11 @@ def summary(result: FlattenResult, V: np.ndarray, F: np.ndarray) -> dict:
         "newton_iterations": result.newton.iterations,
         "newton_residual_history_rad": result.newton.history,
         "flipped_faces": result.flipped_faces,
+        "collapsed_faces": {
+            "count": int(result.collapsed.sum()),
+            "area_mm2": float(result.area_3d[result.collapsed].sum()),
+        },
+        "intrinsic_flips": result.intrinsic_flips,
         "rectangle_side_mismatch": result.rectangle_mismatch,
         "stretch": {
             "min": float(stretch.min()),

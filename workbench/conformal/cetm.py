@@ -123,6 +123,14 @@ class Metric:
     n_vertices: int
 
     @classmethod
+    def from_lengths(cls, F: np.ndarray, L: np.ndarray, n_vertices: int) -> Metric:
+        """The metric given by edge lengths: ``L`` (#F, 3) opposite each corner of ``F``."""
+        E, FE, _ = unique_edges(F)
+        lam = np.empty(len(E))
+        lam[FE.ravel()] = 2.0 * np.log(L.ravel())
+        return cls(F=F, E=E, FE=FE, lam=lam, n_vertices=n_vertices)
+
+    @classmethod
     def from_mesh(cls, V: np.ndarray, F: np.ndarray) -> Metric:
         """The metric of a mesh embedded in space: ``V`` (#V, 3), ``F`` (#F, 3)."""
         E, FE, _ = unique_edges(F)
@@ -202,6 +210,20 @@ def cetm_energy(metric: Metric, u: np.ndarray, theta: np.ndarray) -> float:
     alpha, _, _ = triangle_angles(metric.face_lengths(u))
     tri = (alpha - 0.5 * np.pi) * lt + 2.0 * lobachevsky(alpha)
     return float(tri.sum() + theta @ u)
+
+
+class DegenerateMetricError(WorkbenchError):
+    """The conformal metric exists only with degenerate triangles on this triangulation.
+
+    Attributes
+    ----------
+    faces : (k,) int
+        The degenerate faces.
+    """
+
+    def __init__(self, message: str, faces: np.ndarray):
+        super().__init__(message)
+        self.faces = faces
 
 
 @dataclass(frozen=True)
@@ -331,8 +353,9 @@ def conformal_scale_factors(
         u, energy = trial, e_trial
     degenerate = np.flatnonzero(triangle_angles(metric.face_lengths(u))[2])
     if len(degenerate):
-        raise WorkbenchError(
+        raise DegenerateMetricError(
             f"the conformal metric degenerates in {len(degenerate)} triangles (face {int(degenerate[0])}): "
-            "the mesh has slivers that a conformal map cannot keep; remesh it (isotropic remeshing) and retry"
+            "the mesh has slivers that a conformal map cannot keep; remesh it (isotropic remeshing) and retry",
+            degenerate,
         )
     return NewtonResult(u=u, alpha=alpha, cot=cot, iterations=it, residual_rad=res, history=history)

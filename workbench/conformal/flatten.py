@@ -8,12 +8,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.conformal.cetm import Metric, NewtonOptions, NewtonResult, conformal_scale_factors
+from workbench.conformal.cetm import (
+    DegenerateMetricError,
+    Metric,
+    NewtonOptions,
+    NewtonResult,
+    conformal_scale_factors,
+)
 from workbench.conformal.corners import choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values
+from workbench.conformal.intrinsic import intrinsic_delaunay
 from workbench.conformal.layout import harmonic_interior, rectangle_boundary, signed_areas
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.validate import check_disc, face_areas
+
+# Faces that collapse in the print get no print; beyond this share of the surface
+# area that is a visible hole in the decoration, not a sliver.
+MAX_COLLAPSED_AREA = 1e-3
 
 
 @dataclass(frozen=True)
@@ -98,7 +109,13 @@ class FlattenResult:
     area_3d : (#F,) float
         Surface area of each face, mm².
     flipped_faces : int
-        Faces with non-positive area in the plane.
+        Faces with negative area in the plane.
+    collapsed : (#F,) bool
+        Faces with (numerically) zero area in the plane: slivers whose vertices land
+        on one line. ``sigma`` is NaN there and statistics leave them out.
+    intrinsic_flips : int
+        Edge flips of the intrinsic Delaunay triangulation the solve used (0 when
+        the input triangulation was used as it is).
     rectangle_mismatch : float
         Relative length difference of opposite sides before they are equalised.
     timings_s : dict
@@ -115,6 +132,8 @@ class FlattenResult:
     sigma: np.ndarray
     area_3d: np.ndarray
     flipped_faces: int
+    collapsed: np.ndarray
+    intrinsic_flips: int
     rectangle_mismatch: float
     timings_s: dict = field(default_factory=dict)
 
@@ -208,32 +227,43 @@ def flatten(
     else:
         corners, rule = np.asarray(options.corners, dtype=np.int64), "given"
     pos = corner_positions(loop, corners, len(V))
-    # a boundary vertex with one face must open that face's angle to the vertex's
-    # target: 180° is a degenerate triangle, so only a corner (90°) can be such a vertex
-    valence = np.bincount(F.ravel(), minlength=len(V))
-    ears = np.setdiff1d(loop[valence[loop] == 1], corners)
-    if len(ears):
-        raise WorkbenchError(
-            f"{name}: boundary vertex {int(ears[0])} belongs to a single face, which would have to open to 180° "
-            f"({len(ears)} such vertices); make it a corner (--corners) or split that face"
-        )
     start = int(np.flatnonzero(loop == corners[0])[0])
     loop = np.roll(loop, -start)
     say(f"corners A,B,C,D = {','.join(map(str, corners.tolist()))} ({rule})")
     timings["check"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    metric = Metric.from_mesh(V, F)
     theta = np.full(len(V), 2.0 * np.pi)
     theta[loop] = np.pi
     theta[corners] = 0.5 * np.pi
-    newton = conformal_scale_factors(
-        metric,
-        theta,
-        fixed=int(corners[0]),
-        options=options.newton,
-        progress=lambda it, res: say(f"Newton step {it}: max angle residual {res:.2e} rad"),
-    )
+    # A boundary vertex with one face must open that face to 180°: degenerate on this
+    # triangulation whatever the solver does, so go straight to the intrinsic one.
+    valence = np.bincount(F.ravel(), minlength=len(V))
+    ears = np.setdiff1d(loop[valence[loop] == 1], corners)
+    T, flips = F, 0
+    metric = Metric.from_mesh(V, F)
+    newton = None
+    if len(ears) == 0:
+        try:
+            newton = _solve(metric, theta, corners, options, say)
+        except DegenerateMetricError as exc:
+            say(f"{exc.faces.size} triangles degenerate; retrying on the intrinsic Delaunay triangulation")
+    else:
+        say(f"{len(ears)} boundary vertices with a single face; using the intrinsic Delaunay triangulation")
+    if newton is None:
+        L = np.exp(0.5 * metric.lam[metric.FE])
+        force = np.isin(F, ears)  # flip the edge facing each single-face boundary vertex
+        T, L, flips = intrinsic_delaunay(F, L, force=force)
+        say(f"intrinsic Delaunay: {flips} edge flips")
+        metric = Metric.from_lengths(T, L, len(V))
+        try:
+            newton = _solve(metric, theta, corners, options, say)
+        except DegenerateMetricError as exc:
+            raise WorkbenchError(
+                f"{name}: the conformal metric degenerates in {exc.faces.size} triangles even on the intrinsic "
+                "Delaunay triangulation: the mesh has slivers a conformal map cannot keep; remesh it "
+                "(isotropic remeshing) or choose other corners"
+            ) from None
     timings["newton"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -241,16 +271,30 @@ def flatten(
     key = np.sort(np.stack([loop, np.roll(loop, -1)], axis=1), axis=1)
     edge_id = np.searchsorted(metric.E[:, 0] * len(V) + metric.E[:, 1], key[:, 0] * len(V) + key[:, 1])
     boundary_xy, width, height, mismatch = rectangle_boundary(lengths[edge_id], pos)
-    uv = harmonic_interior(F, newton.cot, loop, boundary_xy, len(V))
+    uv = harmonic_interior(T, newton.cot, loop, boundary_xy, len(V))
     timings["layout"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     area_3d = face_areas(V, F)
-    sigma = flat_to_surface_singular_values(V, F, uv)
-    s = scale_factor(options.scale, sigma, area_3d, width, height)
+    # input faces drawn through an intrinsic triangulation can collapse onto a line
+    # (a boundary sliver whose three vertices end up on one side of the rectangle)
+    flat_area = signed_areas(uv, F)
+    flipped = int((flat_area < -1e-9 * area_3d).sum())
+    collapsed = np.abs(flat_area) <= 1e-9 * area_3d
+    lost = area_3d[collapsed].sum() / area_3d.sum()
+    if lost > MAX_COLLAPSED_AREA:
+        f = int(np.flatnonzero(collapsed)[np.argmax(area_3d[collapsed])])
+        raise WorkbenchError(
+            f"{name}: {int(collapsed.sum())} faces ({100 * lost:.2g} % of the surface, largest face {f} with vertices "
+            f"{', '.join(map(str, F[f].tolist()))}) collapse onto a line in the print and would get no print; "
+            "make the boundary vertex of such a face a corner, or split the face"
+        )
+    sigma = np.full((len(F), 2), np.nan)
+    ok = ~collapsed
+    sigma[ok] = flat_to_surface_singular_values(V, F[ok], uv)
+    s = scale_factor(options.scale, sigma[ok], area_3d[ok], width, height)
     uv *= s
     sigma /= s
-    flipped = int((signed_areas(uv, F) <= 0).sum())
     if flipped:
         say(f"warning: {flipped} faces are flipped in the layout")
     timings["metrics"] = time.perf_counter() - t0
@@ -265,6 +309,18 @@ def flatten(
         sigma=sigma,
         area_3d=area_3d,
         flipped_faces=flipped,
+        collapsed=collapsed,
+        intrinsic_flips=flips,
         rectangle_mismatch=mismatch,
         timings_s=timings,
+    )
+
+
+def _solve(metric, theta, corners, options, say):
+    return conformal_scale_factors(
+        metric,
+        theta,
+        fixed=int(corners[0]),
+        options=options.newton,
+        progress=lambda it, res: say(f"Newton step {it}: max angle residual {res:.2e} rad"),
     )

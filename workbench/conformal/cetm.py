@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from workbench.errors import WorkbenchError
 from workbench.mesh.topology import unique_edges
-from workbench.sparse import SPDSolver
+from workbench.sparse import CotanAssembler, SPDSolver
 
 
 def triangle_angles(l: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -131,9 +131,15 @@ class Metric:
         return cls(F=F, E=E, FE=FE, lam=lam, n_vertices=n_vertices)
 
     @classmethod
-    def from_mesh(cls, V: np.ndarray, F: np.ndarray) -> Metric:
-        """The metric of a mesh embedded in space: ``V`` (#V, 3), ``F`` (#F, 3)."""
-        E, FE, _ = unique_edges(F)
+    def from_mesh(
+        cls, V: np.ndarray, F: np.ndarray, E: np.ndarray | None = None, FE: np.ndarray | None = None
+    ) -> Metric:
+        """The metric of a mesh embedded in space: ``V`` (#V, 3), ``F`` (#F, 3).
+
+        ``E``, ``FE`` are :func:`unique_edges` of ``F`` when already computed.
+        """
+        if E is None or FE is None:
+            E, FE, _ = unique_edges(F)
         lam = 2.0 * np.log(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1))
         return cls(F=F, E=E, FE=FE, lam=lam, n_vertices=len(V))
 
@@ -260,6 +266,11 @@ class NewtonResult:
         Final max |Θ - angle sum|.
     history : list of float
         Residual before each step and after the last.
+    assembler : CotanAssembler
+        Builds this triangulation's Laplacian without the fixed vertex.
+    solver : SPDSolver or None
+        Factorisation of the last Hessian (None if no step was needed): a close
+        preconditioner for systems with the final Laplacian.
     """
 
     u: np.ndarray
@@ -268,6 +279,8 @@ class NewtonResult:
     iterations: int
     residual_rad: float
     history: list[float]
+    assembler: CotanAssembler
+    solver: SPDSolver | None
 
 
 def conformal_scale_factors(
@@ -308,15 +321,20 @@ def conformal_scale_factors(
         raise WorkbenchError(
             f"target angles violate Gauss-Bonnet: sum {theta.sum():.6f} rad, needed π·#F = {np.pi * len(F):.6f}"
         )
-    free = np.setdiff1d(np.arange(n), [fixed])
+    assembler = CotanAssembler(metric.E, metric.FE, n, np.array([fixed]))
+    free = assembler.free
+
+    def state(u: np.ndarray):
+        alpha, cot, degenerate = triangle_angles(metric.face_lengths(u))
+        g = theta - angle_sums(F, alpha, n)
+        return alpha, cot, degenerate, g, float(np.abs(g).max())
+
     u = np.zeros(n)
+    alpha, cot, degenerate, g, res = state(u)
     solver: SPDSolver | None = None
     history: list[float] = []
-    energy = cetm_energy(metric, u, theta)
+    energy: float | None = None
     for it in range(options.max_iterations + 1):
-        alpha, cot, _ = triangle_angles(metric.face_lengths(u))
-        g = theta - angle_sums(F, alpha, n)
-        res = float(np.abs(g).max())
         history.append(res)
         if progress is not None:
             progress(it, res)
@@ -324,38 +342,50 @@ def conformal_scale_factors(
             break
         if it == options.max_iterations:
             raise WorkbenchError(f"conformal map did not converge in {it} Newton steps (angle residual {res:.2e} rad)")
-        H = cotan_laplacian(F, cot, n)[free][:, free]
         # tiny diagonal shift: a vertex whose every triangle is degenerate has no
         # curvature in the extended energy, which would leave H singular
-        H = H + sp.identity(len(free), format="csc") * (1e-12 * H.diagonal().max())
+        H = assembler.upper(cot, shift=1e-12)
         if solver is None:
             solver = SPDSolver(H)
         else:
             solver.refactor(H)
         step = np.zeros(n)
         step[free] = solver.solve(-g[free])
-        slope = float(g @ step)  # directional derivative of E, negative
-        t = 1.0
-        for _ in range(40):
-            trial = u + t * step
-            e_trial = cetm_energy(metric, trial, theta)
-            if e_trial <= energy + 1e-4 * t * slope:
-                break
-            # near the minimum the energy decrease drops below its rounding error;
-            # then the gradient is the reliable merit function
-            if abs(e_trial - energy) <= 1e-12 * (abs(energy) + 1.0):
-                a_t, _, _ = triangle_angles(metric.face_lengths(trial))
-                if np.abs(theta - angle_sums(F, a_t, n)).max() < res:
+        # A full step that at least halves the residual is taken as it is: in the
+        # quadratic regime the energy can only have gone down. Otherwise backtrack
+        # on the energy (Armijo), which is what guarantees global convergence.
+        trial = u + step
+        new = state(trial)
+        if new[4] > 0.5 * res:
+            if energy is None:
+                energy = cetm_energy(metric, u, theta)
+            slope = float(g @ step)  # directional derivative of E, negative
+            t = 1.0
+            for _ in range(40):
+                e_trial = cetm_energy(metric, trial, theta)
+                if e_trial <= energy + 1e-4 * t * slope:
                     break
-            t *= 0.5
+                # near the minimum the energy decrease drops below its rounding
+                # error; then the gradient is the reliable merit function
+                if abs(e_trial - energy) <= 1e-12 * (abs(energy) + 1.0) and new[4] < res:
+                    break
+                t *= 0.5
+                trial = u + t * step
+                new = state(trial)
+            else:
+                raise WorkbenchError(f"conformal map: line search failed at angle residual {res:.2e} rad")
+            energy = e_trial
         else:
-            raise WorkbenchError(f"conformal map: line search failed at angle residual {res:.2e} rad")
-        u, energy = trial, e_trial
-    degenerate = np.flatnonzero(triangle_angles(metric.face_lengths(u))[2])
+            energy = None
+        u = trial
+        alpha, cot, degenerate, g, res = new
+    degenerate = np.flatnonzero(degenerate)
     if len(degenerate):
         raise DegenerateMetricError(
             f"the conformal metric degenerates in {len(degenerate)} triangles (face {int(degenerate[0])}): "
             "the mesh has slivers that a conformal map cannot keep; remesh it (isotropic remeshing) and retry",
             degenerate,
         )
-    return NewtonResult(u=u, alpha=alpha, cot=cot, iterations=it, residual_rad=res, history=history)
+    return NewtonResult(
+        u=u, alpha=alpha, cot=cot, iterations=it, residual_rad=res, history=history, assembler=assembler, solver=solver
+    )

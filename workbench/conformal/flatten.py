@@ -18,7 +18,7 @@ from workbench.conformal.cetm import (
 from workbench.conformal.corners import choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values
 from workbench.conformal.intrinsic import intrinsic_delaunay
-from workbench.conformal.layout import harmonic_interior, rectangle_boundary, signed_areas
+from workbench.conformal.layout import flat_layout, rectangle_boundary, signed_areas
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.validate import check_disc, face_areas
 
@@ -221,7 +221,7 @@ def flatten(
     t0 = time.perf_counter()
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    loop = check_disc(V, F, name)
+    loop, E, FE = check_disc(V, F, name)
     if options.corners is None:
         corners, rule = choose_corners(V, F, loop)
     else:
@@ -241,7 +241,7 @@ def flatten(
     valence = np.bincount(F.ravel(), minlength=len(V))
     ears = np.setdiff1d(loop[valence[loop] == 1], corners)
     T, flips = F, 0
-    metric = Metric.from_mesh(V, F)
+    metric = Metric.from_mesh(V, F, E, FE)
     newton = None
     if len(ears) == 0:
         try:
@@ -271,7 +271,7 @@ def flatten(
     key = np.sort(np.stack([loop, np.roll(loop, -1)], axis=1), axis=1)
     edge_id = np.searchsorted(metric.E[:, 0] * len(V) + metric.E[:, 1], key[:, 0] * len(V) + key[:, 1])
     boundary_xy, width, height, mismatch = rectangle_boundary(lengths[edge_id], pos)
-    uv = harmonic_interior(T, newton.cot, loop, boundary_xy, len(V))
+    uv = flat_layout(newton.cot, loop, boundary_xy, newton.assembler, newton.solver)
     timings["layout"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

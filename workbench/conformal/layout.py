@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.conformal.cetm import cotan_laplacian
 from workbench.errors import WorkbenchError
-from workbench.sparse import SPDSolver
+from workbench.sparse import CotanAssembler, SPDSolver, preconditioned_cg, symmetric_matvec
 
 
 def rectangle_boundary(loop_lengths: np.ndarray, corner_pos: np.ndarray) -> tuple[np.ndarray, float, float, float]:
@@ -55,44 +54,82 @@ def rectangle_boundary(loop_lengths: np.ndarray, corner_pos: np.ndarray) -> tupl
     return xy, float(width), float(height), mismatch
 
 
-def harmonic_interior(
-    F: np.ndarray, cot: np.ndarray, boundary: np.ndarray, boundary_xy: np.ndarray, n_vertices: int
-) -> np.ndarray:
-    """Interior positions of a flat metric given its boundary positions.
+def boundary_flux(loop: np.ndarray, boundary_xy: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Cotangent Laplacian of the coordinate functions of a planar layout.
 
-    A planar triangulation is harmonic for its own cotangent weights (the
-    cotangent Laplacian annihilates linear functions, and each coordinate is one),
-    so solving ``L_II x_I = -L_IB x_B`` with the flat metric's cotangents reproduces
-    the metric exactly: one sparse SPD solve, no accumulation along a tree.
+    For a planar, counter-clockwise triangulation the conformal energy ``E_D - A``
+    (Dirichlet energy minus signed area) vanishes at the identity map, which is its
+    minimum, so ``L x = ∇A``: zero inside and, at a boundary vertex ``i`` between
+    ``i-1`` and ``i+1``, ``(L x)_i = (y_{i+1} - y_{i-1}) / 2`` and
+    ``(L y)_i = (x_{i-1} - x_{i+1}) / 2``. Only the boundary enters.
 
     Parameters
     ----------
-    F : (#F, 3) int
-        Triangles.
-    cot : (#F, 3) float
-        Cotangents of the flat metric's corner angles.
-    boundary : (#B,) int
-        Boundary vertices.
+    loop : (#B,) int
+        Boundary loop, counter-clockwise.
     boundary_xy : (#B, 2) float
-        Their positions.
+        Its positions.
     n_vertices : int
         #V.
 
     Returns
     -------
-    xy : (#V, 2) float
-        All positions.
+    b : (#V, 2) float
+        ``L [x y]``.
     """
-    L = cotan_laplacian(F, cot, n_vertices)
-    interior = np.setdiff1d(np.arange(n_vertices), boundary)
+    nxt = np.roll(boundary_xy, -1, axis=0)
+    prv = np.roll(boundary_xy, 1, axis=0)
+    b = np.zeros((n_vertices, 2))
+    b[loop, 0] = 0.5 * (nxt[:, 1] - prv[:, 1])
+    b[loop, 1] = 0.5 * (prv[:, 0] - nxt[:, 0])
+    return b
+
+
+def flat_layout(
+    cot: np.ndarray,
+    loop: np.ndarray,
+    boundary_xy: np.ndarray,
+    assembler: CotanAssembler,
+    preconditioner: SPDSolver | None = None,
+) -> np.ndarray:
+    """All vertex positions of a flat metric whose boundary positions are known.
+
+    A planar triangulation is harmonic for its own cotangent weights, up to the
+    boundary term of :func:`boundary_flux`; solving ``L X = flux`` with the flat
+    metric's cotangents (one vertex held at its position) reproduces the metric to
+    round-off: one sparse solve, no accumulation along a spanning tree. The Newton
+    solve's last factorisation preconditions conjugate gradients, so no new
+    factorisation is needed.
+
+    Parameters
+    ----------
+    cot : (#F, 3) float
+        Cotangents of the flat metric's corner angles.
+    loop : (#B,) int
+        Boundary loop, counter-clockwise.
+    boundary_xy : (#B, 2) float
+        Boundary positions; the vertex the assembler leaves out must be at the origin.
+    assembler : CotanAssembler
+        The triangulation's Laplacian without that vertex.
+    preconditioner : SPDSolver, optional
+        Factorisation of a nearby matrix with the same pattern; a fresh one otherwise.
+
+    Returns
+    -------
+    xy : (#V, 2) float
+        Positions; the boundary ones exactly ``boundary_xy``.
+    """
+    n_vertices = len(assembler.free) + 1
+    U = assembler.upper(cot)
+    if preconditioner is None:
+        preconditioner = SPDSolver(U)
+    flux = boundary_flux(loop, boundary_xy, n_vertices)[assembler.free]
+    matvec = symmetric_matvec(U)
     xy = np.zeros((n_vertices, 2))
-    xy[boundary] = boundary_xy
-    if len(interior):
-        L_ii = L[interior][:, interior]
-        rhs = -(L[interior][:, boundary] @ boundary_xy)
-        xy[interior] = SPDSolver(L_ii).solve(rhs)
-    if not np.isfinite(xy).all():
-        raise WorkbenchError("layout failed: the flat metric's Laplacian is singular")
+    xy[assembler.free], _, res = preconditioned_cg(matvec, flux, preconditioner.solve)
+    if not res <= 1e-10:
+        raise WorkbenchError(f"layout failed: the linear solve stalled at relative residual {res:.1e}")
+    xy[loop] = boundary_xy  # equal to round-off; exact corners and straight sides
     return xy
 
 

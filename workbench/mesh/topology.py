@@ -51,13 +51,15 @@ def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return E, inverse.reshape(-1, 3), count
 
 
-def boundary_half_edges(F: np.ndarray) -> np.ndarray:
+def boundary_half_edges(F: np.ndarray, FE: np.ndarray | None = None, count: np.ndarray | None = None) -> np.ndarray:
     """Directed edges with no twin: the boundary, oriented as its faces run.
 
     Parameters
     ----------
     F : (#F, 3) int
         Triangle vertex indices of an edge-manifold, consistently oriented mesh.
+    FE, count : optional
+        :func:`unique_edges` of ``F``, when already computed.
 
     Returns
     -------
@@ -66,17 +68,20 @@ def boundary_half_edges(F: np.ndarray) -> np.ndarray:
         lies to the left of each, so the loops they form run counter-clockwise.
     """
     H = half_edges(F).reshape(-1, 2)
-    _, FE, count = unique_edges(F)
+    if FE is None or count is None:
+        _, FE, count = unique_edges(F)
     return H[count[FE.ravel()] == 1]
 
 
-def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
+def boundary_loops(F: np.ndarray, B: np.ndarray | None = None) -> list[np.ndarray]:
     """Boundary loops, each as an ordered vertex list following face orientation.
 
     Parameters
     ----------
     F : (#F, 3) int
         Triangle vertex indices of a manifold, consistently oriented mesh.
+    B : (#B, 2) int, optional
+        :func:`boundary_half_edges` of ``F``, when already computed.
 
     Returns
     -------
@@ -85,7 +90,8 @@ def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
         the interior is on the left (counter-clockwise for CCW faces). Sorted by
         first vertex.
     """
-    B = boundary_half_edges(F)
+    if B is None:
+        B = boundary_half_edges(F)
     if len(B) == 0:
         return []
     nxt = dict(zip(B[:, 0].tolist(), B[:, 1].tolist(), strict=True))
@@ -105,20 +111,23 @@ def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
     return loops
 
 
-def face_components(F: np.ndarray) -> np.ndarray:
+def face_components(F: np.ndarray, FE: np.ndarray | None = None) -> np.ndarray:
     """Connected components of faces, linked through shared edges.
 
     Parameters
     ----------
     F : (#F, 3) int
         Triangle vertex indices.
+    FE : (#F, 3) int, optional
+        :func:`unique_edges` of ``F``, when already computed.
 
     Returns
     -------
     labels : (#F,) int
         Component label of each face, numbered by first appearance.
     """
-    _, FE, _ = unique_edges(F)
+    if FE is None:
+        _, FE, _ = unique_edges(F)
     nF = len(F)
     # face-edge incidence; faces sharing an edge are connected
     I = sp.csr_matrix((np.ones(3 * nF), (np.repeat(np.arange(nF), 3), FE.ravel())))
@@ -127,45 +136,3 @@ def face_components(F: np.ndarray) -> np.ndarray:
     _, first = np.unique(labels, return_index=True)
     order = np.argsort(np.argsort(first))
     return order[labels]
-
-
-def vertex_fan_count(F: np.ndarray, n_vertices: int) -> np.ndarray:
-    """Number of fans (edge-connected groups of incident faces) at each vertex.
-
-    A manifold vertex has exactly one; two or more mark a non-manifold vertex
-    (for example two sheets touching at a point).
-
-    Parameters
-    ----------
-    F : (#F, 3) int
-        Triangle vertex indices of an edge-manifold mesh.
-    n_vertices : int
-        Number of vertices #V.
-
-    Returns
-    -------
-    fans : (#V,) int
-        Fans per vertex (0 for a vertex no face uses).
-    """
-    nF = len(F)
-    corner = np.arange(3 * nF).reshape(nF, 3)
-    # For each undirected edge shared by two faces, the corners of its two
-    # endpoints in the two faces belong to the same fan of that endpoint.
-    H = half_edges(F).reshape(-1, 2)
-    _, FE, _ = unique_edges(F)
-    order = np.argsort(FE.ravel(), kind="stable")
-    e = FE.ravel()[order]
-    same = e[1:] == e[:-1]
-    a, b = order[:-1][same], order[1:][same]  # half-edge ids of twin pairs
-    fa, fb = a // 3, b // 3
-    rows, cols = [], []
-    for endpoint in (0, 1):
-        v = H[a, endpoint]
-        rows.append(corner[fa][F[fa] == v[:, None]])
-        cols.append(corner[fb][F[fb] == v[:, None]])
-    rows = np.concatenate(rows)
-    cols = np.concatenate(cols)
-    G = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * nF, 3 * nF))
-    _, label = connected_components(G, directed=False)
-    pairs = np.unique(F.ravel().astype(np.int64) * (3 * nF) + label)
-    return np.bincount(pairs // (3 * nF), minlength=n_vertices)

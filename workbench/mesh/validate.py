@@ -6,11 +6,11 @@ import numpy as np
 
 from workbench.errors import WorkbenchError
 from workbench.mesh.topology import (
+    boundary_half_edges,
     boundary_loops,
     face_components,
     half_edges,
     unique_edges,
-    vertex_fan_count,
 )
 
 
@@ -39,7 +39,7 @@ def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
 
 
-def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> np.ndarray:
+def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Raise unless ``(V, F)`` is a clean, consistently oriented topological disc.
 
     Parameters
@@ -55,6 +55,8 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> np.ndarray:
     -------
     loop : (#B,) int
         The boundary loop, interior on the left, starting at its smallest index.
+    E, FE : arrays
+        :func:`unique_edges` of ``F`` (computed here anyway, handed on).
 
     Raises
     ------
@@ -90,31 +92,36 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> np.ndarray:
             f"{name}: {len(over)} non-manifold edges; edge ({e[0]}, {e[1]}) is shared by "
             f"{count[over[0]]} faces ({_first(faces, 4)})"
         )
+    # consistently oriented: the two faces of an interior edge run it in opposite
+    # directions, so the directions (+1 when from < to) of its half-edges sum to 0
     H = half_edges(F).reshape(-1, 2)
-    hkey = H[:, 0] * nV + H[:, 1]
-    hu, hinv, hcount = np.unique(hkey, return_inverse=True, return_counts=True)
-    if (hcount > 1).any():
-        i = int(np.flatnonzero(hcount > 1)[0])
-        faces = np.flatnonzero(hinv == i) // 3
-        a, b = divmod(int(hu[i]), nV)
+    direction = np.where(H[:, 0] < H[:, 1], 1.0, -1.0)
+    twisted = np.flatnonzero(np.abs(np.bincount(FE.ravel(), weights=direction, minlength=len(E))) > 1)
+    if len(twisted):
+        e = int(twisted[0])
+        faces = np.flatnonzero(FE.ravel() == e) // 3
+        a, b = H[np.flatnonzero(FE.ravel() == e)[0]]
         raise WorkbenchError(
             f"{name}: faces are inconsistently oriented: faces {faces[0]} and {faces[1]} both run "
             f"edge ({a}, {b}) the same way"
         )
-    labels = face_components(F)
+    labels = face_components(F, FE)
     n_comp = int(labels.max()) + 1
     if n_comp > 1:
         sizes = np.bincount(labels)
         raise WorkbenchError(
             f"{name}: mesh has {n_comp} connected components (sizes {_first(sizes, 4)} faces); a disc has 1"
         )
-    fans = vertex_fan_count(F, nV)
-    pinched = np.flatnonzero(fans > 1)
+    # each open fan of faces around a vertex starts one boundary edge there: two or
+    # more mark a vertex where separate sheets touch (pinches between closed fans
+    # show up in the Euler characteristic below)
+    B = boundary_half_edges(F, FE, count)
+    pinched = np.flatnonzero(np.bincount(B[:, 0], minlength=nV) > 1)
     if len(pinched):
         raise WorkbenchError(
             f"{name}: {len(pinched)} non-manifold vertices where separate fans of faces meet (vertex {_first(pinched)})"
         )
-    loops = boundary_loops(F)
+    loops = boundary_loops(F, B)
     if not loops:
         raise WorkbenchError(f"{name}: mesh is closed (no boundary); cut it open into a disc")
     if len(loops) > 1:
@@ -125,6 +132,6 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> np.ndarray:
     if chi != 1:
         raise WorkbenchError(
             f"{name}: mesh is not a disc: Euler characteristic {chi} with one boundary loop "
-            f"(genus {(1 - chi) // 2}); cut it along handles first"
+            f"(genus {(1 - chi) // 2}, or vertices where sheets touch); cut it along handles first"
         )
-    return loops[0]
+    return loops[0], E, FE

@@ -21,7 +21,7 @@ demo: install
 	$(VENV)/bin/workbench flatten fixtures/default/part.obj --out out/demo
 
 bench: install
-	$(PY) benchmarks/bench_flatten.py
+	$(PY) benchmarks/bench_flatten.py $(if $(BIG),--big)
 	$(PY) -m pytest -q -m slow
 
 lint: install

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from workbench import __version__
+from workbench.commands import design as design_cmd
 from workbench.commands import flatten as flatten_cmd
 from workbench.errors import UsageError, WorkbenchError
 
@@ -23,6 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     flatten_cmd.add_parser(sub)
+    design_cmd.add_parser(sub)
     return parser
 
 

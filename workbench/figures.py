@@ -97,6 +97,18 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
     bar.set_label("film stretch (3D length / print length)")
     if limit is not None:
         bar.ax.axhline(limit, color="red", lw=2)
+        bar.ax.text(
+            0.5,
+            limit,
+            " limit",
+            color="red",
+            va="bottom",
+            ha="center",
+            fontsize=8,
+            transform=bar.ax.get_yaxis_transform(),
+        )
+        if limit > hi:
+            bar.ax.set_ylabel(f"film stretch (3D length / print length); material limit {limit:g} is above the range")
     for name, v in zip("ABCD", corners, strict=True):
         x, y = uv[v]
         ax.plot([x], [y], "o", color="red", ms=6, clip_on=False)
@@ -118,6 +130,80 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
     ax.set_title(title, fontsize=10)
     buf = io.BytesIO()
     # light zlib compression: the picture is small either way, and level 6 costs 0.1 s
+    fig.savefig(buf, format="png", metadata={"Software": None}, pil_kwargs={"compress_level": 1})
+    plt.close(fig)
+    return buf.getvalue()
+
+
+VIEW_COLOURS = [
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
+    (23, 190, 207),
+]
+
+
+def views_figure(
+    owner: np.ndarray,
+    names: list[str],
+    shares: list[float],
+    width_mm: float,
+    height_mm: float,
+    title: str,
+    max_px: int = 1000,
+) -> bytes:
+    """PNG of which view owns each print pixel, with a legend.
+
+    Parameters
+    ----------
+    owner : (rows, cols) int8
+        Owning view per print pixel, -1 for none.
+    names : list of str
+        View names.
+    shares : list of float
+        Share of the print each view owns.
+    width_mm, height_mm : float
+        Design rectangle.
+    title : str
+        Figure title.
+    max_px : int
+        Longer side of the picture's raster.
+
+    Returns
+    -------
+    bytes
+        PNG.
+    """
+    import cv2
+    from matplotlib.patches import Patch
+
+    plt = _figure()
+    rows, cols = owner.shape
+    s = min(1.0, max_px / max(rows, cols))
+    small = cv2.resize(owner, (max(int(cols * s), 1), max(int(rows * s), 1)), interpolation=cv2.INTER_NEAREST)
+    palette = np.array(VIEW_COLOURS * (len(names) // len(VIEW_COLOURS) + 1), dtype=np.uint8)
+    img = np.full(small.shape + (3,), 235, dtype=np.uint8)
+    img[small >= 0] = palette[small[small >= 0]]
+    fig, ax = plt.subplots(figsize=(8, max(8 * height_mm / width_mm, 3) + 1.2), dpi=110)
+    ax.imshow(img, extent=(0, width_mm, 0, height_mm), origin="upper", interpolation="nearest", aspect="equal")
+    handles = [
+        Patch(color=palette[i] / 255, label=f"{n} ({100 * sh:.1f} %)")
+        for i, (n, sh) in enumerate(zip(names, shares, strict=True))
+    ]
+    unowned = float((owner < 0).mean())
+    handles.append(Patch(color=(235 / 255,) * 3, label=f"no view, background ({100 * unowned:.1f} %)"))
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=min(len(handles), 3), fontsize=9)
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
     fig.savefig(buf, format="png", metadata={"Software": None}, pil_kwargs={"compress_level": 1})
     plt.close(fig)
     return buf.getvalue()

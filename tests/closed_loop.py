@@ -1,0 +1,90 @@
+"""An independent renderer and a misregistration measure, for closed-loop tests of design.
+
+The renderer casts one ray per view pixel centre (trimesh with Embree), interpolates the
+hit's texture coordinates barycentrically and samples the print: nothing is shared with
+the synthesis, which goes the other way (print pixel → surface → view).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import trimesh
+
+from workbench.camera import Camera
+
+
+def render_decorated(V, F, vt, rgb, camera: Camera):
+    """Image of the decorated mesh seen by ``camera``.
+
+    Returns
+    -------
+    image : (H, W, 3) uint8
+        Rendered print where a ray hits, 0 elsewhere.
+    hit_uv_px : (H, W, 2) float
+        Print pixel coordinates of each hit (NaN: no hit).
+    """
+    W, H = camera.width, camera.height
+    jj, ii = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    pix = np.stack([jj.ravel(), ii.ravel(), np.ones(W * H)], axis=1)
+    d = pix @ np.linalg.inv(camera.K).T @ camera.R  # camera rays to world: Rᵀ K⁻¹ [x y 1]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.broadcast_to(camera.center, d.shape)
+    mesh = trimesh.Trimesh(V, F, process=False)
+    loc, ray, tri = mesh.ray.intersects_location(o, d, multiple_hits=False)
+    bary = trimesh.triangles.points_to_barycentric(mesh.triangles[tri], loc)
+    uv = np.einsum("ij,ijk->ik", bary, vt[F[tri]])
+    rows, cols = rgb.shape[:2]
+    px = np.full((H * W, 2), np.nan)
+    px[ray, 0] = uv[:, 0] * cols - 0.5
+    px[ray, 1] = (1.0 - uv[:, 1]) * rows - 0.5
+    px = px.reshape(H, W, 2)
+    mapx = np.nan_to_num(px[..., 0], nan=-1e4).astype(np.float32)
+    mapy = np.nan_to_num(px[..., 1], nan=-1e4).astype(np.float32)
+    img = cv2.remap(rgb, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return img, px
+
+
+def tile_misregistration(reference, image, mask, tile=64, min_texture=50.0):
+    """Translation between two images on square tiles, by ECC, where it is well defined.
+
+    Tiles must lie wholly inside ``mask`` and carry gradients in two directions (the
+    smaller eigenvalue of the structure tensor per pixel above ``min_texture``): a tile
+    with a single straight edge only fixes the shift across it (aperture problem).
+
+    Returns
+    -------
+    shifts : (n, 2) float
+        Per tile, the (dx, dy) that moves ``image`` onto ``reference``, pixels.
+    """
+    ref = cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    img = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    gx = cv2.Sobel(ref, cv2.CV_32F, 1, 0, ksize=3) / 8
+    gy = cv2.Sobel(ref, cv2.CV_32F, 0, 1, ksize=3) / 8
+    shifts = []
+    H, W = ref.shape
+    for y in range(0, H - tile + 1, tile):
+        for x in range(0, W - tile + 1, tile):
+            if not mask[y : y + tile, x : x + tile].all():
+                continue
+            a = gx[y : y + tile, x : x + tile]
+            b = gy[y : y + tile, x : x + tile]
+            S = np.array([[(a * a).mean(), (a * b).mean()], [(a * b).mean(), (b * b).mean()]])
+            if np.linalg.eigvalsh(S)[0] < min_texture:
+                continue
+            warp = np.eye(2, 3, dtype=np.float32)
+            try:
+                cc, warp = cv2.findTransformECC(
+                    ref[y : y + tile, x : x + tile],
+                    img[y : y + tile, x : x + tile],
+                    warp,
+                    cv2.MOTION_TRANSLATION,
+                    (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6),
+                    None,
+                    1,
+                )
+            except cv2.error:
+                continue
+            if cc > 0.9:
+                shifts.append(warp[:, 2].copy())
+    return np.array(shifts).reshape(-1, 2)

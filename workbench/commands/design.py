@@ -1,0 +1,128 @@
+"""``workbench design``: a job file in, the print texture and the decorated mesh out."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from workbench import __version__
+from workbench.atomic import write_files
+from workbench.commands.flatten import summary
+from workbench.design import design, view_statistics
+from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
+from workbench.figures import stretch_figure, views_figure
+from workbench.job import load_job
+from workbench.mesh.io import format_obj
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "design",
+        help="compute the print of a job: multi-view projective texture on a conformal map",
+        description=(
+            "Compute one print from a job file (mesh + views in priority order). Writes DIR/print.png "
+            "(with its dpi), decorated.obj/.mtl and decorated.glb (the part textured with the print), "
+            "flat.obj, design.json, views.png (which view owns each print pixel) and stretch.png."
+        ),
+    )
+    p.add_argument("job", metavar="JOB.toml", help="job file (see README: Job file)")
+    p.add_argument("--out", metavar="DIR", help="output directory (default: design-<job name>)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    job = load_job(args.job)
+    out = Path(args.out) if args.out else Path(f"design-{job.name}")
+    result = design(job, log)
+
+    t0 = time.perf_counter()
+    names = [v.name for v in job.views]
+    grid, flat = result.grid, result.flat
+    rows, cols = grid.shape
+    image_w_mm, image_h_mm = cols / grid.px_per_mm, rows / grid.px_per_mm
+    vt = texture_uv(flat.uv, image_w_mm, image_h_mm, flat.height_mm)
+    obj, mtl = decorated_obj(result.V, result.F, vt, "decorated", "print.png")
+    stats = view_statistics(result, names)
+    flat_summary = summary(flat, result.V, result.F)
+    limit = job.object.material.max_stretch
+    over = None if limit is None else float(flat.area_3d[~flat.collapsed][flat.stretch[~flat.collapsed] > limit].sum())
+    info = {
+        "software": {"name": "workbench", "version": __version__},
+        "job": {"file": str(job.path), "sha256": job.sha256, "name": job.name},
+        "print": {
+            "width_mm": flat.width_mm,
+            "height_mm": flat.height_mm,
+            "dpi": grid.dpi,
+            "width_px": cols,
+            "height_px": rows,
+            "image_width_mm": image_w_mm,
+            "image_height_mm": image_h_mm,
+            "background_share": float((result.owner < 0).mean()),
+        },
+        "corners": flat_summary["corners"],
+        "corner_rule": flat_summary["corner_rule"],
+        "scale_mode": flat_summary["scale_mode"],
+        "material": {"name": job.object.material.name, "max_stretch": limit, "surface_over_limit_mm2": over},
+        "stretch": flat_summary["stretch"],
+        "conformal_distortion": flat_summary["conformal_distortion"],
+        "flatten": {
+            k: flat_summary[k]
+            for k in (
+                "angle_residual_max_rad",
+                "newton_iterations",
+                "flipped_faces",
+                "collapsed_faces",
+                "intrinsic_flips",
+            )
+        },
+        "views": stats,
+        "mesh": flat_summary["mesh"],
+    }
+    files = {
+        out / "print.png": png_bytes(result.rgb, grid.dpi),
+        out / "decorated.obj": obj,
+        out / "decorated.mtl": mtl,
+        out / "decorated.glb": decorated_glb(result.V, result.F, vt, result.rgb),
+        out / "flat.obj": format_obj(
+            np.column_stack([flat.uv, np.zeros(len(flat.uv))]),
+            result.F,
+            header=f"workbench {__version__} flat layout of {job.object.mesh.name}, mm",
+        ),
+        out / "views.png": views_figure(
+            result.owner,
+            names,
+            [s["print_share"] for s in stats],
+            flat.width_mm,
+            flat.height_mm,
+            f"{job.name}: which view owns each print pixel",
+        ),
+        out / "stretch.png": stretch_figure(
+            flat.uv,
+            result.F,
+            flat.stretch,
+            flat.corners,
+            flat.width_mm,
+            flat.height_mm,
+            title=f"{job.name}: film stretch, {job.object.material.name}",
+            limit=limit,
+        ),
+    }
+    timings = {**result.timings_s, "write": time.perf_counter() - t0}
+    info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
+    files[out / "design.json"] = (json.dumps(info, indent=2) + "\n").encode()
+    write_files(files)
+    log(
+        f"print {flat.width_mm:.2f} x {flat.height_mm:.2f} mm, {cols} x {rows} px at {grid.dpi:g} dpi; "
+        + "; ".join(f"{s['name']} {100 * s['print_share']:.1f} %" for s in stats)
+        + f"; background {100 * info['print']['background_share']:.1f} %"
+    )
+    if over:
+        log(f"warning: {over:.1f} mm² of the surface stretch beyond the material's limit {limit:g}")
+    log(f"wrote {out}/: print.png, decorated.obj/.mtl/.glb, flat.obj, design.json, views.png, stretch.png")
+    return 0

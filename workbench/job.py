@@ -1,0 +1,307 @@
+"""The job file (TOML): the object, the print and the views, every error naming its key and file."""
+
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from workbench.camera import Camera
+from workbench.conformal.flatten import ScaleMode
+from workbench.errors import UsageError, WorkbenchError
+from workbench.mesh.io import UNITS_MM
+
+
+@dataclass(frozen=True)
+class Material:
+    """The film or paper: its name and how far it may stretch (3D length / print length)."""
+
+    name: str = "unspecified"
+    max_stretch: float | None = None
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """``[object]``: the part's mesh."""
+
+    mesh: Path
+    units: str = "mm"
+    corners: tuple[int, int, int, int] | None = None
+    material: Material = Material()
+
+
+@dataclass(frozen=True)
+class PrintSpec:
+    """``[print]``: resolution, scale and colours of the print."""
+
+    dpi: float = 300.0
+    scale: ScaleMode = ScaleMode()
+    background: tuple[int, int, int] = (255, 255, 255)
+    margin_mm: float = 10.0
+    bleed_mm: float = 3.0
+
+
+@dataclass(frozen=True)
+class ViewSpec:
+    """``[[views]]``: one viewpoint and the image the part must show from it."""
+
+    name: str
+    image: Path
+    camera: dict
+    region: str = "largest"
+
+    def make_camera(self, width: int, height: int) -> Camera:
+        """The camera for an image of this size (the image's pixel grid is the sensor)."""
+        c = self.camera
+        if "position" in c:
+            return Camera.look_at(c["position"], c["look_at"], c["up"], c["fov_deg"], width, height)
+        K = np.array([[c["fx"], 0.0, c["cx"]], [0.0, c["fy"], c["cy"]], [0.0, 0.0, 1.0]])
+        return Camera(
+            K=K, R=c["rotation"], t=np.asarray(c["translation"], dtype=np.float64), width=width, height=height
+        )
+
+
+@dataclass(frozen=True)
+class Job:
+    """A parsed job file; paths are absolute."""
+
+    path: Path
+    sha256: str
+    object: ObjectSpec
+    print: PrintSpec
+    views: tuple[ViewSpec, ...]
+    fixture: dict | None
+
+    @property
+    def name(self) -> str:
+        """The file's name, or its folder's when the file is just ``job.toml``."""
+        return self.path.parent.name if self.path.stem == "job" else self.path.stem
+
+
+class _Reader:
+    """Typed access to one TOML table, with errors that name the file and the key."""
+
+    def __init__(self, path: Path, where: str, table: object, known: set[str]):
+        self.path, self.where = path, where
+        if not isinstance(table, dict):
+            self.fail(f"must be a table, got {type(table).__name__}")
+        self.table = table
+        unknown = sorted(set(table) - known)
+        if unknown:
+            self.fail(f"unknown key {unknown[0]!r} (known keys: {', '.join(sorted(known))})")
+
+    def fail(self, message: str, key: str | None = None):
+        at = f"{self.where}.{key}" if key else self.where
+        raise WorkbenchError(f"{self.path}: {at}: {message}")
+
+    def has(self, key: str) -> bool:
+        return key in self.table
+
+    def get(self, key: str, default=None, required: bool = False):
+        if key not in self.table:
+            if required:
+                self.fail("missing", key)
+            return default
+        return self.table[key]
+
+    def number(self, key: str, default=None, lo=None, hi=None, required=False, integer=False) -> float | None:
+        value = self.get(key, default, required)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float) or (integer and not isinstance(value, int)):
+            self.fail(f"must be {'an integer' if integer else 'a number'}, got {value!r}", key)
+        if not np.isfinite(value) or (lo is not None and value <= lo) or (hi is not None and value >= hi):
+            bounds = (
+                f" between {lo} and {hi}"
+                if lo is not None and hi is not None
+                else (f" above {lo}" if lo is not None else "")
+            )
+            self.fail(f"must be a number{bounds}, got {value!r}", key)
+        return value
+
+    def string(self, key: str, default=None, required=False, choices=None) -> str | None:
+        value = self.get(key, default, required)
+        if value is None:
+            return None
+        if not isinstance(value, str):
+            self.fail(f"must be a string, got {value!r}", key)
+        if choices is not None and value not in choices:
+            self.fail(f"must be one of {', '.join(choices)}, got {value!r}", key)
+        return value
+
+    def vector(self, key: str, n: int, required=False, default=None) -> np.ndarray | None:
+        value = self.get(key, default, required)
+        if value is None:
+            return None
+        try:
+            arr = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            self.fail(f"must be a list of {n} numbers, got {value!r}", key)
+        if arr.shape != (n,) or not np.isfinite(arr).all():
+            self.fail(f"must be a list of {n} numbers, got {value!r}", key)
+        return arr
+
+    def file(self, key: str, required=True) -> Path | None:
+        value = self.string(key, required=required)
+        if value is None:
+            return None
+        path = (self.path.parent / value).resolve()
+        if not path.is_file():
+            self.fail(f"file {value!r} not found (looked for {path})", key)
+        return path
+
+
+def _colour(r: _Reader, key: str, default) -> tuple[int, int, int]:
+    value = r.get(key, default)
+    if isinstance(value, str) and len(value) == 7 and value.startswith("#"):
+        try:
+            return tuple(int(value[i : i + 2], 16) for i in (1, 3, 5))  # type: ignore[return-value]
+        except ValueError:
+            pass
+    elif (
+        isinstance(value, list | tuple) and len(value) == 3 and all(isinstance(v, int) and 0 <= v <= 255 for v in value)
+    ):
+        return tuple(value)  # type: ignore[return-value]
+    r.fail(f'must be "#rrggbb" or [r, g, b] with values 0 to 255, got {value!r}', key)
+
+
+def _rotation(r: _Reader) -> np.ndarray:
+    value = r.get("rotation", required=True)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape == (3,) and np.isfinite(arr).all():
+        import cv2  # a rotation vector (Rodrigues, radians), as OpenCV writes them
+
+        return cv2.Rodrigues(arr)[0]
+    if arr.shape == (3, 3) and np.isfinite(arr).all():
+        if np.abs(arr @ arr.T - np.eye(3)).max() > 1e-6 or np.linalg.det(arr) < 0:
+            r.fail("must be a proper rotation matrix (orthonormal, determinant +1)", "rotation")
+        return arr
+    r.fail("must be a 3x3 rotation matrix or a rotation vector [rx, ry, rz] in radians", "rotation")
+
+
+VIEW_POSE_KEYS = {"position", "look_at", "up", "fov_deg"}
+VIEW_K_KEYS = {"fx", "fy", "cx", "cy", "rotation", "translation"}
+
+
+def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
+    r = _Reader(path, f"views[{i}]", table, {"name", "image", "region"} | VIEW_POSE_KEYS | VIEW_K_KEYS)
+    name = r.string("name", required=True)
+    if not name:
+        r.fail("must not be empty", "name")
+    if name in names:
+        r.fail(f"view name {name!r} is used twice", "name")
+    image = r.file("image")
+    region = r.string("region", "largest", choices=("largest", "all"))
+    pose, intr = VIEW_POSE_KEYS & set(r.table), VIEW_K_KEYS & set(r.table)
+    if pose and intr:
+        r.fail(
+            f"give the camera as {', '.join(sorted(VIEW_POSE_KEYS))} or as {', '.join(sorted(VIEW_K_KEYS))}, not both"
+        )
+    if pose:
+        for k in sorted(VIEW_POSE_KEYS - pose):
+            r.fail("missing", k)
+        camera = {
+            "position": r.vector("position", 3),
+            "look_at": r.vector("look_at", 3),
+            "up": r.vector("up", 3),
+            "fov_deg": r.number("fov_deg", lo=0, hi=180),
+        }
+        d = camera["look_at"] - camera["position"]
+        if np.linalg.norm(d) == 0:
+            r.fail("look_at must differ from position", "look_at")
+        if np.linalg.norm(np.cross(d, camera["up"])) <= 1e-9 * np.linalg.norm(d) * max(
+            np.linalg.norm(camera["up"]), 1e-300
+        ):
+            r.fail("up must not be parallel to the viewing direction", "up")
+    elif intr:
+        for k in sorted(VIEW_K_KEYS - intr):
+            r.fail("missing", k)
+        camera = {k: r.number(k, lo=0 if k in ("fx", "fy") else None) for k in ("fx", "fy", "cx", "cy")}
+        camera["rotation"] = _rotation(r)
+        camera["translation"] = r.vector("translation", 3)
+    else:
+        r.fail(f"no camera: give {', '.join(sorted(VIEW_POSE_KEYS))} or {', '.join(sorted(VIEW_K_KEYS))}")
+    return ViewSpec(name=name, image=image, camera=camera, region=region)
+
+
+def load_job(path: str | Path) -> Job:
+    """Read and check a job file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file; paths inside it are relative to it.
+
+    Returns
+    -------
+    Job
+
+    Raises
+    ------
+    WorkbenchError
+        Unreadable TOML, unknown keys, missing files, impossible values; the message
+        names the file and the key.
+    """
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: no such job file")
+    data = path.read_bytes()
+    try:
+        doc = tomllib.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise WorkbenchError(f"{path}: not valid TOML: {exc}") from None
+    top = _Reader(path, "job", doc, {"object", "print", "views", "fixture"})
+
+    o = _Reader(path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material"})
+    corners = o.get("corners")
+    if corners is not None:
+        if not (
+            isinstance(corners, list)
+            and len(corners) == 4
+            and all(isinstance(c, int) and not isinstance(c, bool) for c in corners)
+        ):
+            o.fail(f"must be a list of 4 vertex indices, got {corners!r}", "corners")
+        corners = tuple(corners)
+    m = _Reader(path, "object.material", o.get("material", {}), {"name", "max_stretch"})
+    material = Material(name=m.string("name", "unspecified"), max_stretch=m.number("max_stretch", None, lo=0))
+    obj = ObjectSpec(
+        mesh=o.file("mesh"), units=o.string("units", "mm", choices=tuple(UNITS_MM)), corners=corners, material=material
+    )
+
+    p = _Reader(path, "print", top.get("print", {}), {"dpi", "scale", "background", "margin_mm", "bleed_mm"})
+    try:
+        scale = ScaleMode.parse(p.string("scale", "isometric"))
+    except UsageError as exc:
+        p.fail(str(exc).replace("--scale ", ""), "scale")
+    spec = PrintSpec(
+        dpi=p.number("dpi", 300.0, lo=0),
+        scale=scale,
+        background=_colour(p, "background", "#ffffff"),
+        margin_mm=p.number("margin_mm", 10.0, lo=-1e-300),
+        bleed_mm=p.number("bleed_mm", 3.0, lo=-1e-300),
+    )
+
+    views_raw = top.get("views", required=True)
+    if not isinstance(views_raw, list) or not views_raw:
+        top.fail("must be one or more [[views]] tables", "views")
+    views: list[ViewSpec] = []
+    for i, v in enumerate(views_raw):
+        views.append(_view(path, i, v, {x.name for x in views}))
+
+    fixture = top.get("fixture")
+    if fixture is not None and not isinstance(fixture, dict):
+        top.fail("must be a table", "fixture")
+    return Job(
+        path=path,
+        sha256=hashlib.sha256(data).hexdigest(),
+        object=obj,
+        print=spec,
+        views=tuple(views),
+        fixture=fixture,
+    )

@@ -1,0 +1,235 @@
+"""Per-pixel synthesis of the print: print pixel → surface point → owning view → image sample."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numba
+import numpy as np
+
+from workbench.camera import Camera
+from workbench.raster import _JIT, _inside, _setup
+from workbench.views.visibility import ViewVisibility, project_point, unoccluded
+
+MM_PER_INCH = 25.4
+
+
+@dataclass(frozen=True)
+class PrintGrid:
+    """The print's pixel grid over the design rectangle.
+
+    Pixel (i, j) has its centre at x = (j + 0.5) · 25.4 / dpi mm from the left edge
+    and y = (i + 0.5) · 25.4 / dpi mm down from the top edge of the design rectangle
+    (DESIGN.md). The image covers the rectangle with whole pixels: it is
+    ``ceil(size · dpi / 25.4)`` pixels, so it reaches less than one pixel beyond the
+    right and bottom edges.
+
+    Attributes
+    ----------
+    width_mm, height_mm : float
+        Design rectangle.
+    dpi : float
+        Pixels per inch.
+    """
+
+    width_mm: float
+    height_mm: float
+    dpi: float
+
+    @property
+    def px_per_mm(self) -> float:
+        return self.dpi / MM_PER_INCH
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, columns)."""
+        s = self.px_per_mm
+        # 1e-9: a size that is a whole number of pixels up to rounding stays that number
+        return int(np.ceil(self.height_mm * s - 1e-9)), int(np.ceil(self.width_mm * s - 1e-9))
+
+    def to_pixels(self, uv_mm: np.ndarray) -> np.ndarray:
+        """Flat positions (x right, y up, mm; A at the origin) to pixel coordinates (x right, y down)."""
+        s = self.px_per_mm
+        return np.stack([uv_mm[:, 0] * s - 0.5, (self.height_mm - uv_mm[:, 1]) * s - 0.5], axis=1)
+
+
+def prefilter(image: np.ndarray, camera: Camera, view_px_per_print_px: float) -> tuple[np.ndarray, Camera]:
+    """Area-filter a view image where the print is coarser than it.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        View image.
+    camera : Camera
+        Its camera.
+    view_px_per_print_px : float
+        Typical number of view pixels one print pixel spans (linear).
+
+    Returns
+    -------
+    image, camera
+        Unchanged when a print pixel spans at most 1.5 view pixels; else the image
+        reduced with pixel-area averaging to about one view pixel per print pixel,
+        and the camera that sees that reduced image.
+    """
+    if view_px_per_print_px <= 1.5:
+        return image, camera
+    cam = camera.scaled(1.0 / view_px_per_print_px)
+    return cv2.resize(image, (cam.width, cam.height), interpolation=cv2.INTER_AREA), cam
+
+
+@numba.njit(parallel=True, **_JIT)
+def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isize, background, out, owner):
+    n_views = status.shape[1]
+    H, W = out.shape[0], out.shape[1]
+    for f in numba.prange(F.shape[0]):
+        claimed = False
+        for v in range(n_views):
+            if status[f, v] != 0:
+                claimed = True
+        if not claimed:
+            continue
+        x0, x1, y0, y1, area2 = _setup(P, F, f, W, H)
+        if area2 * orient <= 0.0:
+            continue  # collapsed or folded in the print: covered by its neighbours
+        inv = 1.0 / abs(area2)
+        i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
+        for py in range(y0, y1 + 1):
+            for px in range(x0, x1 + 1):
+                w0, w1, w2, ok = _inside(P, F, f, orient, float(px), float(py))
+                if not ok:
+                    continue
+                l0, l1, l2 = w0 * inv, w1 * inv, w2 * inv
+                X0 = l0 * V[i0, 0] + l1 * V[i1, 0] + l2 * V[i2, 0]
+                X1 = l0 * V[i0, 1] + l1 * V[i1, 1] + l2 * V[i2, 1]
+                X2 = l0 * V[i0, 2] + l1 * V[i1, 2] + l2 * V[i2, 2]
+                chosen = -1
+                for v in range(n_views):
+                    st = status[f, v]
+                    if st == 0:
+                        continue
+                    if st == 2:
+                        xd, yd, zd = project_point(dcams[v], X0, X1, X2)
+                        if not unoccluded(depth[v], dsize[v, 0], dsize[v, 1], dcams[v, 0], xd, yd, zd):
+                            continue
+                    chosen = v
+                    break
+                if chosen < 0:
+                    continue
+                xs, ys, _ = project_point(cams[chosen], X0, X1, X2)
+                # bilinear sample; the stack has a one-pixel replicated border, so
+                # view pixel (i, j) is at [i + 1, j + 1] and the image edge is sampled
+                # as OpenCV's BORDER_REPLICATE would
+                wv, hv = isize[chosen, 0], isize[chosen, 1]
+                xs = min(max(xs, -0.5), wv - 0.5)
+                ys = min(max(ys, -0.5), hv - 0.5)
+                jx = int(np.floor(xs))
+                iy = int(np.floor(ys))
+                fx = xs - jx
+                fy = ys - iy
+                for c in range(3):
+                    a = images[chosen, iy + 1, jx + 1, c] * (1.0 - fx) + images[chosen, iy + 1, jx + 2, c] * fx
+                    b = images[chosen, iy + 2, jx + 1, c] * (1.0 - fx) + images[chosen, iy + 2, jx + 2, c] * fx
+                    out[py, px, c] = np.uint8(min(max(a * (1.0 - fy) + b * fy + 0.5, 0.0), 255.0))
+                owner[py, px] = chosen
+
+
+def synthesize_print(
+    grid: PrintGrid,
+    uv_mm: np.ndarray,
+    V: np.ndarray,
+    F: np.ndarray,
+    status: np.ndarray,
+    visibilities: list[ViewVisibility],
+    images: list[np.ndarray],
+    background: tuple[int, int, int],
+) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """The print texture, one surface point per print pixel, sampled in its owning view.
+
+    Parameters
+    ----------
+    grid : PrintGrid
+        The print's pixels.
+    uv_mm : (#V, 2) float
+        Flat layout, mm (y up).
+    V : (#V, 3) float
+        Surface positions, mm.
+    F : (#F, 3) int
+        Triangles.
+    status : (#F, #views) int8
+        Ownership from :func:`workbench.views.visibility.assign_views`.
+    visibilities : list of ViewVisibility
+        Per view, in priority order (cameras and depth buffers).
+    images : list of (H, W, 3) uint8
+        View images, RGB.
+    background : (3,) int
+        Colour of pixels no view owns.
+
+    Returns
+    -------
+    rgb : (rows, cols, 3) uint8
+        The print.
+    owner : (rows, cols) int8
+        Owning view per pixel, -1 for background.
+    view_px_per_print_px : list of float
+        Per view, the median number of view pixels a print pixel spans (above 1.5 the
+        view image was area-filtered first).
+    """
+    rows, cols = grid.shape
+    P = grid.to_pixels(uv_mm)
+    # the print's faces share one orientation (the layout's, mirrored by y down)
+    a, b, c = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    orient = -1.0 if np.median(area2) < 0 else 1.0
+    scales, cams, used = [], [], []
+    for v, (vis, img) in enumerate(zip(visibilities, images, strict=True)):
+        claimed = status[:, v] != 0
+        xy, _ = vis.camera.project(V)
+        s = _median_scale(xy, P, F[claimed], np.abs(area2[claimed]))
+        scales.append(s)
+        img2, cam2 = prefilter(img, vis.camera, s)
+        used.append(img2)
+        cams.append(cam2)
+    hmax = max(im.shape[0] for im in used) + 2
+    wmax = max(im.shape[1] for im in used) + 2
+    stack = np.zeros((len(used), hmax, wmax, 3), dtype=np.uint8)
+    for v, im in enumerate(used):
+        stack[v, : im.shape[0] + 2, : im.shape[1] + 2] = cv2.copyMakeBorder(im, 1, 1, 1, 1, cv2.BORDER_REPLICATE)
+    dh = max(vis.depth.shape[0] for vis in visibilities)
+    dw = max(vis.depth.shape[1] for vis in visibilities)
+    depth = np.full((len(visibilities), dh, dw), np.inf)
+    for v, vis in enumerate(visibilities):
+        depth[v, : vis.depth.shape[0], : vis.depth.shape[1]] = vis.depth
+    out = np.empty((rows, cols, 3), dtype=np.uint8)
+    out[:] = np.asarray(background, dtype=np.uint8)
+    owner = np.full((rows, cols), -1, dtype=np.int8)
+    _synthesize(
+        np.ascontiguousarray(P),
+        np.ascontiguousarray(F, dtype=np.int64),
+        np.ascontiguousarray(V, dtype=np.float64),
+        orient,
+        np.ascontiguousarray(status),
+        np.stack([c.packed() for c in cams]),
+        np.stack([vis.camera.packed() for vis in visibilities]),
+        depth,
+        np.array([[vis.camera.width, vis.camera.height] for vis in visibilities], dtype=np.int64),
+        stack,
+        np.array([[c.width, c.height] for c in cams], dtype=np.int64),
+        np.asarray(background, dtype=np.uint8),
+        out,
+        owner,
+    )
+    return out, owner, scales
+
+
+def _median_scale(xy: np.ndarray, P: np.ndarray, F: np.ndarray, print_area2: np.ndarray) -> float:
+    """Area-weighted median over faces of sqrt(view area / print area), in pixels."""
+    if len(F) == 0:
+        return 1.0
+    a, b, c = xy[F[:, 0]], xy[F[:, 1]], xy[F[:, 2]]
+    view_area2 = np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    ratio = np.sqrt(view_area2 / np.maximum(print_area2, 1e-300))
+    order = np.argsort(ratio)
+    cw = np.cumsum(print_area2[order])
+    return float(ratio[order][np.searchsorted(cw, 0.5 * cw[-1])])

@@ -1,0 +1,176 @@
+"""Which faces each view sees, and which view owns each face (priority order, no blending)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from workbench.camera import Camera
+from workbench.raster import _JIT, depth_buffer
+
+# A point counts as unoccluded when it is no farther than the nearest surface seen
+# around it by this share of its depth plus two pixel footprints: the depth buffer
+# is exact at pixel centres only, and a point between centres on a steep face sits
+# up to a footprint times the slope away from them.
+DEPTH_TOLERANCE_REL = 0.005
+DEPTH_TOLERANCE_PX = 2.0
+
+
+@numba.njit(inline="always", **_JIT)
+def project_point(cam, X0, X1, X2):
+    """Pixel x, y and depth z of a world point for a packed camera (see Camera.packed)."""
+    xc = cam[4] * X0 + cam[5] * X1 + cam[6] * X2 + cam[13]
+    yc = cam[7] * X0 + cam[8] * X1 + cam[9] * X2 + cam[14]
+    zc = cam[10] * X0 + cam[11] * X1 + cam[12] * X2 + cam[15]
+    if zc <= 0.0:
+        return -1e30, -1e30, zc
+    return cam[0] * xc / zc + cam[2], cam[1] * yc / zc + cam[3], zc
+
+
+@numba.njit(inline="always", **_JIT)
+def unoccluded(depth, width, height, fx, x, y, z):
+    """True when a point at pixel (x, y), depth z lies inside the image and in front of
+    or on the nearest surface at the surrounding 2x2 pixel centres."""
+    if z <= 0.0 or x < -0.5 or y < -0.5 or x > width - 0.5 or y > height - 0.5:
+        return False
+    j0 = min(max(int(np.floor(x)), 0), width - 1)
+    i0 = min(max(int(np.floor(y)), 0), height - 1)
+    j1 = min(j0 + 1, width - 1)
+    i1 = min(i0 + 1, height - 1)
+    d = max(max(depth[i0, j0], depth[i0, j1]), max(depth[i1, j0], depth[i1, j1]))
+    return z <= d + DEPTH_TOLERANCE_REL * z + DEPTH_TOLERANCE_PX * z / fx
+
+
+@numba.njit(parallel=True, **_JIT)
+def _unoccluded_many(depth, width, height, fx, xy, z, out):
+    for k in numba.prange(len(z)):
+        out[k] = unoccluded(depth, width, height, fx, xy[k, 0], xy[k, 1], z[k])
+
+
+@dataclass
+class ViewVisibility:
+    """What one camera sees of the mesh.
+
+    Attributes
+    ----------
+    camera : Camera
+        The view's camera.
+    depth : (H, W) float
+        Depth of the nearest surface at each pixel centre, mm (+inf: none).
+    face_buffer : (H, W) int32
+        Nearest face at each pixel centre (-1: none).
+    full : (#F,) bool
+        Front-facing faces whose corners and centroid are all unoccluded and inside
+        the image: the whole face is seen.
+    partial : (#F,) bool
+        Front-facing faces seen in part: some samples unoccluded, or the face is
+        nearest somewhere in the image. Their pixels are tested one by one.
+    """
+
+    camera: Camera
+    depth: np.ndarray
+    face_buffer: np.ndarray
+    full: np.ndarray
+    partial: np.ndarray
+
+
+def points_unoccluded(vis: ViewVisibility, X: np.ndarray) -> np.ndarray:
+    """Which world points (n, 3) a view sees: inside its image and not hidden; (n,) bool."""
+    xy, z = vis.camera.project(X)
+    out = np.zeros(len(X), dtype=np.bool_)
+    cam = vis.camera
+    _unoccluded_many(
+        vis.depth, cam.width, cam.height, cam.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), out
+    )
+    return out
+
+
+def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera) -> ViewVisibility:
+    """Depth buffer of a view and the faces it sees fully or in part.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions, mm.
+    F : (#F, 3) int
+        Triangles, counter-clockwise seen from the decorated side.
+    camera : Camera
+        The view.
+
+    Returns
+    -------
+    ViewVisibility
+    """
+    xy, z = camera.project(V)
+    face_buffer, depth = depth_buffer(xy, z, F, camera.width, camera.height)
+    vis = ViewVisibility(camera, depth, face_buffer, np.zeros(len(F), bool), np.zeros(len(F), bool))
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    centroid = (a + b + c) / 3.0
+    normal = np.cross(b - a, c - a)
+    front = np.einsum("ij,ij->i", normal, camera.center - centroid) > 0
+    samples = np.stack([a, b, c, centroid], axis=1).reshape(-1, 3)
+    seen = points_unoccluded(vis, samples).reshape(-1, 4)
+    in_buffer = np.zeros(len(F), dtype=bool)
+    in_buffer[face_buffer[face_buffer >= 0]] = True
+    vis.full = front & seen.all(axis=1)
+    vis.partial = front & ~vis.full & (seen.any(axis=1) | in_buffer)
+    return vis
+
+
+def face_adjacency(FE: np.ndarray) -> sp.csr_matrix:
+    """Faces sharing an edge; (#F, #F) sparse bool, from ``FE`` (#F, 3) of unique_edges."""
+    nF = len(FE)
+    inc = sp.csr_matrix((np.ones(3 * nF), (np.repeat(np.arange(nF), 3), FE.ravel())))
+    A = (inc @ inc.T).tocsr()
+    A.setdiag(0)
+    A.eliminate_zeros()
+    return A
+
+
+def assign_views(
+    visibilities: list[ViewVisibility], regions: list[str], adjacency: sp.csr_matrix, face_area: np.ndarray
+) -> np.ndarray:
+    """Ownership of faces by views in priority order (paper §3.1).
+
+    A view may claim the faces it sees that no earlier view sees whole; it keeps one
+    connected region of them (the largest by surface area, or all with ``'all'``).
+    Faces an earlier view sees only in part stay claimable, so the later view fills
+    what the earlier one cannot see, pixel by pixel.
+
+    Parameters
+    ----------
+    visibilities : list of ViewVisibility
+        In priority order.
+    regions : list of {'largest', 'all'}
+        Region rule per view.
+    adjacency : (#F, #F) sparse
+        Face adjacency (:func:`face_adjacency`).
+    face_area : (#F,) float
+        Surface area per face, mm².
+
+    Returns
+    -------
+    status : (#F, #views) int8
+        0: the view does not claim the face; 1: it claims the whole face; 2: it
+        claims the face where it sees it (per-pixel test).
+    """
+    nF = len(face_area)
+    status = np.zeros((nF, len(visibilities)), dtype=np.int8)
+    taken = np.zeros(nF, dtype=bool)
+    for v, (vis, rule) in enumerate(zip(visibilities, regions, strict=True)):
+        cand = (vis.full | vis.partial) & ~taken
+        idx = np.flatnonzero(cand)
+        if len(idx) == 0:
+            continue
+        if rule == "largest":
+            _, label = connected_components(adjacency[idx][:, idx], directed=False)
+            area = np.bincount(label, weights=face_area[idx])
+            # ties go to the lowest label, i.e. the component of the lowest face index
+            idx = idx[label == int(np.argmax(area))]
+        status[idx, v] = np.where(vis.full[idx], 1, 2)
+        taken[idx[vis.full[idx]]] = True
+    return status

@@ -18,7 +18,9 @@ test: install
 	$(PY) -m pytest -q
 
 demo: install
-	$(VENV)/bin/workbench flatten fixtures/default/part.obj --out out/demo
+	$(VENV)/bin/workbench design fixtures/default/job.toml --out out/demo
+	@echo "pictures: out/demo/print.png (the print), out/demo/views.png (which view owns what),"
+	@echo "          out/demo/stretch.png (film stretch); 3D: out/demo/decorated.glb"
 
 bench: install
 	$(PY) benchmarks/bench_flatten.py $(if $(BIG),--big)

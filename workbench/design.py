@@ -136,7 +136,8 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         behind = np.flatnonzero(z <= 1e-6 * np.abs(z).max())
         if len(behind):
             raise WorkbenchError(
-                f"{job.path}: views[{i}] ({spec.name!r}): the camera at {np.round(cam.center, 2).tolist()} mm has part "
+                # (+ 0.0 prints -0.0 as 0.0)
+                f"{job.path}: views[{i}] ({spec.name!r}): the camera at {(np.round(cam.center, 2) + 0.0).tolist()} mm has part "
                 f"of the object level with or behind it (vertex {int(behind[0])}); a view camera must see the whole "
                 "object in front of it, not from inside or among it"
             )

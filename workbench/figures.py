@@ -84,6 +84,8 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
     lo, hi = np.nanmin(img) if np.isfinite(img).any() else 1.0, np.nanmax(img) if np.isfinite(img).any() else 1.0
     if hi - lo < 1e-6:
         lo, hi = lo - 1e-3, hi + 1e-3
+    if limit is not None and limit > hi:
+        hi = limit + 0.08 * (limit - lo)  # show how far the part stays below the limit
     im = ax.imshow(
         img,
         extent=(0, width_mm, 0, height_mm),
@@ -100,15 +102,14 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
         bar.ax.text(
             0.5,
             limit,
-            " limit",
+            "limit",
             color="red",
             va="bottom",
             ha="center",
             fontsize=8,
             transform=bar.ax.get_yaxis_transform(),
+            clip_on=True,
         )
-        if limit > hi:
-            bar.ax.set_ylabel(f"film stretch (3D length / print length); material limit {limit:g} is above the range")
     for name, v in zip("ABCD", corners, strict=True):
         x, y = uv[v]
         ax.plot([x], [y], "o", color="red", ms=6, clip_on=False)

@@ -1,0 +1,54 @@
+"""Regenerate the README's pictures from the bundled default job (run after `make demo`).
+
+    .venv/bin/python docs/make_pictures.py
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+IMG = ROOT / "docs" / "img"
+
+
+def fit(img: np.ndarray, height: int) -> np.ndarray:
+    s = height / img.shape[0]
+    return cv2.resize(img, (int(round(img.shape[1] * s)), height), interpolation=cv2.INTER_AREA)
+
+
+def label(img: np.ndarray, text: str) -> np.ndarray:
+    out = cv2.copyMakeBorder(img, 34, 6, 6, 6, cv2.BORDER_CONSTANT, value=(255, 255, 255))
+    cv2.putText(out, text, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (20, 20, 20), 1, cv2.LINE_AA)
+    return out
+
+
+def main() -> None:
+    IMG.mkdir(parents=True, exist_ok=True)
+    out = ROOT / "out" / "pictures"
+    wb = str(ROOT / ".venv" / "bin" / "workbench")
+    subprocess.run([wb, "flatten", "fixtures/default/part.obj", "--out", str(out / "flatten"), "-q"], check=True, cwd=ROOT)
+    subprocess.run([wb, "design", "fixtures/default/job.toml", "--out", str(out / "design"), "-q"], check=True, cwd=ROOT)
+    (IMG / "flatten-default.png").write_bytes((out / "flatten" / "flatten.png").read_bytes())
+    (IMG / "design-views.png").write_bytes((out / "design" / "views.png").read_bytes())
+    (IMG / "design-stretch.png").write_bytes((out / "design" / "stretch.png").read_bytes())
+    logo = cv2.imread(str(ROOT / "fixtures/default/logo.png"))
+    front = cv2.imread(str(ROOT / "fixtures/default/front.png"))
+    printed = cv2.imread(str(out / "design" / "print.png"))
+    h = 300
+    inputs = np.vstack([label(fit(logo, h // 2 - 20), "view 1 'logo' (from above)"),
+                        label(fit(front, h // 2 - 20), "view 2 'front'")])
+    right = label(fit(printed, inputs.shape[0] - 40), "print.png: one print, exact from both views")
+    right = cv2.copyMakeBorder(right, 0, inputs.shape[0] - right.shape[0], 0, 0, cv2.BORDER_CONSTANT, value=(255,) * 3)
+    arrow = np.full((inputs.shape[0], 60, 3), 255, np.uint8)
+    cv2.arrowedLine(arrow, (8, inputs.shape[0] // 2), (52, inputs.shape[0] // 2), (40, 40, 40), 3, tipLength=0.35)
+    cv2.imwrite(str(IMG / "design-default.png"), np.hstack([inputs, arrow, right]))
+    print(f"wrote {IMG}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

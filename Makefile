@@ -27,7 +27,7 @@ bench: install
 	$(PY) -m pytest -q -m slow
 
 lint: install
-	$(VENV)/bin/ruff check workbench tests benchmarks fixtures
+	$(VENV)/bin/ruff check workbench tests benchmarks fixtures docs
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -1,6 +1,6 @@
 """Regenerate the README's pictures from the bundled default job (run after `make demo`).
 
-    .venv/bin/python docs/make_pictures.py
+.venv/bin/python docs/make_pictures.py
 """
 
 from __future__ import annotations
@@ -31,8 +31,11 @@ def main() -> None:
     IMG.mkdir(parents=True, exist_ok=True)
     out = ROOT / "out" / "pictures"
     wb = str(ROOT / ".venv" / "bin" / "workbench")
-    subprocess.run([wb, "flatten", "fixtures/default/part.obj", "--out", str(out / "flatten"), "-q"], check=True, cwd=ROOT)
-    subprocess.run([wb, "design", "fixtures/default/job.toml", "--out", str(out / "design"), "-q"], check=True, cwd=ROOT)
+    for cmd, src, dst in (
+        ("flatten", "fixtures/default/part.obj", "flatten"),
+        ("design", "fixtures/default/job.toml", "design"),
+    ):
+        subprocess.run([wb, cmd, src, "--out", str(out / dst), "-q"], check=True, cwd=ROOT)
     (IMG / "flatten-default.png").write_bytes((out / "flatten" / "flatten.png").read_bytes())
     (IMG / "design-views.png").write_bytes((out / "design" / "views.png").read_bytes())
     (IMG / "design-stretch.png").write_bytes((out / "design" / "stretch.png").read_bytes())
@@ -40,8 +43,9 @@ def main() -> None:
     front = cv2.imread(str(ROOT / "fixtures/default/front.png"))
     printed = cv2.imread(str(out / "design" / "print.png"))
     h = 300
-    inputs = np.vstack([label(fit(logo, h // 2 - 20), "view 1 'logo' (from above)"),
-                        label(fit(front, h // 2 - 20), "view 2 'front'")])
+    inputs = np.vstack(
+        [label(fit(logo, h // 2 - 20), "view 1 'logo' (from above)"), label(fit(front, h // 2 - 20), "view 2 'front'")]
+    )
     right = label(fit(printed, inputs.shape[0] - 40), "print.png: one print, exact from both views")
     right = cv2.copyMakeBorder(right, 0, inputs.shape[0] - right.shape[0], 0, 0, cv2.BORDER_CONSTANT, value=(255,) * 3)
     arrow = np.full((inputs.shape[0], 60, 3), 255, np.uint8)

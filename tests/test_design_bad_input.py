@@ -101,11 +101,11 @@ def test_mesh_that_is_not_a_disc(capsys, job_dir):
         ("fov_deg = 40", 'fov_deg = "wide"', "views[0].fov_deg: must be a number, got 'wide'"),
         ("dpi = 300", "dpi = -5", "print.dpi: must be a number above 0, got -5"),
         ('mesh = "part.obj"', 'mesh = "nope.obj"', "object.mesh: file 'nope.obj' not found"),
-        ("[print]", "[print]\nbackground = \"red\"", "print.background: must be \"#rrggbb\" or [r, g, b]"),
+        ("[print]", '[print]\nbackground = "red"', 'print.background: must be "#rrggbb" or [r, g, b]'),
         ('name = "right"', 'name = "left"', "views[1].name: view name 'left' is used twice"),
         ("[[views]]", "[[viewz]]", "job: unknown key 'viewz'"),
         ("fov_deg = 40", "fov_deg = 40\nfx = 100", "views[0]: give the camera as"),
-        ("dpi = 300", "dpi = 300\nscale = \"huge\"", "print.scale: 'huge': use isometric, no-shrink"),
+        ("dpi = 300", 'dpi = 300\nscale = "huge"', "print.scale: 'huge': use isometric, no-shrink"),
     ],
 )
 def test_job_file_errors_name_the_key(capsys, job_dir, old, new, fragment):
@@ -132,8 +132,11 @@ def test_intrinsics_camera_equals_look_at_camera(job_dir):
     block = text[text.index("[[views]]") : text.index("[[views]]", text.index("[[views]]") + 1)]
     new_block = (
         '[[views]]\nname = "left"\nimage = "left.png"\n'
-        f"fx = {float(cam.K[0, 0])!r}\nfy = {float(cam.K[1, 1])!r}\ncx = {float(cam.K[0, 2])!r}\ncy = {float(cam.K[1, 2])!r}\n"
-        f"rotation = [{', '.join(repr(float(x)) for x in rvec)}]\n"
+        + "".join(
+            f"{k} = {float(v)!r}\n"
+            for k, v in zip(("fx", "fy", "cx", "cy"), cam.K[[0, 1, 0, 1], [0, 1, 2, 2]], strict=True)
+        )
+        + f"rotation = [{', '.join(repr(float(x)) for x in rvec)}]\n"
         f"translation = [{', '.join(repr(float(x)) for x in cam.t)}]\n\n"
     )
     (job_dir / "k.toml").write_text(text.replace(block, new_block))

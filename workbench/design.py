@@ -135,9 +135,9 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         xy, z = cam.project(V)
         behind = np.flatnonzero(z <= 1e-6 * np.abs(z).max())
         if len(behind):
+            where = (np.round(cam.center, 2) + 0.0).tolist()  # + 0.0: print -0.0 as 0.0
             raise WorkbenchError(
-                # (+ 0.0 prints -0.0 as 0.0)
-                f"{job.path}: views[{i}] ({spec.name!r}): the camera at {(np.round(cam.center, 2) + 0.0).tolist()} mm has part "
+                f"{job.path}: views[{i}] ({spec.name!r}): the camera at {where} mm has part "
                 f"of the object level with or behind it (vertex {int(behind[0])}); a view camera must see the whole "
                 "object in front of it, not from inside or among it"
             )

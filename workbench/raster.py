@@ -21,24 +21,31 @@ import numpy as np
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
 
 
-@numba.njit(inline="always", **_JIT)
-def _edge(ax, ay, bx, by, ia, ib, px, py):
-    # cross(b - a, p - a), always evaluated from the endpoint with the smaller index:
-    # cross(b - a, p - a) = -cross(a - b, p - b), bit for bit from the same operands
-    if ia < ib:
-        return (bx - ax) * (py - ay) - (by - ay) * (px - ax)
-    return -((ax - bx) * (py - by) - (ay - by) * (px - bx))
+@numba.njit(**_JIT)
+def _edge_coefficients(P, ia, ib, sign):
+    """Edge function of the directed edge a→b, times ``sign``, as (s, lx, ly, dx, dy, owns).
 
-
-@numba.njit(inline="always", **_JIT)
-def _owns_edge(dx, dy):
-    # top-left rule on the edge direction of a positively oriented triangle
-    return dy > 0.0 or (dy == 0.0 and dx < 0.0)
+    ``w(p) = s (dx (y - ly) - dy (x - lx))`` with (lx, ly) the endpoint of smaller index
+    and (dx, dy) the vector to the other: the two faces sharing an edge evaluate it
+    from the same operands, so their w are exact negatives (negation and rounding
+    commute), and w is exactly 0 at both endpoints. ``owns`` (1 or 0): whether the edge
+    owns the pixel centres on it (top-left rule on its direction in the face's
+    positive orientation).
+    """
+    lo = min(ia, ib)
+    hi = max(ia, ib)
+    dx = P[hi, 0] - P[lo, 0]
+    dy = P[hi, 1] - P[lo, 1]
+    s = sign if ia < ib else -sign  # a→b is lo→hi or its reverse
+    ex = s * dx
+    ey = s * dy
+    owns = 1.0 if (ey > 0.0 or (ey == 0.0 and ex < 0.0)) else 0.0
+    return (s, P[lo, 0], P[lo, 1], dx, dy, owns)
 
 
 @numba.njit(inline="always", **_JIT)
 def _setup(P, F, f, width, height):
-    """Bounding box in pixels and orientation of face f; x1 < x0 when nothing to do."""
+    """Bounding box in pixels and twice the signed area of face f; x1 < x0 when nothing to do."""
     i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
     ax, ay = P[i0, 0], P[i0, 1]
     bx, by = P[i1, 0], P[i1, 1]
@@ -53,36 +60,65 @@ def _setup(P, F, f, width, height):
     return x0, x1, y0, y1, area2
 
 
-@numba.njit(inline="always", **_JIT)
-def _inside(P, F, f, sign, px, py):
-    """Barycentric weights (unnormalised, positive inside) and the inside test."""
+@numba.njit(**_JIT)
+def _face_edges(P, F, f, sign):
+    """Coefficients of the three edge functions of face f (edge k opposite vertex k)."""
     i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-    ax, ay = P[i0, 0], P[i0, 1]
-    bx, by = P[i1, 0], P[i1, 1]
-    cx, cy = P[i2, 0], P[i2, 1]
-    w0 = sign * _edge(bx, by, cx, cy, i1, i2, px, py)
-    w1 = sign * _edge(cx, cy, ax, ay, i2, i0, px, py)
-    w2 = sign * _edge(ax, ay, bx, by, i0, i1, px, py)
-    ok = True
-    if w0 < 0.0 or (w0 == 0.0 and not _owns_edge(sign * (cx - bx), sign * (cy - by))):
-        ok = False
-    elif w1 < 0.0 or (w1 == 0.0 and not _owns_edge(sign * (ax - cx), sign * (ay - cy))):
-        ok = False
-    elif w2 < 0.0 or (w2 == 0.0 and not _owns_edge(sign * (bx - ax), sign * (by - ay))):
-        ok = False
-    return w0, w1, w2, ok
+    e0 = _edge_coefficients(P, i1, i2, sign)
+    e1 = _edge_coefficients(P, i2, i0, sign)
+    e2 = _edge_coefficients(P, i0, i1, sign)
+    return e0, e1, e2
+
+
+@numba.njit(inline="always", **_JIT)
+def _clip(lo, hi, e, y):
+    # w = a x + r along the row, with a = -s dy and r = s (dx (y - ly) + dy lx)
+    a = -e[0] * e[4]
+    r = e[0] * (e[3] * (y - e[2]) + e[4] * e[1])
+    if a > 0.0:
+        lo = max(lo, -r / a - 1.0)
+    elif a < 0.0:
+        hi = min(hi, -r / a + 1.0)
+    elif r < 0.0:
+        hi = lo - 1.0
+    return lo, hi
+
+
+@numba.njit(inline="always", **_JIT)
+def _row_span(e0, e1, e2, y, x0, x1):
+    """Columns of row y that may be inside (the exact test decides): the bounding box
+    cut by each edge's half-plane, one pixel wider on each side for rounding."""
+    lo, hi = _clip(float(x0), float(x1), e0, y)
+    lo, hi = _clip(lo, hi, e1, y)
+    lo, hi = _clip(lo, hi, e2, y)
+    return int(np.ceil(lo)), int(np.floor(hi))
+
+
+@numba.njit(inline="always", **_JIT)
+def _weight(e, x, y):
+    """Edge function value and whether the pixel passes this edge."""
+    w = e[0] * (e[3] * (y - e[2]) - e[4] * (x - e[1]))
+    return w, w > 0.0 or (w == 0.0 and e[5] != 0.0)
 
 
 @numba.njit(parallel=True, **_JIT)
 def _rasterize(P, F, width, height, face, bary):
     for f in numba.prange(F.shape[0]):
         x0, x1, y0, y1, area2 = _setup(P, F, f, width, height)
+        if x1 < x0:
+            continue
         sign = 1.0 if area2 > 0 else -1.0
-        inv = 1.0 / abs(area2) if area2 != 0 else 0.0
+        inv = 1.0 / abs(area2)
+        e0, e1, e2 = _face_edges(P, F, f, sign)
         for py in range(y0, y1 + 1):
-            for px in range(x0, x1 + 1):
-                w0, w1, w2, ok = _inside(P, F, f, sign, float(px), float(py))
-                if ok:
+            y = float(py)
+            xs, xe = _row_span(e0, e1, e2, y, x0, x1)
+            for px in range(xs, xe + 1):
+                x = float(px)
+                w0, ok0 = _weight(e0, x, y)
+                w1, ok1 = _weight(e1, x, y)
+                w2, ok2 = _weight(e2, x, y)
+                if ok0 and ok1 and ok2:
                     face[py, px] = f
                     bary[py, px, 0] = w0 * inv
                     bary[py, px, 1] = w1 * inv
@@ -125,12 +161,20 @@ def _zbuffer(P, invz, F, width, height, face, depth):
         if invz[i0] <= 0.0 or invz[i1] <= 0.0 or invz[i2] <= 0.0:
             continue  # behind the camera (the caller refuses cameras inside the part)
         x0, x1, y0, y1, area2 = _setup(P, F, f, width, height)
+        if x1 < x0:
+            continue
         sign = 1.0 if area2 > 0 else -1.0
-        inv = 1.0 / abs(area2) if area2 != 0 else 0.0
+        inv = 1.0 / abs(area2)
+        e0, e1, e2 = _face_edges(P, F, f, sign)
         for py in range(y0, y1 + 1):
-            for px in range(x0, x1 + 1):
-                w0, w1, w2, ok = _inside(P, F, f, sign, float(px), float(py))
-                if ok:
+            y = float(py)
+            xs, xe = _row_span(e0, e1, e2, y, x0, x1)
+            for px in range(xs, xe + 1):
+                x = float(px)
+                w0, ok0 = _weight(e0, x, y)
+                w1, ok1 = _weight(e1, x, y)
+                w2, ok2 = _weight(e2, x, y)
+                if ok0 and ok1 and ok2:
                     # 1/z is affine in screen space: interpolate it, then invert
                     z = 1.0 / ((w0 * invz[i0] + w1 * invz[i1] + w2 * invz[i2]) * inv)
                     if z < depth[py, px]:

@@ -9,7 +9,7 @@ import numba
 import numpy as np
 
 from workbench.camera import Camera
-from workbench.raster import _JIT, _inside, _setup
+from workbench.raster import _JIT, _face_edges, _row_span, _setup, _weight
 from workbench.views.visibility import ViewVisibility, project_point, unoccluded
 
 MM_PER_INCH = 25.4
@@ -80,32 +80,127 @@ def prefilter(image: np.ndarray, camera: Camera, view_px_per_print_px: float) ->
 
 
 @numba.njit(parallel=True, **_JIT)
-def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isize, background, out, owner):
+def _fill(out, owner, background):
+    for i in numba.prange(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[i, j, 0] = background[0]
+            out[i, j, 1] = background[1]
+            out[i, j, 2] = background[2]
+            owner[i, j] = -1
+
+
+@numba.njit(inline="always", **_JIT)
+def _inside(e0, e1, e2, x, y):
+    _, ok0 = _weight(e0, x, y)
+    _, ok1 = _weight(e1, x, y)
+    _, ok2 = _weight(e2, x, y)
+    return ok0 and ok1 and ok2
+
+
+@numba.njit(inline="always", **_JIT)
+def _sample(images, isize, v, xs, ys, out, py, px):
+    """Bilinear sample of view v at pixel (xs, ys) into out[py, px].
+
+    The stack has a one-pixel replicated border, so view pixel (i, j) is at
+    [i + 1, j + 1] and the image edge is sampled as OpenCV's BORDER_REPLICATE would.
+    """
+    xs = min(max(xs, -0.5), isize[v, 0] - 0.5)
+    ys = min(max(ys, -0.5), isize[v, 1] - 0.5)
+    jx = int(np.floor(xs))
+    iy = int(np.floor(ys))
+    fx = xs - jx
+    fy = ys - iy
+    for c in range(3):
+        a = images[v, iy + 1, jx + 1, c] * (1.0 - fx) + images[v, iy + 1, jx + 2, c] * fx
+        b = images[v, iy + 2, jx + 1, c] * (1.0 - fx) + images[v, iy + 2, jx + 2, c] * fx
+        out[py, px, c] = np.uint8(min(max(a * (1.0 - fy) + b * fy + 0.5, 0.0), 255.0))
+
+
+@numba.njit(parallel=True, **_JIT)
+def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isize, out, owner):
     n_views = status.shape[1]
     H, W = out.shape[0], out.shape[1]
     for f in numba.prange(F.shape[0]):
-        claimed = False
+        first = -1  # the first view claiming f
         for v in range(n_views):
             if status[f, v] != 0:
-                claimed = True
-        if not claimed:
+                first = v
+                break
+        if first < 0:
             continue
         x0, x1, y0, y1, area2 = _setup(P, F, f, W, H)
-        if area2 * orient <= 0.0:
+        if area2 * orient <= 0.0 or x1 < x0:
             continue  # collapsed or folded in the print: covered by its neighbours
         inv = 1.0 / abs(area2)
+        e0, e1, e2 = _face_edges(P, F, f, orient)
         i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
+        whole = status[f, first] == 1
+        # A face the first view claims whole maps print pixels to view pixels by one
+        # homography: barycentrics are affine in (x, y), the surface point affine in
+        # them, the camera projective. H = K [R | t] · (V_face · L) with L the 3x3
+        # affine map from (x, y, 1) to barycentrics; evaluated incrementally per row.
+        h = np.empty(9)
+        if whole:
+            cam = cams[first]
+            L = np.empty((3, 3))
+            for k in range(3):
+                e = e0 if k == 0 else (e1 if k == 1 else e2)
+                # w_k = s (dx (y - ly) - dy (x - lx)) = a x + b y + c
+                L[k, 0] = -e[0] * e[4] * inv
+                L[k, 1] = e[0] * e[3] * inv
+                L[k, 2] = e[0] * (e[4] * e[1] - e[3] * e[2]) * inv
+            for r in range(3):
+                # row r of K [R | t] (fx, fy, cx, cy; R row-major; t)
+                if r == 0:
+                    m0 = cam[0] * cam[4] + cam[2] * cam[10]
+                    m1 = cam[0] * cam[5] + cam[2] * cam[11]
+                    m2 = cam[0] * cam[6] + cam[2] * cam[12]
+                    m3 = cam[0] * cam[13] + cam[2] * cam[15]
+                elif r == 1:
+                    m0 = cam[1] * cam[7] + cam[3] * cam[10]
+                    m1 = cam[1] * cam[8] + cam[3] * cam[11]
+                    m2 = cam[1] * cam[9] + cam[3] * cam[12]
+                    m3 = cam[1] * cam[14] + cam[3] * cam[15]
+                else:
+                    m0, m1, m2, m3 = cam[10], cam[11], cam[12], cam[15]
+                for col in range(3):
+                    acc = 0.0
+                    for k in range(3):
+                        vk = F[f, k]
+                        acc += (m0 * V[vk, 0] + m1 * V[vk, 1] + m2 * V[vk, 2]) * L[k, col]
+                    # the translation column multiplies Σ λ = 1, i.e. the constant term
+                    h[3 * r + col] = acc + (m3 if col == 2 else 0.0)
         for py in range(y0, y1 + 1):
-            for px in range(x0, x1 + 1):
-                w0, w1, w2, ok = _inside(P, F, f, orient, float(px), float(py))
-                if not ok:
-                    continue
+            y = float(py)
+            xs, xe = _row_span(e0, e1, e2, y, x0, x1)
+            # exact tests only at the two ends: the row's inside is one interval
+            while xs <= xe and not _inside(e0, e1, e2, float(xs), y):
+                xs += 1
+            while xe >= xs and not _inside(e0, e1, e2, float(xe), y):
+                xe -= 1
+            if whole:
+                U = h[0] * xs + h[1] * y + h[2]
+                Vv = h[3] * xs + h[4] * y + h[5]
+                Z = h[6] * xs + h[7] * y + h[8]
+                for px in range(xs, xe + 1):
+                    iz = 1.0 / Z
+                    _sample(images, isize, first, U * iz, Vv * iz, out, py, px)
+                    owner[py, px] = first
+                    U += h[0]
+                    Vv += h[3]
+                    Z += h[6]
+                continue
+            for px in range(xs, xe + 1):
+                x = float(px)
+                w0, _ = _weight(e0, x, y)
+                w1, _ = _weight(e1, x, y)
+                w2, _ = _weight(e2, x, y)
                 l0, l1, l2 = w0 * inv, w1 * inv, w2 * inv
                 X0 = l0 * V[i0, 0] + l1 * V[i1, 0] + l2 * V[i2, 0]
                 X1 = l0 * V[i0, 1] + l1 * V[i1, 1] + l2 * V[i2, 1]
                 X2 = l0 * V[i0, 2] + l1 * V[i1, 2] + l2 * V[i2, 2]
                 chosen = -1
-                for v in range(n_views):
+                for v in range(first, n_views):
                     st = status[f, v]
                     if st == 0:
                         continue
@@ -115,24 +210,10 @@ def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isiz
                             continue
                     chosen = v
                     break
-                if chosen < 0:
-                    continue
-                xs, ys, _ = project_point(cams[chosen], X0, X1, X2)
-                # bilinear sample; the stack has a one-pixel replicated border, so
-                # view pixel (i, j) is at [i + 1, j + 1] and the image edge is sampled
-                # as OpenCV's BORDER_REPLICATE would
-                wv, hv = isize[chosen, 0], isize[chosen, 1]
-                xs = min(max(xs, -0.5), wv - 0.5)
-                ys = min(max(ys, -0.5), hv - 0.5)
-                jx = int(np.floor(xs))
-                iy = int(np.floor(ys))
-                fx = xs - jx
-                fy = ys - iy
-                for c in range(3):
-                    a = images[chosen, iy + 1, jx + 1, c] * (1.0 - fx) + images[chosen, iy + 1, jx + 2, c] * fx
-                    b = images[chosen, iy + 2, jx + 1, c] * (1.0 - fx) + images[chosen, iy + 2, jx + 2, c] * fx
-                    out[py, px, c] = np.uint8(min(max(a * (1.0 - fy) + b * fy + 0.5, 0.0), 255.0))
-                owner[py, px] = chosen
+                if chosen >= 0:
+                    xv, yv, _ = project_point(cams[chosen], X0, X1, X2)
+                    _sample(images, isize, chosen, xv, yv, out, py, px)
+                    owner[py, px] = chosen
 
 
 def synthesize_print(
@@ -202,8 +283,8 @@ def synthesize_print(
     for v, vis in enumerate(visibilities):
         depth[v, : vis.depth.shape[0], : vis.depth.shape[1]] = vis.depth
     out = np.empty((rows, cols, 3), dtype=np.uint8)
-    out[:] = np.asarray(background, dtype=np.uint8)
-    owner = np.full((rows, cols), -1, dtype=np.int8)
+    owner = np.empty((rows, cols), dtype=np.int8)
+    _fill(out, owner, np.asarray(background, dtype=np.uint8))
     _synthesize(
         np.ascontiguousarray(P),
         np.ascontiguousarray(F, dtype=np.int64),
@@ -216,7 +297,6 @@ def synthesize_print(
         np.array([[vis.camera.width, vis.camera.height] for vis in visibilities], dtype=np.int64),
         stack,
         np.array([[c.width, c.height] for c in cams], dtype=np.int64),
-        np.asarray(background, dtype=np.uint8),
         out,
         owner,
     )

@@ -1,0 +1,1 @@
+"""Print (DESIGN.md §5): PDFs at true physical scale with marks, and marker boards."""

@@ -1,0 +1,332 @@
+"""The calibrated print PDF: the design at true size, bleed, crop and registration marks, scale bars."""
+
+from __future__ import annotations
+
+import datetime
+import io
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from workbench import __version__
+from workbench.errors import WorkbenchError
+from workbench.printing.paper import choose_sheet
+
+PT_PER_MM = 72.0 / 25.4
+LINE_PT = 0.25  # hairline marks: about 2 px wide at 600 dpi, easy to measure
+CROP_LEN_MM = 6.0
+REG_RADIUS_MM = 3.0
+BAR_MM = 100.0
+CHECK_MM = 10.0
+
+
+@dataclass(frozen=True)
+class PrinterProfile:
+    """How a printer scales what it prints: printed length / intended length, per axis.
+
+    Attributes
+    ----------
+    name : str
+        Shown on the page.
+    scale_x, scale_y : float
+        For example 1.015: the printer prints x 1.5 % too long.
+    path : Path or None
+        Where it was read from.
+    """
+
+    name: str = "none"
+    scale_x: float = 1.0
+    scale_y: float = 1.0
+    path: Path | None = None
+
+
+def load_printer_profile(path: str | Path) -> PrinterProfile:
+    """Read a printer profile (JSON written by ``workbench calibrate printer``).
+
+    Raises
+    ------
+    WorkbenchError
+        Missing, not JSON, or a key missing or out of range; names the file and key.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: no such printer profile")
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise WorkbenchError(f"{path}: not a JSON printer profile: {exc}") from None
+    if not isinstance(data, dict):
+        raise WorkbenchError(f"{path}: a printer profile is a JSON object")
+    values = {}
+    for key in ("scale_x", "scale_y"):
+        v = data.get(key)
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise WorkbenchError(f"{path}: {key}: must be a number (printed length / intended length), got {v!r}")
+        if not 0.8 < v < 1.25:
+            raise WorkbenchError(f"{path}: {key}: {v} is not a plausible printer scale (0.8 to 1.25)")
+        values[key] = float(v)
+    name = data.get("name", path.stem)
+    if not isinstance(name, str):
+        raise WorkbenchError(f"{path}: name: must be a string")
+    return PrinterProfile(name=name, path=path, **values)
+
+
+@dataclass(frozen=True)
+class PrintSheet:
+    """Where everything goes, in physical millimetres on the sheet (y up, origin bottom-left).
+
+    Attributes
+    ----------
+    paper : str
+        Sheet name and orientation.
+    page_w, page_h : float
+        Sheet size, mm.
+    trim : (x0, y0, x1, y1)
+        The design rectangle.
+    bleed_mm : float
+        How far the texture extends beyond the trim.
+    """
+
+    paper: str
+    page_w: float
+    page_h: float
+    trim: tuple[float, float, float, float]
+    bleed_mm: float
+
+    @property
+    def bar_x(self) -> tuple[float, float]:
+        """Start (left end) of the horizontal 100 mm bar."""
+        x0, y0 = self.trim[0], self.trim[1]
+        return x0, y0 - self.bleed_mm - 12.0
+
+    @property
+    def bar_y(self) -> tuple[float, float]:
+        """Start (bottom end) of the vertical 100 mm bar."""
+        x0, y0 = self.trim[0], self.trim[1]
+        return x0 - self.bleed_mm - 12.0, y0
+
+    @property
+    def check_square(self) -> tuple[float, float]:
+        """Bottom-left corner of the 10 mm check square."""
+        bx, by = self.bar_y
+        cx, cy = self.bar_x
+        return bx - 6.0 - CHECK_MM, cy - 6.0 - CHECK_MM
+
+
+def layout_sheet(width_mm: float, height_mm: float, bleed_mm: float, margin_mm: float, paper) -> PrintSheet:
+    """Place a design rectangle and its marks on a sheet.
+
+    Around the trim: crop marks beyond the bleed, registration crosshairs mid-side,
+    a horizontal 100 mm bar below and a vertical one on the left, the check square
+    in the corner between them, and a line of text at the bottom. The whole block
+    is centred on the sheet.
+
+    Parameters
+    ----------
+    width_mm, height_mm : float
+        Design rectangle.
+    bleed_mm, margin_mm : float
+        Bleed around the trim; free border to the sheet's edge.
+    paper : str or (w, h)
+        See :func:`workbench.printing.paper.choose_sheet`.
+
+    Returns
+    -------
+    PrintSheet
+    """
+    b = bleed_mm
+    left = b + 12.0 + 6.0 + CHECK_MM  # vertical bar, its labels, the check square
+    bottom = b + 12.0 + 6.0 + CHECK_MM + 6.0  # bar, labels, check square, text line
+    right = top = b + 1.0 + CROP_LEN_MM + REG_RADIUS_MM
+    span_w = left + max(width_mm, BAR_MM) + right
+    span_h = bottom + max(height_mm, BAR_MM) + top
+    paper_name, pw, ph = choose_sheet(paper, span_w + 2 * margin_mm, span_h + 2 * margin_mm)
+    x0 = (pw - span_w) / 2 + left
+    y0 = (ph - span_h) / 2 + bottom
+    return PrintSheet(paper_name, pw, ph, (x0, y0, x0 + width_mm, y0 + height_mm), bleed_mm)
+
+
+def build_date() -> str:
+    """Date printed on pages: SOURCE_DATE_EPOCH when set (reproducible builds), else today (UTC)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    when = datetime.datetime.fromtimestamp(int(epoch), datetime.UTC) if epoch else datetime.datetime.now(datetime.UTC)
+    return when.strftime("%Y-%m-%d")
+
+
+class _Page:
+    """A ReportLab canvas drawn in physical mm, pre-compensated for the printer's scale."""
+
+    def __init__(self, canvas, sheet_w: float, sheet_h: float, profile: PrinterProfile):
+        self.c, self.w, self.h, self.p = canvas, sheet_w, sheet_h, profile
+        # scale about the sheet's centre by 1 / (printer scale): the printer's own
+        # scaling then brings every length back to its intended size
+        c = canvas
+        c.translate(sheet_w / 2 * PT_PER_MM, sheet_h / 2 * PT_PER_MM)
+        c.scale(PT_PER_MM / profile.scale_x, PT_PER_MM / profile.scale_y)
+        c.translate(-sheet_w / 2, -sheet_h / 2)
+        c.setLineWidth(LINE_PT / PT_PER_MM)
+
+    def to_pdf(self, x: float, y: float) -> tuple[float, float]:
+        """Physical mm on the sheet → PDF points (what page boxes are given in)."""
+        return (
+            (self.w / 2 + (x - self.w / 2) / self.p.scale_x) * PT_PER_MM,
+            (self.h / 2 + (y - self.h / 2) / self.p.scale_y) * PT_PER_MM,
+        )
+
+    def box(self, x0: float, y0: float, x1: float, y1: float) -> tuple[float, float, float, float]:
+        return (*self.to_pdf(x0, y0), *self.to_pdf(x1, y1))
+
+    def line(self, x0, y0, x1, y1):
+        self.c.line(x0, y0, x1, y1)
+
+    def text(self, x, y, s, size=2.2, anchor="left"):
+        self.c.setFont("Helvetica", size)
+        {"left": self.c.drawString, "centre": self.c.drawCentredString, "right": self.c.drawRightString}[anchor](
+            x, y, s
+        )
+
+
+def crop_marks(page: _Page, trim, bleed_mm: float) -> None:
+    """Marks on the extensions of the trim lines, outside the bleed, at the four corners."""
+    x0, y0, x1, y1 = trim
+    g = bleed_mm + 1.0
+    for x, sx in ((x0, -1), (x1, 1)):
+        for y, sy in ((y0, -1), (y1, 1)):
+            page.line(x, y + sy * g, x, y + sy * (g + CROP_LEN_MM))
+            page.line(x + sx * g, y, x + sx * (g + CROP_LEN_MM), y)
+
+
+def registration_marks(page: _Page, trim, bleed_mm: float) -> None:
+    """Crosshair and circle at the middle of each side, outside the bleed."""
+    x0, y0, x1, y1 = trim
+    d = bleed_mm + 1.0 + REG_RADIUS_MM
+    xm, ym = (x0 + x1) / 2, (y0 + y1) / 2
+    for cx, cy in ((xm, y1 + d), (x1 + d, ym), (xm, y0 - d), (x0 - d, ym)):
+        page.c.circle(cx, cy, REG_RADIUS_MM * 0.6, stroke=1, fill=0)
+        page.line(cx - REG_RADIUS_MM, cy, cx + REG_RADIUS_MM, cy)
+        page.line(cx, cy - REG_RADIUS_MM, cx, cy + REG_RADIUS_MM)
+
+
+def scale_bar(page: _Page, x: float, y: float, vertical: bool) -> None:
+    """A 100 mm bar with mm ticks (long every 10 mm, labelled), starting at (x, y)."""
+
+    def seg(a0, b0, a1, b1):
+        page.line(x + b0, y + a0, x + b1, y + a1) if vertical else page.line(x + a0, y - b0, x + a1, y - b1)
+
+    seg(0.0, 0.0, BAR_MM, 0.0)
+    for mm in range(int(BAR_MM) + 1):
+        length = 4.0 if mm % 10 == 0 else (2.5 if mm % 5 == 0 else 1.5)
+        seg(mm, 0.0, mm, -length if vertical else length)
+        if mm % 10 == 0:
+            if vertical:
+                page.text(x - 5.5, y + mm - 0.7, f"{mm}", anchor="right")
+            else:
+                page.text(x + mm, y - 7.0, f"{mm}", anchor="centre")
+    label = "100 mm" if not vertical else ""
+    if label:
+        page.text(x + BAR_MM + 2.0, y - 1.0, label)
+
+
+def check_square(page: _Page, x: float, y: float) -> None:
+    """A 10 mm square outline with its size written under it."""
+    page.c.rect(x, y, CHECK_MM, CHECK_MM, stroke=1, fill=0)
+    page.text(x + CHECK_MM / 2, y - 3.0, "10 mm", size=1.8, anchor="centre")
+
+
+def print_pdf(
+    rgb: np.ndarray,
+    dpi: float,
+    width_mm: float,
+    height_mm: float,
+    job_name: str,
+    job_sha256: str,
+    paper,
+    bleed_mm: float = 3.0,
+    margin_mm: float = 10.0,
+    profile: PrinterProfile = PrinterProfile(),
+) -> tuple[bytes, PrintSheet]:
+    """The print PDF of a design.
+
+    Parameters
+    ----------
+    rgb : (rows, cols, 3) uint8
+        The print texture; pixel (i, j) centre at ((j + 0.5), (i + 0.5)) · 25.4 / dpi
+        mm from the trim's top-left corner.
+    dpi : float
+        Its resolution.
+    width_mm, height_mm : float
+        The design rectangle (the trim).
+    job_name, job_sha256 : str
+        Printed on the page and stored in the metadata.
+    paper : str or (w, h)
+        Sheet, or ``'auto'``.
+    bleed_mm, margin_mm : float
+        Texture beyond the trim; free border to the sheet's edge.
+    profile : PrinterProfile
+        Printer scale to pre-compensate.
+
+    Returns
+    -------
+    pdf : bytes
+        Reproducible: the same inputs (and date) give the same bytes.
+    sheet : PrintSheet
+        Where everything went (physical mm).
+    """
+    from PIL import Image
+    from reportlab.lib.utils import ImageReader
+    from reportlab.pdfgen import canvas as rl_canvas
+
+    sheet = layout_sheet(width_mm, height_mm, bleed_mm, margin_mm, paper)
+    buf = io.BytesIO()
+    c = rl_canvas.Canvas(
+        buf, pagesize=(sheet.page_w * PT_PER_MM, sheet.page_h * PT_PER_MM), invariant=1, pageCompression=1
+    )
+    c.setTitle(f"workbench print: {job_name}")
+    c.setAuthor(f"workbench {__version__}")
+    c.setSubject(f"{job_name}: {width_mm:.2f} x {height_mm:.2f} mm at {dpi:g} dpi; job sha256 {job_sha256}")
+    c.setKeywords(f"workbench, print, job={job_name}, sha256={job_sha256}, printer-profile={profile.name}")
+    c.setCreator(f"workbench {__version__}")
+    c.setViewerPreference("PrintScaling", "None")
+    page = _Page(c, sheet.page_w, sheet.page_h, profile)
+    x0, y0, x1, y1 = sheet.trim
+    b = bleed_mm
+    c.setTrimBox(page.box(x0, y0, x1, y1))
+    c.setBleedBox(page.box(x0 - b, y0 - b, x1 + b, y1 + b))
+
+    # texture: padded by replication to cover the bleed, placed so that its top-left
+    # pixel corner is the trim's top-left corner, clipped to the bleed box
+    pitch = 25.4 / dpi
+    pad = int(np.ceil(b / pitch)) + 1
+    padded = cv2.copyMakeBorder(rgb, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+    rows, cols = padded.shape[:2]
+    c.saveState()
+    clip = c.beginPath()
+    clip.rect(x0 - b, y0 - b, (x1 - x0) + 2 * b, (y1 - y0) + 2 * b)
+    c.clipPath(clip, stroke=0, fill=0)
+    c.drawImage(
+        ImageReader(Image.fromarray(padded)),
+        x0 - pad * pitch,
+        y1 + pad * pitch - rows * pitch,
+        width=cols * pitch,
+        height=rows * pitch,
+    )
+    c.restoreState()
+
+    crop_marks(page, sheet.trim, b)
+    registration_marks(page, sheet.trim, b)
+    scale_bar(page, *sheet.bar_x, vertical=False)
+    scale_bar(page, *sheet.bar_y, vertical=True)
+    check_square(page, *sheet.check_square)
+    note = (
+        f"{job_name} | {width_mm:.2f} x {height_mm:.2f} mm | {dpi:g} dpi | {build_date()} | job {job_sha256[:12]} | "
+        f"printer profile: {profile.name} | print at 100 % (actual size): each bar must measure 100 mm"
+    )
+    cx, cy = sheet.check_square
+    page.text(cx, cy - 7.5, note, size=2.0)
+    c.showPage()
+    c.save()
+    return buf.getvalue(), sheet

@@ -24,6 +24,7 @@ demo: install
 
 bench: install
 	$(PY) benchmarks/bench_flatten.py $(if $(BIG),--big)
+	$(PY) benchmarks/bench_design.py
 	$(PY) -m pytest -q -m slow
 
 lint: install

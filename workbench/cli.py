@@ -8,6 +8,7 @@ import sys
 from workbench import __version__
 from workbench.commands import design as design_cmd
 from workbench.commands import flatten as flatten_cmd
+from workbench.commands import pdf as pdf_cmd
 from workbench.errors import UsageError, WorkbenchError
 
 
@@ -25,6 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     flatten_cmd.add_parser(sub)
     design_cmd.add_parser(sub)
+    pdf_cmd.add_parser(sub)
     return parser
 
 

@@ -62,6 +62,8 @@ def run(args) -> int:
             "width_px": cols,
             "height_px": rows,
             "image_width_mm": image_w_mm,
+            "bleed_mm": job.print.bleed_mm,
+            "margin_mm": job.print.margin_mm,
             "image_height_mm": image_h_mm,
             "background_share": float((result.owner < 0).mean()),
         },

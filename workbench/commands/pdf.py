@@ -1,0 +1,97 @@
+"""``workbench pdf``: the print of a design as a PDF at true physical scale, with marks."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from workbench.atomic import write_files
+from workbench.errors import WorkbenchError
+from workbench.printing.paper import parse_paper
+from workbench.printing.pdf import PrinterProfile, load_printer_profile, print_pdf
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "pdf",
+        help="the print of a design as a PDF at true scale, with crop and registration marks",
+        description=(
+            "Write the print of a design directory as a PDF: the texture at exactly width_mm x height_mm, "
+            "a bleed beyond the trim, crop marks at the four corners, registration crosshairs, 100 mm scale "
+            "bars along x and y, a 10 mm check square and a line identifying the job. Print it at 100 %% "
+            "(actual size). A printer profile pre-compensates the printer's own scale error."
+        ),
+    )
+    p.add_argument("design", metavar="DESIGN_DIR", help="output directory of workbench design")
+    p.add_argument("-o", "--output", metavar="FILE.pdf", help="default prints/<job name>.pdf")
+    p.add_argument(
+        "--paper", default="auto", help="A4, A3, letter, ..., auto (default: smallest that fits) or WxH in mm"
+    )
+    p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile (workbench calibrate printer)")
+    p.add_argument("--bleed-mm", type=float, help="texture beyond the trim (default: the job's, 3 mm)")
+    p.add_argument("--margin-mm", type=float, help="free border to the sheet's edge (default: the job's, 10 mm)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=run)
+
+
+def load_design(directory: Path) -> tuple[dict, np.ndarray]:
+    """design.json and print.png of a design directory, or an error naming what is missing."""
+    if not directory.is_dir():
+        raise WorkbenchError(f"{directory}: no such design directory (run workbench design first)")
+    info_path, png_path = directory / "design.json", directory / "print.png"
+    for path in (info_path, png_path):
+        if not path.is_file():
+            raise WorkbenchError(f"{path}: missing; is {directory} the output of workbench design?")
+    try:
+        info = json.loads(info_path.read_text())
+        info["print"]["width_mm"], info["print"]["height_mm"], info["print"]["dpi"]  # noqa: B018
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError) as exc:
+        raise WorkbenchError(f"{info_path}: not a design.json of workbench design ({exc})") from None
+    img = cv2.imread(str(png_path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise WorkbenchError(f"{png_path}: cannot read the print image")
+    expected = (info["print"].get("height_px"), info["print"].get("width_px"))
+    if img.shape[:2] != expected:
+        raise WorkbenchError(
+            f"{png_path}: {img.shape[1]} x {img.shape[0]} px, design.json says {expected[1]} x {expected[0]}"
+        )
+    return info, cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def run(args) -> int:
+    log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    paper = parse_paper(args.paper)
+    profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
+    info, rgb = load_design(Path(args.design))
+    pr = info["print"]
+    job = info.get("job", {})
+    name = job.get("name", Path(args.design).name)
+    bleed = args.bleed_mm if args.bleed_mm is not None else pr.get("bleed_mm", 3.0)
+    margin = args.margin_mm if args.margin_mm is not None else pr.get("margin_mm", 10.0)
+    for key, v in (("--bleed-mm", bleed), ("--margin-mm", margin)):
+        if not (np.isfinite(v) and 0 <= v <= 50):
+            raise WorkbenchError(f"{key} {v}: must be between 0 and 50 mm")
+    out = Path(args.output) if args.output else Path("prints") / f"{name}.pdf"
+    pdf, sheet = print_pdf(
+        rgb,
+        pr["dpi"],
+        pr["width_mm"],
+        pr["height_mm"],
+        name,
+        job.get("sha256", "unknown"),
+        paper,
+        bleed,
+        margin,
+        profile,
+    )
+    write_files({out: pdf})
+    log(
+        f"wrote {out}: {pr['width_mm']:.2f} x {pr['height_mm']:.2f} mm on {sheet.paper}, bleed {bleed:g} mm, "
+        f"printer profile {profile.name}"
+    )
+    log("print at 100 % (actual size, no fit-to-page) and check that both bars measure 100 mm")
+    return 0

@@ -39,6 +39,17 @@ def main() -> None:
     (IMG / "flatten-default.png").write_bytes((out / "flatten" / "flatten.png").read_bytes())
     (IMG / "design-views.png").write_bytes((out / "design" / "views.png").read_bytes())
     (IMG / "design-stretch.png").write_bytes((out / "design" / "stretch.png").read_bytes())
+    pdf = out / "default.pdf"
+    subprocess.run([wb, "pdf", str(out / "design"), "-o", str(pdf), "--paper", "A4", "-q"], check=True, cwd=ROOT)
+    fixture = out / "fixture.pdf"
+    subprocess.run(
+        [wb, "board", "fixture", "fixtures/default/job.toml", "-o", str(fixture), "-q"], check=True, cwd=ROOT
+    )
+    import pypdfium2 as pdfium
+
+    for src, name in ((pdf, "pdf-default.png"), (fixture, "board-fixture-default.png")):
+        page = pdfium.PdfDocument(str(src))[0].render(scale=110 / 72).to_pil()
+        page.save(IMG / name, optimize=True)
     logo = cv2.imread(str(ROOT / "fixtures/default/logo.png"))
     front = cv2.imread(str(ROOT / "fixtures/default/front.png"))
     printed = cv2.imread(str(out / "design" / "print.png"))

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from workbench import __version__
+from workbench.commands import board as board_cmd
 from workbench.commands import design as design_cmd
 from workbench.commands import flatten as flatten_cmd
 from workbench.commands import pdf as pdf_cmd
@@ -27,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     flatten_cmd.add_parser(sub)
     design_cmd.add_parser(sub)
     pdf_cmd.add_parser(sub)
+    board_cmd.add_parser(sub)
     return parser
 
 

@@ -1,0 +1,243 @@
+"""``workbench board``: ChArUco boards at true scale, each with its definition file."""
+
+from __future__ import annotations
+
+import io
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from workbench import __version__
+from workbench.atomic import write_files
+from workbench.errors import UsageError, WorkbenchError
+from workbench.printing.boards import CharucoSpec, definition, draw_board
+from workbench.printing.paper import choose_sheet, parse_paper
+from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
+
+BOARD_MARGIN_MM = 10.0
+BELOW_MM = 22.0  # scale bar and text line under the board
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "board",
+        help="print a ChArUco board: fixture plate, camera calibration board or printer target",
+        description=(
+            "Write a ChArUco board as a PDF at true scale, and its definition file (JSON, beside the PDF: "
+            "dictionary, sizes, ids and every corner's position). 'fixture' is the plate the part stands on "
+            "for validation photos ([fixture] of the job; corners also in the job's mesh frame, and the part's "
+            "footprint drawn for placement); 'charuco' a camera calibration board; 'printer-target' a board "
+            "filling the sheet, to measure a printer's scale."
+        ),
+    )
+    p.add_argument("kind", choices=("fixture", "charuco", "printer-target"))
+    p.add_argument("job", nargs="?", metavar="JOB.toml", help="for 'fixture': the job file")
+    p.add_argument(
+        "-o", "--output", metavar="FILE.pdf", help="default calib/boards/<kind>.pdf (fixture: prints/<job>-fixture.pdf)"
+    )
+    p.add_argument("--squares", metavar="NXxNY", help="squares across and down (charuco default 7x5)")
+    p.add_argument("--square-mm", type=float, help="square side, mm")
+    p.add_argument("--marker-mm", type=float, help="marker side, mm (default 0.75 of the square)")
+    p.add_argument("--dictionary", default=None, help="ArUco dictionary (default DICT_5X5_250)")
+    p.add_argument("--first-id", type=int, default=None, help="id of the first marker (default 0)")
+    p.add_argument("--paper", default="auto", help="A4, A3, letter, ..., auto or WxH in mm")
+    p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile to pre-compensate")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(run=run)
+
+
+def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
+    if text is None:
+        return default
+    try:
+        nx, ny = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UsageError(f"--squares {text!r}: give NXxNY, e.g. 7x5") from None
+    return nx, ny
+
+
+def fixture_spec(job) -> tuple[CharucoSpec, np.ndarray, np.ndarray]:
+    """The fixture board of a job: its spec, its top-left corner in the mesh frame, the footprint.
+
+    ``[fixture]`` keys: dictionary, squares [nx, ny], square_mm, marker_mm, first_id,
+    origin_mm [x, y, z] (the board's top-left corner in the mesh frame). Without them
+    the board covers the part's footprint with two squares of margin, 20 mm squares,
+    in the plane of the part's lowest point.
+
+    Returns
+    -------
+    spec : CharucoSpec
+    origin : (3,) float
+    footprint : (#B, 2) float
+        The mesh boundary projected on the plate, board frame (x right, y down), mm.
+    """
+    from workbench.mesh.io import read_mesh
+    from workbench.mesh.topology import boundary_loops
+
+    V, F = read_mesh(job.object.mesh, job.object.units)
+    fx = dict(job.fixture or {})
+    where = f"{job.path}: fixture"
+    known = {"dictionary", "squares", "square_mm", "marker_mm", "first_id", "origin_mm"}
+    unknown = sorted(set(fx) - known)
+    if unknown:
+        raise WorkbenchError(f"{where}: unknown key {unknown[0]!r} (known keys: {', '.join(sorted(known))})")
+    square = fx.get("square_mm", 20.0)
+    if isinstance(square, bool) or not isinstance(square, int | float) or not square > 0:
+        raise WorkbenchError(f"{where}.square_mm: must be a positive number, got {square!r}")
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    if "squares" in fx:
+        sq = fx["squares"]
+        if not (isinstance(sq, list) and len(sq) == 2 and all(isinstance(v, int) for v in sq)):
+            raise WorkbenchError(f"{where}.squares: must be [nx, ny], got {sq!r}")
+        squares = (sq[0], sq[1])
+    else:
+        # two squares of margin on each side: the markers around the part stay visible
+        squares = (int(np.ceil((hi[0] - lo[0]) / square)) + 4, int(np.ceil((hi[1] - lo[1]) / square)) + 4)
+    if "origin_mm" in fx:
+        o = fx["origin_mm"]
+        if not (isinstance(o, list) and len(o) == 3 and all(isinstance(v, int | float) for v in o)):
+            raise WorkbenchError(f"{where}.origin_mm: must be [x, y, z] in mm, got {o!r}")
+        origin = np.asarray(o, dtype=np.float64)
+    else:
+        cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
+        origin = np.array([cx - squares[0] * square / 2, cy + squares[1] * square / 2, lo[2]])
+    try:
+        spec = CharucoSpec(
+            squares=squares,
+            square_mm=float(square),
+            marker_mm=float(fx.get("marker_mm", 0.75 * square)),
+            dictionary=fx.get("dictionary", "DICT_5X5_250"),
+            first_id=int(fx.get("first_id", 0)),
+        )
+    except WorkbenchError as exc:
+        raise WorkbenchError(f"{where}: {exc}") from None
+    loop = boundary_loops(F)[0]
+    footprint = np.stack([V[loop, 0] - origin[0], origin[1] - V[loop, 1]], axis=1)
+    return spec, origin, footprint
+
+
+def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, footprint=None) -> tuple[bytes, tuple]:
+    """PDF of a board centred on a sheet with a 100 mm bar and a line of text under it.
+
+    Returns
+    -------
+    pdf : bytes
+    page_origin_mm : (2,)
+        The board's top-left corner, mm from the sheet's top-left corner (x right, y down).
+    paper : str
+        The sheet used.
+    """
+    from reportlab.pdfgen import canvas as rl_canvas
+
+    bw, bh = spec.size_mm
+    need_w = max(bw, 110.0) + 2 * BOARD_MARGIN_MM
+    need_h = bh + BELOW_MM + 2 * BOARD_MARGIN_MM
+    paper_name, pw, ph = choose_sheet(paper, need_w, need_h)
+    buf = io.BytesIO()
+    c = rl_canvas.Canvas(buf, pagesize=(pw * PT_PER_MM, ph * PT_PER_MM), invariant=1, pageCompression=1)
+    c.setTitle(title)
+    c.setCreator(f"workbench {__version__}")
+    c.setKeywords(
+        f"workbench, board, {spec.dictionary}, {spec.squares[0]}x{spec.squares[1]}, printer-profile={profile.name}"
+    )
+    c.setViewerPreference("PrintScaling", "None")
+    page = _Page(c, pw, ph, profile)
+    left = (pw - bw) / 2
+    top = ph - (ph - bh - BELOW_MM) / 2  # sheet y (up) of the board's top edge
+    draw_board(c, spec, left, top)
+    if footprint is not None:
+        # the outline leaves a 3 mm gap around every ChArUco corner: a line through a
+        # corner would pull its sub-pixel position (seen: 0.1 mm)
+        from workbench.printing.boards import board_geometry
+
+        corners = board_geometry(spec)["charuco_mm"]
+        closed = np.vstack([footprint, footprint[:1]])
+        seg = np.linalg.norm(np.diff(closed, axis=0), axis=1)
+        t = np.concatenate([[0.0], np.cumsum(seg)])
+        s_ = np.arange(0.0, t[-1], 0.25)
+        pts = np.stack([np.interp(s_, t, closed[:, 0]), np.interp(s_, t, closed[:, 1])], axis=1)
+        near = (np.linalg.norm(pts[:, None, :] - corners[None], axis=2) < 3.0).any(axis=1)
+        c.setStrokeColorRGB(0.85, 0.1, 0.1)
+        c.setLineWidth(0.5)
+        start = None
+        for k in range(len(pts) + 1):
+            if k < len(pts) and not near[k]:
+                start = k if start is None else start
+                continue
+            if start is not None and k - start > 1:
+                path = c.beginPath()
+                path.moveTo(left + pts[start, 0], top - pts[start, 1])
+                for x, y in pts[start + 1 : k]:
+                    path.lineTo(left + x, top - y)
+                c.drawPath(path, stroke=1, fill=0)
+            start = None
+        c.setStrokeColorRGB(0, 0, 0)
+        c.setLineWidth(0.25 / PT_PER_MM)
+        page.text(left, top + 2.0, "top edge: mesh +y. Place the part inside the red outline.", size=2.6)
+    bottom = top - bh
+    scale_bar(page, left, bottom - 6.0, vertical=False)
+    page.text(
+        left,
+        bottom - 17.0,
+        f"{title} | {build_date()} | printer profile: {profile.name} | "
+        "print at 100 % (actual size): the bar must measure 100 mm",
+        size=2.2,
+    )
+    c.showPage()
+    c.save()
+    return buf.getvalue(), (left, ph - top), paper_name
+
+
+def run(args) -> int:
+    log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    paper = parse_paper(args.paper)
+    profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
+    extra: dict = {"software": {"name": "workbench", "version": __version__}}
+    footprint = origin = None
+    if args.kind == "fixture":
+        if args.job is None:
+            raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
+        from workbench.job import load_job
+
+        job = load_job(args.job)
+        spec, origin, footprint = fixture_spec(job)
+        extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
+        extra["footprint_board_mm"] = footprint.tolist()
+        default_out = Path("prints") / f"{job.name}-fixture.pdf"
+        title = f"workbench fixture board for job {job.name}"
+    else:
+        if args.job is not None:
+            raise UsageError(f"board {args.kind} takes options, not a job file")
+        if args.kind == "charuco":
+            square = args.square_mm or 30.0
+            squares = _squares(args.squares, (7, 5))
+        else:  # a printer target fills the sheet, to measure scale over the longest lengths
+            square = args.square_mm or 15.0
+            sheet_w, sheet_h = (210.0, 297.0) if paper == "auto" else choose_sheet(paper, 1, 1)[1:]
+            default = (
+                int((sheet_w - 2 * BOARD_MARGIN_MM) // square),
+                int((sheet_h - 2 * BOARD_MARGIN_MM - BELOW_MM) // square),
+            )
+            squares = _squares(args.squares, default)
+        spec = CharucoSpec(
+            squares=squares,
+            square_mm=square,
+            marker_mm=args.marker_mm or 0.75 * square,
+            dictionary=args.dictionary or "DICT_5X5_250",
+            first_id=args.first_id or 0,
+        )
+        default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
+        title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
+    out = Path(args.output) if args.output else default_out
+    pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint)
+    extra["paper"] = paper_name
+    extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}
+    info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)
+    write_files({out: pdf, out.with_suffix(".json"): (json.dumps(info, indent=1) + "\n").encode()})
+    log(
+        f"wrote {out} ({paper_name}) and {out.with_suffix('.json')}: {spec.squares[0]} x {spec.squares[1]} squares "
+        f"of {spec.square_mm:g} mm, {spec.dictionary}"
+    )
+    return 0

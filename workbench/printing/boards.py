@@ -1,0 +1,175 @@
+"""ChArUco boards: geometry, definition files and vector drawing at true scale.
+
+Board frame (OpenCV's): origin at the board's top-left corner, x right, y down, mm.
+ChArUco corner k sits at ((i + 1) · square, (j + 1) · square) with i = k mod (nx - 1);
+the top-left square is black and the markers fill the white squares.
+
+A fixture board lies on the table under the part, its top edge towards the mesh's +y:
+mesh = origin + (x, -y, 0), with ``origin`` the board's top-left corner in the job's
+mesh frame (mm).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from workbench.errors import WorkbenchError
+
+DICTIONARIES = sorted(k for k in dir(cv2.aruco) if k.startswith("DICT_"))
+
+
+@dataclass(frozen=True)
+class CharucoSpec:
+    """A ChArUco board.
+
+    Attributes
+    ----------
+    squares : (nx, ny)
+        Squares across and down.
+    square_mm, marker_mm : float
+        Square side and marker side.
+    dictionary : str
+        OpenCV ArUco dictionary name, e.g. ``DICT_5X5_250``.
+    first_id : int
+        Id of the first marker (boards of one lab use disjoint id ranges).
+    """
+
+    squares: tuple[int, int] = (7, 5)
+    square_mm: float = 30.0
+    marker_mm: float = 22.0
+    dictionary: str = "DICT_5X5_250"
+    first_id: int = 0
+
+    def __post_init__(self):
+        nx, ny = self.squares
+        if nx < 3 or ny < 3:
+            raise WorkbenchError(f"a ChArUco board needs at least 3 x 3 squares, got {nx} x {ny}")
+        if not 0 < self.marker_mm < self.square_mm:
+            raise WorkbenchError(f"marker_mm {self.marker_mm} must be between 0 and square_mm {self.square_mm}")
+        if self.dictionary not in DICTIONARIES:
+            raise WorkbenchError(f"unknown ArUco dictionary {self.dictionary!r}; e.g. DICT_5X5_250, DICT_6X6_1000")
+        n_markers = (nx * ny) // 2
+        size = int(self.dictionary.rsplit("_", 1)[1])
+        if self.first_id < 0 or self.first_id + n_markers > size:
+            raise WorkbenchError(
+                f"{n_markers} markers from id {self.first_id} do not fit in {self.dictionary} ({size} ids)"
+            )
+
+    @property
+    def size_mm(self) -> tuple[float, float]:
+        return self.squares[0] * self.square_mm, self.squares[1] * self.square_mm
+
+    def opencv(self):
+        """The ``cv2.aruco.CharucoBoard`` (mm units)."""
+        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        nx, ny = self.squares
+        ids = np.arange(self.first_id, self.first_id + (nx * ny) // 2, dtype=np.int32)
+        return cv2.aruco.CharucoBoard((nx, ny), self.square_mm, self.marker_mm, d, ids)
+
+
+def board_geometry(spec: CharucoSpec) -> dict:
+    """Every corner of a board in its own frame.
+
+    Returns
+    -------
+    dict
+        ``charuco_ids`` (n,), ``charuco_mm`` (n, 2); ``marker_ids`` (m,),
+        ``marker_corners_mm`` (m, 4, 2) in OpenCV's order (clockwise from top-left).
+    """
+    b = spec.opencv()
+    cc = np.asarray(b.getChessboardCorners())[:, :2]
+    op = np.asarray(b.getObjPoints())[:, :, :2]
+    return {
+        "charuco_ids": np.arange(len(cc)),
+        "charuco_mm": cc,
+        "marker_ids": np.asarray(b.getIds()).ravel(),
+        "marker_corners_mm": op,
+    }
+
+
+def board_to_mesh(points_mm: np.ndarray, origin_mm) -> np.ndarray:
+    """Board-frame points (n, 2) of a fixture to the job's mesh frame (n, 3), mm."""
+    o = np.asarray(origin_mm, dtype=np.float64)
+    return np.stack([o[0] + points_mm[:, 0], o[1] - points_mm[:, 1], np.full(len(points_mm), o[2])], axis=1)
+
+
+def definition(spec: CharucoSpec, kind: str, origin_mm=None, page_origin_mm=None, extra: dict | None = None) -> dict:
+    """The board definition file's content (JSON-ready).
+
+    Parameters
+    ----------
+    spec : CharucoSpec
+        The board.
+    kind : {'charuco', 'fixture', 'printer-target'}
+        What it is for.
+    origin_mm : (3,) float, optional
+        Fixture: the board's top-left corner in the job's mesh frame; every corner
+        then also gets its mesh position.
+    page_origin_mm : (2,) float, optional
+        Where the board's top-left corner is on the printed sheet, mm from the
+        sheet's top-left corner (x right, y down).
+    extra : dict, optional
+        More entries (job, footprint, ...).
+    """
+    g = board_geometry(spec)
+    out = {
+        "kind": kind,
+        "board": "charuco",
+        "dictionary": spec.dictionary,
+        "squares": list(spec.squares),
+        "square_mm": spec.square_mm,
+        "marker_mm": spec.marker_mm,
+        "first_id": spec.first_id,
+        "frame": "board: origin at the top-left corner, x right, y down, mm",
+        "charuco_corners": {"ids": g["charuco_ids"].tolist(), "board_mm": g["charuco_mm"].tolist()},
+        "markers": {"ids": g["marker_ids"].tolist(), "corners_board_mm": g["marker_corners_mm"].tolist()},
+    }
+    if origin_mm is not None:
+        out["origin_mm"] = list(map(float, origin_mm))
+        out["mesh_frame"] = "job mesh frame, mm: mesh = origin + (x, -y, 0)"
+        out["charuco_corners"]["mesh_mm"] = board_to_mesh(g["charuco_mm"], origin_mm).tolist()
+        mc = g["marker_corners_mm"].reshape(-1, 2)
+        out["markers"]["corners_mesh_mm"] = board_to_mesh(mc, origin_mm).reshape(-1, 4, 3).tolist()
+    if page_origin_mm is not None:
+        out["page_origin_mm"] = list(map(float, page_origin_mm))
+    if extra:
+        out.update(extra)
+    return out
+
+
+def draw_board(canvas, spec: CharucoSpec, left_mm: float, top_mm: float) -> None:
+    """Draw a board as vector shapes on a canvas whose unit is the mm, y up.
+
+    Parameters
+    ----------
+    canvas : reportlab canvas
+        Scaled so that one unit is 1 mm, origin at the sheet's bottom-left.
+    spec : CharucoSpec
+        The board.
+    left_mm, top_mm : float
+        Position of the board's top-left corner (sheet x; sheet y from the bottom).
+    """
+    g = board_geometry(spec)
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, spec.dictionary))
+    n = d.markerSize + 2
+    nx, ny = spec.squares
+    s = spec.square_mm
+    canvas.setFillColorRGB(0, 0, 0)
+    has_marker = np.zeros((ny, nx), dtype=bool)
+    for corners in g["marker_corners_mm"]:
+        has_marker[int(corners[0, 1] // s), int(corners[0, 0] // s)] = True
+    for j in range(ny):
+        for i in range(nx):
+            if not has_marker[j, i]:
+                canvas.rect(left_mm + i * s, top_mm - (j + 1) * s, s, s, stroke=0, fill=1)
+    cell = spec.marker_mm / n
+    for mid, corners in zip(g["marker_ids"], g["marker_corners_mm"], strict=True):
+        bits = d.generateImageMarker(int(mid), n) > 0  # True = white cell
+        x0, y0 = corners[0]
+        for r in range(n):
+            for c in range(n):
+                if not bits[r, c]:
+                    canvas.rect(left_mm + x0 + c * cell, top_mm - (y0 + (r + 1) * cell), cell, cell, stroke=0, fill=1)

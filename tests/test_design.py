@@ -100,6 +100,7 @@ def test_outputs_and_conventions(tmp_path):
     names = {p.name for p in out.iterdir()}
     assert names == {
         "print.png",
+        "fixture.json",
         "decorated.obj",
         "decorated.mtl",
         "decorated.glb",

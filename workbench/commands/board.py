@@ -11,8 +11,8 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import write_files
-from workbench.errors import UsageError, WorkbenchError
-from workbench.printing.boards import CharucoSpec, definition, draw_board
+from workbench.errors import UsageError
+from workbench.printing.boards import CharucoSpec, definition, draw_board, fixture_from_job
 from workbench.printing.paper import choose_sheet, parse_paper
 from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
 
@@ -56,66 +56,6 @@ def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     except ValueError:
         raise UsageError(f"--squares {text!r}: give NXxNY, e.g. 7x5") from None
     return nx, ny
-
-
-def fixture_spec(job) -> tuple[CharucoSpec, np.ndarray, np.ndarray]:
-    """The fixture board of a job: its spec, its top-left corner in the mesh frame, the footprint.
-
-    ``[fixture]`` keys: dictionary, squares [nx, ny], square_mm, marker_mm, first_id,
-    origin_mm [x, y, z] (the board's top-left corner in the mesh frame). Without them
-    the board covers the part's footprint with two squares of margin, 20 mm squares,
-    in the plane of the part's lowest point.
-
-    Returns
-    -------
-    spec : CharucoSpec
-    origin : (3,) float
-    footprint : (#B, 2) float
-        The mesh boundary projected on the plate, board frame (x right, y down), mm.
-    """
-    from workbench.mesh.io import read_mesh
-    from workbench.mesh.topology import boundary_loops
-
-    V, F = read_mesh(job.object.mesh, job.object.units)
-    fx = dict(job.fixture or {})
-    where = f"{job.path}: fixture"
-    known = {"dictionary", "squares", "square_mm", "marker_mm", "first_id", "origin_mm"}
-    unknown = sorted(set(fx) - known)
-    if unknown:
-        raise WorkbenchError(f"{where}: unknown key {unknown[0]!r} (known keys: {', '.join(sorted(known))})")
-    square = fx.get("square_mm", 20.0)
-    if isinstance(square, bool) or not isinstance(square, int | float) or not square > 0:
-        raise WorkbenchError(f"{where}.square_mm: must be a positive number, got {square!r}")
-    lo, hi = V.min(axis=0), V.max(axis=0)
-    if "squares" in fx:
-        sq = fx["squares"]
-        if not (isinstance(sq, list) and len(sq) == 2 and all(isinstance(v, int) for v in sq)):
-            raise WorkbenchError(f"{where}.squares: must be [nx, ny], got {sq!r}")
-        squares = (sq[0], sq[1])
-    else:
-        # two squares of margin on each side: the markers around the part stay visible
-        squares = (int(np.ceil((hi[0] - lo[0]) / square)) + 4, int(np.ceil((hi[1] - lo[1]) / square)) + 4)
-    if "origin_mm" in fx:
-        o = fx["origin_mm"]
-        if not (isinstance(o, list) and len(o) == 3 and all(isinstance(v, int | float) for v in o)):
-            raise WorkbenchError(f"{where}.origin_mm: must be [x, y, z] in mm, got {o!r}")
-        origin = np.asarray(o, dtype=np.float64)
-    else:
-        cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
-        origin = np.array([cx - squares[0] * square / 2, cy + squares[1] * square / 2, lo[2]])
-    try:
-        spec = CharucoSpec(
-            squares=squares,
-            square_mm=float(square),
-            marker_mm=float(fx.get("marker_mm", 0.75 * square)),
-            dictionary=fx.get("dictionary", "DICT_5X5_250"),
-            first_id=int(fx.get("first_id", 0)),
-        )
-    except WorkbenchError as exc:
-        raise WorkbenchError(f"{where}: {exc}") from None
-    loop = boundary_loops(F)[0]
-    footprint = np.stack([V[loop, 0] - origin[0], origin[1] - V[loop, 1]], axis=1)
-    return spec, origin, footprint
 
 
 def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, footprint=None) -> tuple[bytes, tuple]:
@@ -200,9 +140,11 @@ def run(args) -> int:
         if args.job is None:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
         from workbench.job import load_job
+        from workbench.mesh.io import read_mesh
 
         job = load_job(args.job)
-        spec, origin, footprint = fixture_spec(job)
+        V, F = read_mesh(job.object.mesh, job.object.units)
+        spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
         extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
         extra["footprint_board_mm"] = footprint.tolist()
         default_out = Path("prints") / f"{job.name}-fixture.pdf"

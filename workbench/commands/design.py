@@ -17,6 +17,7 @@ from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
 from workbench.job import load_job
 from workbench.mesh.io import format_obj
+from workbench.printing.boards import definition, fixture_from_job
 
 
 def add_parser(sub) -> None:
@@ -115,6 +116,11 @@ def run(args) -> int:
             limit=limit,
         ),
     }
+    spec, origin, footprint = fixture_from_job(job.fixture, result.V, result.F, f"{job.path}: fixture")
+    fixture = definition(
+        spec, "fixture", origin_mm=origin, extra={"job": info["job"], "footprint_board_mm": footprint.tolist()}
+    )
+    files[out / "fixture.json"] = (json.dumps(fixture, indent=1) + "\n").encode()
     timings = {**result.timings_s, "write": time.perf_counter() - t0}
     info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
     files[out / "design.json"] = (json.dumps(info, indent=2) + "\n").encode()
@@ -126,5 +132,7 @@ def run(args) -> int:
     )
     if over:
         log(f"warning: {over:.1f} mm² of the surface stretch beyond the material's limit {limit:g}")
-    log(f"wrote {out}/: print.png, decorated.obj/.mtl/.glb, flat.obj, design.json, views.png, stretch.png")
+    log(
+        f"wrote {out}/: print.png, decorated.obj/.mtl/.glb, flat.obj, design.json, views.png, stretch.png, fixture.json"
+    )
     return 0

@@ -173,3 +173,71 @@ def draw_board(canvas, spec: CharucoSpec, left_mm: float, top_mm: float) -> None
             for c in range(n):
                 if not bits[r, c]:
                     canvas.rect(left_mm + x0 + c * cell, top_mm - (y0 + (r + 1) * cell), cell, cell, stroke=0, fill=1)
+
+
+def fixture_from_job(fixture: dict | None, V: np.ndarray, F: np.ndarray, where: str):
+    """The fixture board of a job: its spec, its top-left corner in the mesh frame, the footprint.
+
+    ``[fixture]`` keys: dictionary, squares [nx, ny], square_mm, marker_mm, first_id,
+    origin_mm [x, y, z] (the board's top-left corner in the mesh frame). Without them
+    the board covers the part's footprint with two squares of margin, 20 mm squares,
+    in the plane of the part's lowest point.
+
+    Parameters
+    ----------
+    fixture : dict or None
+        The job's ``[fixture]`` table.
+    V : (#V, 3) float
+        Mesh vertices, mm.
+    F : (#F, 3) int
+        Triangles.
+    where : str
+        Prefix of error messages (file and table).
+
+    Returns
+    -------
+    spec : CharucoSpec
+    origin : (3,) float
+    footprint : (#B, 2) float
+        The mesh boundary projected on the plate, board frame (x right, y down), mm.
+    """
+    from workbench.mesh.topology import boundary_loops
+
+    fx = dict(fixture or {})
+    known = {"dictionary", "squares", "square_mm", "marker_mm", "first_id", "origin_mm"}
+    unknown = sorted(set(fx) - known)
+    if unknown:
+        raise WorkbenchError(f"{where}: unknown key {unknown[0]!r} (known keys: {', '.join(sorted(known))})")
+    square = fx.get("square_mm", 20.0)
+    if isinstance(square, bool) or not isinstance(square, int | float) or not square > 0:
+        raise WorkbenchError(f"{where}.square_mm: must be a positive number, got {square!r}")
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    if "squares" in fx:
+        sq = fx["squares"]
+        if not (isinstance(sq, list) and len(sq) == 2 and all(isinstance(v, int) for v in sq)):
+            raise WorkbenchError(f"{where}.squares: must be [nx, ny], got {sq!r}")
+        squares = (sq[0], sq[1])
+    else:
+        # two squares of margin on each side: the markers around the part stay visible
+        squares = (int(np.ceil((hi[0] - lo[0]) / square)) + 4, int(np.ceil((hi[1] - lo[1]) / square)) + 4)
+    if "origin_mm" in fx:
+        o = fx["origin_mm"]
+        if not (isinstance(o, list) and len(o) == 3 and all(isinstance(v, int | float) for v in o)):
+            raise WorkbenchError(f"{where}.origin_mm: must be [x, y, z] in mm, got {o!r}")
+        origin = np.asarray(o, dtype=np.float64)
+    else:
+        cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
+        origin = np.array([cx - squares[0] * square / 2, cy + squares[1] * square / 2, lo[2]])
+    try:
+        spec = CharucoSpec(
+            squares=squares,
+            square_mm=float(square),
+            marker_mm=float(fx.get("marker_mm", 0.75 * square)),
+            dictionary=fx.get("dictionary", "DICT_5X5_250"),
+            first_id=int(fx.get("first_id", 0)),
+        )
+    except WorkbenchError as exc:
+        raise WorkbenchError(f"{where}: {exc}") from None
+    loop = boundary_loops(F)[0]
+    footprint = np.stack([V[loop, 0] - origin[0], origin[1] - V[loop, 1]], axis=1)
+    return spec, origin, footprint

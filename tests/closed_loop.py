@@ -55,7 +55,8 @@ def tile_misregistration(reference, image, mask, tile=64, min_texture=50.0):
     Returns
     -------
     shifts : (n, 2) float
-        Per tile, the (dx, dy) that moves ``image`` onto ``reference``, pixels.
+        Per tile, the (dx, dy) with ``image(x + d) ≈ reference(x)``: how far, in pixels,
+        the image's content is displaced from the reference's.
     """
     ref = cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY).astype(np.float32)
     img = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)

@@ -10,6 +10,7 @@ from workbench.commands import board as board_cmd
 from workbench.commands import design as design_cmd
 from workbench.commands import flatten as flatten_cmd
 from workbench.commands import pdf as pdf_cmd
+from workbench.commands import render as render_cmd
 from workbench.errors import UsageError, WorkbenchError
 
 
@@ -29,6 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     design_cmd.add_parser(sub)
     pdf_cmd.add_parser(sub)
     board_cmd.add_parser(sub)
+    render_cmd.add_parser(sub)
     return parser
 
 

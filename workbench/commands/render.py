@@ -1,0 +1,321 @@
+"""``workbench render``: synthetic photos of the decorated part on its fixture, with their truth."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from workbench import __version__
+from workbench.atomic import write_files
+from workbench.camera import Camera
+from workbench.errors import UsageError, WorkbenchError
+from workbench.export import png_bytes
+from workbench.mesh.io import read_mesh
+from workbench.render.imperfections import REALISTIC, Imperfections
+from workbench.render.photo import build_scene, render_photo
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "render",
+        help="synthetic photos of the decorated part (and its fixture), with controlled imperfections",
+        description=(
+            "Render the decorated part of a design directory, on its fixture plate, from a designed view, a "
+            "camera file or an orbit position. Writes PHOTO.png (or .jpg) and PHOTO.json: the truth (K, "
+            "distortion, R, t, image size, every imperfection), in the form of a camera profile. --previews "
+            "writes one image per designed view, one from a generic viewpoint and a contact sheet."
+        ),
+    )
+    p.add_argument("design", metavar="DESIGN_DIR")
+    cam = p.add_mutually_exclusive_group(required=True)
+    cam.add_argument("--view", metavar="NAME", help="a designed view's camera")
+    cam.add_argument("--camera", metavar="CAMERA.json", help="K, dist, R, t, image_size (e.g. another PHOTO.json)")
+    cam.add_argument(
+        "--orbit", metavar="AZ,EL,DIST", help="look at the part from azimuth/elevation (deg) and distance (mm)"
+    )
+    cam.add_argument(
+        "--previews", action="store_true", help="every designed view and a generic one, and a contact sheet"
+    )
+    p.add_argument(
+        "-o", "--output", metavar="PHOTO.png", help="photo file (default photo.png; --previews: DESIGN_DIR/previews)"
+    )
+    p.add_argument("--size", metavar="WxH", help="image size in pixels (orbit default 1600x1200; view: the view's)")
+    p.add_argument("--fov-deg", type=float, default=40.0, help="horizontal field of view for --orbit (default 40)")
+    p.add_argument("--intrinsics", metavar="PROFILE.json", help="camera profile (K, dist, image_size) for --orbit")
+    p.add_argument("--no-fixture", action="store_true", help="the part alone, without its fixture plate")
+    p.add_argument("--supersample", type=int, default=2, help="samples per pixel along each axis (default 2)")
+    g = p.add_argument_group("imperfections (all off by default)")
+    g.add_argument("--realistic", action="store_true", help="blur 1 px, noise 3, JPEG 90, shading, vignetting 0.15")
+    g.add_argument(
+        "--film-offset-mm", metavar="DX,DY", help="film moved on the part, print coordinates (x right, y down)"
+    )
+    g.add_argument("--film-rotation-deg", type=float, help="film rotated about the print's centre, counter-clockwise")
+    g.add_argument("--film-scale-pct", type=float, help="film uniformly larger by this percentage")
+    g.add_argument("--print-scale-pct", metavar="SX,SY", help="printer scale error in x and y, percent")
+    g.add_argument("--distortion", metavar="K1,K2,P1,P2,K3", help="lens distortion (OpenCV order)")
+    g.add_argument("--blur-px", type=float, help="Gaussian blur sigma, pixels")
+    g.add_argument("--noise", type=float, help="Gaussian noise sigma, grey levels")
+    g.add_argument("--exposure", type=float, help="multiplies intensity")
+    g.add_argument("--gamma", type=float, help="output = input ^ (1 / gamma)")
+    g.add_argument("--shading", action="store_true", default=None, help="Lambertian shading")
+    g.add_argument("--light", metavar="X,Y,Z", help="direction towards the light (world)")
+    g.add_argument("--ambient", type=float, help="ambient share of the light (default 0.35)")
+    g.add_argument("--vignetting", type=float, help="brightness loss at the corners (0 to 1)")
+    g.add_argument("--jpeg-quality", type=int, help="JPEG round trip at this quality")
+    g.add_argument("--seed", type=int, default=0, help="noise seed")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(run=run)
+
+
+def _floats(text: str | None, n: int, flag: str) -> tuple | None:
+    if text is None:
+        return None
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != n or not all(np.isfinite(vals)):
+        raise UsageError(f"{flag} {text!r}: give {n} comma-separated numbers")
+    return vals
+
+
+def imperfections_from(args) -> Imperfections:
+    """The imperfections the command line asks for (preset first, then explicit flags)."""
+    kw: dict = dict(REALISTIC) if args.realistic else {}
+    pairs = {
+        "film_offset_mm": _floats(args.film_offset_mm, 2, "--film-offset-mm"),
+        "film_rotation_deg": args.film_rotation_deg,
+        "film_scale_pct": args.film_scale_pct,
+        "print_scale_pct": _floats(args.print_scale_pct, 2, "--print-scale-pct"),
+        "distortion": _floats(args.distortion, 5, "--distortion"),
+        "blur_px": args.blur_px,
+        "noise": args.noise,
+        "exposure": args.exposure,
+        "gamma": args.gamma,
+        "shading": args.shading,
+        "light": _floats(args.light, 3, "--light"),
+        "ambient": args.ambient,
+        "vignetting": args.vignetting,
+        "jpeg_quality": args.jpeg_quality,
+    }
+    kw.update({k: v for k, v in pairs.items() if v is not None})
+    kw["seed"] = args.seed
+    for key, lo, hi in (
+        ("blur_px", 0, 50),
+        ("noise", 0, 100),
+        ("exposure", 0, 100),
+        ("gamma", 0.05, 20),
+        ("ambient", 0, 1),
+        ("vignetting", 0, 1),
+        ("jpeg_quality", 1, 100),
+    ):
+        if key in kw and not lo <= kw[key] <= hi:
+            raise UsageError(f"--{key.replace('_', '-')} {kw[key]}: must be between {lo} and {hi}")
+    return Imperfections(**kw)
+
+
+def load_camera(path: Path) -> Camera:
+    """A camera file: K (3x3), R (3x3), t (3), image_size [W, H], optional dist (5)."""
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: no such camera file")
+    try:
+        d = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise WorkbenchError(f"{path}: not a JSON camera file: {exc}") from None
+    if not isinstance(d, dict):
+        raise WorkbenchError(f"{path}: a camera file is a JSON object")
+    shapes = {"K": (3, 3), "R": (3, 3), "t": (3,), "image_size": (2,)}
+    vals = {}
+    for key, shape in shapes.items():
+        try:
+            arr = np.asarray(d[key], dtype=np.float64)
+        except KeyError:
+            raise WorkbenchError(f"{path}: {key}: missing") from None
+        except (TypeError, ValueError):
+            arr = np.zeros(0)
+        if arr.shape != shape or not np.isfinite(arr).all():
+            raise WorkbenchError(f"{path}: {key}: must be {'x'.join(map(str, shape))} numbers")
+        vals[key] = arr
+    R = vals["R"]
+    if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+        raise WorkbenchError(f"{path}: R: not a rotation matrix")
+    dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()
+    if dist.size < 5:
+        dist = np.concatenate([dist, np.zeros(5 - dist.size)])
+    w, h = (int(v) for v in vals["image_size"])
+    if w < 8 or h < 8:
+        raise WorkbenchError(f"{path}: image_size: {w} x {h} is too small")
+    return Camera(K=vals["K"], R=R, t=vals["t"], width=w, height=h, dist=dist[:5])
+
+
+class Design:
+    """What render needs of a design directory."""
+
+    def __init__(self, directory: Path):
+        if not directory.is_dir():
+            raise WorkbenchError(f"{directory}: no such design directory (run workbench design first)")
+        need = ("design.json", "print.png", "flat.obj", "decorated.obj", "fixture.json")
+        for name in need:
+            if not (directory / name).is_file():
+                raise WorkbenchError(f"{directory / name}: missing; is {directory} the output of workbench design?")
+        self.dir = directory
+        self.info = json.loads((directory / "design.json").read_text())
+        self.fixture = json.loads((directory / "fixture.json").read_text())
+        # the decorated mesh: the part in mm, in the input's vertex order
+        self.V, self.F = read_mesh(directory / "decorated.obj")
+        flat, _ = read_mesh(directory / "flat.obj")
+        self.flat = flat[:, :2]
+        img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_COLOR)
+        if img is None:
+            raise WorkbenchError(f"{directory / 'print.png'}: cannot read")
+        self.rgb = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+    def scene(self, imp: Imperfections, fixture: bool = True):
+        p = self.info["print"]
+        return build_scene(
+            self.V, self.F, self.flat, p["height_mm"], self.rgb, p["dpi"], imp, self.fixture if fixture else None
+        )
+
+    def view_camera(self, name: str) -> Camera:
+        for v in self.info["views"]:
+            if v["name"] == name:
+                c = v["camera"]
+                return Camera(np.asarray(c["K"]), np.asarray(c["R"]), np.asarray(c["t"]), *c["image_size"])
+        names = ", ".join(v["name"] for v in self.info["views"])
+        raise WorkbenchError(f"no view named {name!r} in {self.dir / 'design.json'} (views: {names})")
+
+    def orbit_camera(self, az_deg, el_deg, dist_mm, width, height, fov_deg, intrinsics: Camera | None) -> Camera:
+        centre = 0.5 * (self.V.min(axis=0) + self.V.max(axis=0))
+        a, e = np.radians(az_deg), np.radians(el_deg)
+        # azimuth 0: in front of the part (towards -y), counter-clockwise seen from above
+        eye = centre + dist_mm * np.array([np.sin(a) * np.cos(e), -np.cos(a) * np.cos(e), np.sin(e)])
+        up = [0.0, 0.0, 1.0] if abs(el_deg) < 89 else [0.0, 1.0, 0.0]
+        cam = Camera.look_at(eye, centre, up, fov_deg, width, height)
+        if intrinsics is not None:
+            cam = Camera(intrinsics.K, cam.R, cam.t, intrinsics.width, intrinsics.height, intrinsics.dist)
+        return cam
+
+
+def _size(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
+    if text is None:
+        return default
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UsageError(f"--size {text!r}: give WxH in pixels, e.g. 4000x3000") from None
+    if not (8 <= w <= 20000 and 8 <= h <= 20000):
+        raise UsageError(f"--size {text}: between 8 and 20000 pixels a side")
+    return w, h
+
+
+def truth(camera: Camera, imp: Imperfections, design: Design, source: str) -> dict:
+    """PHOTO.json: a camera profile (K, dist, image_size) with the pose and every imperfection."""
+    return {
+        "K": camera.K.tolist(),
+        "dist": list(imp.distortion),
+        "image_size": [camera.width, camera.height],
+        "R": camera.R.tolist(),
+        "t": camera.t.tolist(),
+        "camera_center_mm": camera.center.tolist(),
+        "imperfections": imp.to_dict(),
+        "source": source,
+        "design": {"dir": str(design.dir), "job_sha256": design.info.get("job", {}).get("sha256")},
+        "software": {"name": "workbench", "version": __version__},
+    }
+
+
+def encode(rgb: np.ndarray, path: Path, imp: Imperfections) -> bytes:
+    if path.suffix.lower() in (".jpg", ".jpeg"):
+        q = imp.jpeg_quality or 95
+        ok, buf = cv2.imencode(".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, int(q)])
+        return buf.tobytes()
+    return png_bytes(rgb)
+
+
+def run(args) -> int:
+    log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    if not 1 <= args.supersample <= 8:
+        raise UsageError("--supersample: between 1 and 8")
+    imp = imperfections_from(args)
+    design = Design(Path(args.design))
+    fixture = not args.no_fixture
+    if args.previews:
+        return previews(args, design, imp, fixture, log)
+    if args.view:
+        cam = design.view_camera(args.view)
+        if args.size:
+            w, h = _size(args.size, (cam.width, cam.height))
+            cam = cam.scaled(w / cam.width)
+        source = f"view {args.view}"
+    elif args.camera:
+        cam = load_camera(Path(args.camera))
+        if np.any(cam.dist) and not np.any(imp.distortion):
+            imp = Imperfections(**{**imp.to_dict(), "distortion": tuple(cam.dist)})
+        source = f"camera {args.camera}"
+    else:
+        az, el, dist = _floats(args.orbit, 3, "--orbit")
+        intr = load_camera_profile(Path(args.intrinsics)) if args.intrinsics else None
+        w, h = _size(args.size, (1600, 1200))
+        cam = design.orbit_camera(az, el, dist, w, h, args.fov_deg, intr)
+        if intr is not None and np.any(intr.dist) and not np.any(imp.distortion):
+            imp = Imperfections(**{**imp.to_dict(), "distortion": tuple(intr.dist)})
+        source = f"orbit {args.orbit}"
+    out = Path(args.output or "photo.png")
+    rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
+    write_files(
+        {
+            out: encode(rgb, out, imp),
+            out.with_suffix(".json"): (json.dumps(truth(cam, imp, design, source), indent=1) + "\n").encode(),
+        }
+    )
+    log(f"wrote {out} ({cam.width} x {cam.height}) and {out.with_suffix('.json')}")
+    return 0
+
+
+def load_camera_profile(path: Path) -> Camera:
+    """Intrinsics only (K, dist, image_size): a calibration profile or a PHOTO.json."""
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: no such camera profile")
+    try:
+        d = json.loads(path.read_text())
+        K = np.asarray(d["K"], dtype=np.float64)
+        w, h = (int(v) for v in d["image_size"])
+        dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()[:5]
+    except (UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise WorkbenchError(f"{path}: not a camera profile (K, dist, image_size): {exc}") from None
+    if K.shape != (3, 3):
+        raise WorkbenchError(f"{path}: K: must be 3x3")
+    return Camera(K, np.eye(3), np.zeros(3), w, h, np.concatenate([dist, np.zeros(5 - len(dist))]))
+
+
+def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> int:
+    out = Path(args.output) if args.output else design.dir / "previews"
+    files, tiles = {}, []
+    scene = design.scene(imp, fixture)
+    cams = [(v["name"], design.view_camera(v["name"])) for v in design.info["views"]]
+    cams.append(
+        (
+            "generic",
+            design.orbit_camera(
+                35.0, 35.0, 2.2 * float(np.linalg.norm(np.ptp(design.V, axis=0))), 1200, 900, 40.0, None
+            ),
+        )
+    )
+    for name, cam in cams:
+        rgb = render_photo(scene, cam, imp, args.supersample)
+        files[out / f"{name}.png"] = png_bytes(rgb)
+        files[out / f"{name}.json"] = (json.dumps(truth(cam, imp, design, f"preview {name}"), indent=1) + "\n").encode()
+        h = 300
+        tile = cv2.resize(rgb, (int(round(rgb.shape[1] * h / rgb.shape[0])), h), interpolation=cv2.INTER_AREA)
+        tile = cv2.copyMakeBorder(tile, 30, 6, 6, 6, cv2.BORDER_CONSTANT, value=(255, 255, 255))
+        cv2.putText(tile, name, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (20, 20, 20), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    sheet = np.hstack(tiles)
+    files[out / "contact_sheet.png"] = png_bytes(sheet)
+    write_files(files)
+    log(f"wrote {len(cams)} previews and {out / 'contact_sheet.png'}")
+    return 0

@@ -1,0 +1,107 @@
+"""What can go wrong between the design and a photo of the real part, each off by default."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Imperfections:
+    """Imperfections of the decoration and of the photo.
+
+    Film and print (print coordinates: mm from the trim's top-left corner, x right,
+    y down, as the print is seen from its printed side):
+
+    Attributes
+    ----------
+    film_offset_mm : (2,) float
+        Where the film sits relative to where it should: the print moves by this on the part.
+    film_rotation_deg : float
+        Film rotated about the print's centre, counter-clockwise seen on the print.
+    film_scale_pct : float
+        Film uniformly larger by this percentage (about the print's centre).
+    print_scale_pct : (2,) float
+        Printer scale error in x and y, percent (about the print's centre).
+
+    Photo:
+
+    distortion : (5,) float
+        Lens distortion (k1, k2, p1, p2, k3) of the camera taking the photo.
+    blur_px : float
+        Gaussian blur sigma, photo pixels.
+    noise : float
+        Gaussian noise sigma, grey levels (0 to 255).
+    exposure : float
+        Multiplies linear intensity.
+    gamma : float
+        Output = input ** (1 / gamma).
+    shading : bool
+        Lambertian shading from ``light`` plus ``ambient``.
+    light : (3,) float
+        Direction towards the light, world frame.
+    ambient : float
+        Share of light that does not depend on the surface's direction.
+    vignetting : float
+        Brightness falls by this share at the image corners (quadratic in radius).
+    jpeg_quality : int or None
+        JPEG round trip at this quality.
+    seed : int
+        Seed of the noise.
+    """
+
+    film_offset_mm: tuple[float, float] = (0.0, 0.0)
+    film_rotation_deg: float = 0.0
+    film_scale_pct: float = 0.0
+    print_scale_pct: tuple[float, float] = (0.0, 0.0)
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    blur_px: float = 0.0
+    noise: float = 0.0
+    exposure: float = 1.0
+    gamma: float = 1.0
+    shading: bool = False
+    light: tuple[float, float, float] = (0.3, -0.5, 1.0)
+    ambient: float = 0.35
+    vignetting: float = 0.0
+    jpeg_quality: int | None = None
+    seed: int = 0
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("extra")
+        return d
+
+
+REALISTIC = {"blur_px": 1.0, "noise": 3.0, "jpeg_quality": 90, "shading": True, "vignetting": 0.15}
+
+
+def film_transform(imp: Imperfections, print_size_mm: tuple[float, float]) -> np.ndarray:
+    """The print point a surface point shows, as an affine map of the point it should show.
+
+    The printer scales the print about its centre c by S; the film is then scaled by
+    the film scale, rotated by θ about c and moved by d. A surface point that should
+    show print point p shows q with p = c + R(θ) s S (q - c) + d, so
+    q = c + (s S)⁻¹ R(θ)⁻¹ (p - c - d).
+
+    Parameters
+    ----------
+    imp : Imperfections
+        Film and print imperfections.
+    print_size_mm : (2,) float
+        Width and height of the print, mm.
+
+    Returns
+    -------
+    A : (2, 3) float
+        ``q = A [p, 1]``, print mm (x right, y down).
+    """
+    c = 0.5 * np.asarray(print_size_mm, dtype=np.float64)
+    t = np.radians(imp.film_rotation_deg)
+    # counter-clockwise as seen on the print, whose y axis points down
+    R = np.array([[np.cos(t), np.sin(t)], [-np.sin(t), np.cos(t)]])
+    S = np.diag([1 + imp.print_scale_pct[0] / 100, 1 + imp.print_scale_pct[1] / 100]) * (1 + imp.film_scale_pct / 100)
+    M = np.linalg.inv(R @ S)
+    d = np.asarray(imp.film_offset_mm, dtype=np.float64)
+    return np.column_stack([M, c - M @ (c + d)])

@@ -25,6 +25,7 @@ demo: install
 bench: install
 	$(PY) benchmarks/bench_flatten.py $(if $(BIG),--big)
 	$(PY) benchmarks/bench_design.py
+	$(PY) benchmarks/bench_render.py
 	$(PY) -m pytest -q -m slow
 
 lint: install

@@ -45,6 +45,9 @@ def main() -> None:
     subprocess.run(
         [wb, "board", "fixture", "fixtures/default/job.toml", "-o", str(fixture), "-q"], check=True, cwd=ROOT
     )
+    prev = out / "previews"
+    subprocess.run([wb, "render", str(out / "design"), "--previews", "-o", str(prev), "-q"], check=True, cwd=ROOT)
+    (IMG / "render-previews.png").write_bytes((prev / "contact_sheet.png").read_bytes())
     import pypdfium2 as pdfium
 
     for src, name in ((pdf, "pdf-default.png"), (fixture, "board-fixture-default.png")):

@@ -100,6 +100,9 @@ def test_outputs_and_conventions(tmp_path):
     names = {p.name for p in out.iterdir()}
     assert names == {
         "print.png",
+        "owner.png",
+        "view-left.png",
+        "view-right.png",
         "fixture.json",
         "decorated.obj",
         "decorated.mtl",

@@ -11,6 +11,7 @@ from workbench.commands import design as design_cmd
 from workbench.commands import flatten as flatten_cmd
 from workbench.commands import pdf as pdf_cmd
 from workbench.commands import render as render_cmd
+from workbench.commands import validate as validate_cmd
 from workbench.errors import UsageError, WorkbenchError
 
 
@@ -31,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     pdf_cmd.add_parser(sub)
     board_cmd.add_parser(sub)
     render_cmd.add_parser(sub)
+    validate_cmd.add_parser(sub)
     return parser
 
 

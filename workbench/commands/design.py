@@ -12,7 +12,7 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import write_files
 from workbench.commands.flatten import summary
-from workbench.design import design, view_statistics
+from workbench.design import design, read_image, view_statistics
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
 from workbench.job import load_job
@@ -89,6 +89,8 @@ def run(args) -> int:
     }
     files = {
         out / "print.png": png_bytes(result.rgb, grid.dpi),
+        # owning view + 1 per print pixel (0: none), read by validate
+        out / "owner.png": png_bytes((result.owner.astype(np.int16) + 1).astype(np.uint8), grid.dpi),
         out / "decorated.obj": obj,
         out / "decorated.mtl": mtl,
         out / "decorated.glb": decorated_glb(result.V, result.F, vt, result.rgb),
@@ -116,6 +118,11 @@ def run(args) -> int:
             limit=limit,
         ),
     }
+    # the view images, so that the design directory alone is enough to validate photos
+    for v in job.views:
+        files[out / f"view-{v.name}.png"] = (
+            v.image.read_bytes() if v.image.suffix.lower() == ".png" else png_bytes(read_image(v.image, v.name))
+        )
     spec, origin, footprint = fixture_from_job(job.fixture, result.V, result.F, f"{job.path}: fixture")
     fixture = definition(
         spec, "fixture", origin_mm=origin, extra={"job": info["job"], "footprint_board_mm": footprint.tolist()}

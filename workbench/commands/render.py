@@ -173,6 +173,18 @@ class Design:
         if img is None:
             raise WorkbenchError(f"{directory / 'print.png'}: cannot read")
         self.rgb = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+        owner = cv2.imread(str(directory / "owner.png"), cv2.IMREAD_UNCHANGED)
+        # owning view + 1 per print pixel, 0 for none (see design)
+        self.owner = None if owner is None else owner.astype(np.int16) - 1
+
+    def view_image(self, index: int) -> np.ndarray:
+        """The image of designed view ``index`` (RGB), as the design used it."""
+        name = self.info["views"][index]["name"]
+        path = self.dir / f"view-{name}.png"
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None:
+            raise WorkbenchError(f"{path}: missing; rerun workbench design")
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
     def scene(self, imp: Imperfections, fixture: bool = True):
         p = self.info["print"]

@@ -1,0 +1,111 @@
+"""Camera pose from the fixture's ChArUco corners."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from workbench.camera import Camera
+from workbench.printing.boards import CharucoSpec
+
+
+@dataclass
+class Pose:
+    """Where the camera was, from the markers it saw.
+
+    Attributes
+    ----------
+    camera : Camera
+        Intrinsics and distortion of the profile, pose estimated (mesh frame).
+    rms_px : float
+        Reprojection RMS of the corners used, pixels.
+    n_corners : int
+        ChArUco corners used.
+    n_markers : int
+        Markers detected.
+    marker_ids : (m,) int
+        Their ids.
+    """
+
+    camera: Camera
+    rms_px: float
+    n_corners: int
+    n_markers: int
+    marker_ids: np.ndarray
+
+
+class PoseError(Exception):
+    """No pose: the reason, for an INVALID verdict."""
+
+
+def spec_of(fixture: dict) -> CharucoSpec:
+    return CharucoSpec(
+        tuple(fixture["squares"]),
+        fixture["square_mm"],
+        fixture["marker_mm"],
+        fixture["dictionary"],
+        fixture.get("first_id", 0),
+    )
+
+
+def estimate_pose(gray: np.ndarray, fixture: dict, K: np.ndarray, dist: np.ndarray, min_corners: int = 8) -> Pose:
+    """Pose of the camera that took ``gray`` relative to the fixture (the job's mesh frame).
+
+    ChArUco corners (sub-pixel, about 0.03 px) against their mesh positions: SQPnP for a
+    start, then Levenberg-Marquardt (``cv2.solvePnPRefineLM``) on all corners.
+
+    Parameters
+    ----------
+    gray : (H, W) uint8
+        The photo.
+    fixture : dict
+        Board definition with mesh positions (``fixture.json`` of the design).
+    K : (3, 3) float
+        Camera matrix of the profile.
+    dist : (5,) float
+        Its distortion.
+    min_corners : int
+        Fewer corners than this is no pose.
+
+    Returns
+    -------
+    Pose
+
+    Raises
+    ------
+    PoseError
+        No markers, markers of another board, too few corners.
+    """
+    spec = spec_of(fixture)
+    det = cv2.aruco.CharucoDetector(spec.opencv())
+    corners, ids, mcorners, mids = det.detectBoard(gray)
+    if mids is None or len(mids) == 0:
+        # maybe markers of another dictionary or id range: say so when we can tell
+        dic = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, fixture["dictionary"]))
+        _, any_ids, _ = cv2.aruco.ArucoDetector(dic).detectMarkers(gray)
+        if any_ids is not None and len(any_ids):
+            raise PoseError(
+                f"markers found ({len(any_ids)}) but none of this fixture's (ids {fixture['markers']['ids'][0]}"
+                f" to {fixture['markers']['ids'][-1]}): another board"
+            )
+        raise PoseError("no fixture markers found in the photo")
+    n = 0 if ids is None else len(ids)
+    if n < min_corners:
+        raise PoseError(f"too few ChArUco corners ({n}, need {min_corners}): is the fixture in the photo and sharp?")
+    ids = ids.ravel()
+    obj = np.asarray(fixture["charuco_corners"]["mesh_mm"], dtype=np.float64)[ids]
+    img = corners.reshape(-1, 2).astype(np.float64)
+    ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_SQPNP)
+    if not ok:
+        raise PoseError("the pose could not be solved from the corners")
+    rvec, tvec = cv2.solvePnPRefineLM(
+        obj, img, K, dist, rvec, tvec, (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+    )
+    proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
+    R = cv2.Rodrigues(rvec)[0]
+    h, w = gray.shape[:2]
+    cam = Camera(np.asarray(K, dtype=np.float64), R, tvec.ravel(), w, h, np.asarray(dist, dtype=np.float64).ravel())
+    return Pose(cam, rms, n, len(mids), mids.ravel())

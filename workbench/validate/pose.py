@@ -81,6 +81,11 @@ def estimate_pose(gray: np.ndarray, fixture: dict, K: np.ndarray, dist: np.ndarr
     spec = spec_of(fixture)
     det = cv2.aruco.CharucoDetector(spec.opencv())
     corners, ids, mcorners, mids = det.detectBoard(gray)
+    ours = set(int(i) for i in fixture["markers"]["ids"])
+    if mids is not None and len(mids) and not ours & set(int(i) for i in mids.ravel()):
+        raise PoseError(
+            f"markers found ({len(mids)}) but none of this fixture's (ids {min(ours)} to {max(ours)}): another board"
+        )
     if mids is None or len(mids) == 0:
         # maybe markers of another dictionary or id range: say so when we can tell
         dic = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, fixture["dictionary"]))

@@ -262,7 +262,7 @@ def ssim(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     return float(s[mask].mean()) if mask.any() else 0.0
 
 
-def fit_film(p_design: np.ndarray, p_shown: np.ndarray, print_size_mm) -> dict:
+def fit_film(p_design: np.ndarray, p_shown: np.ndarray, print_size_mm, jacobians: np.ndarray | None = None) -> dict:
     """Film placement (offset, rotation, scale) that explains the misregistration.
 
     Each tile gives a pair: the design print point p at its centre, and p' at the place
@@ -270,8 +270,20 @@ def fit_film(p_design: np.ndarray, p_shown: np.ndarray, print_size_mm) -> dict:
     k about the print's centre c shows print point q = c + M (p' - c - d) at a surface
     point whose design print point is p', with M = R(θ)⁻¹ / k (as the renderer's
     :func:`workbench.render.imperfections.film_transform`); there q = p. The similarity
-    p = M p' + t is fitted by least squares (tiles beyond 3 median residuals dropped),
-    then θ = atan2(M10, M00), k = 1 / sqrt(det M), d = M⁻¹ (c - t) - c.
+    p = M p' + t is fitted by least squares on the residuals in view pixels (each tile's
+    mm residual through the inverse of its 2x2 Jacobian, print mm per view pixel: a
+    view seeing the print at a grazing angle measures one axis much less precisely),
+    tiles beyond 3 median residuals dropped; then θ = atan2(M10, M00),
+    k = 1 / sqrt(det M), d = M⁻¹ (c - t) - c.
+
+    Parameters
+    ----------
+    p_design, p_shown : (n, 2) float
+        Print mm (x right, y down).
+    print_size_mm : (2,) float
+        The print's size; its centre is the film's centre.
+    jacobians : (n, 2, 2) float, optional
+        Print mm per view pixel at each tile (columns: along view x, along view y).
 
     Returns
     -------
@@ -280,18 +292,23 @@ def fit_film(p_design: np.ndarray, p_shown: np.ndarray, print_size_mm) -> dict:
         (counter-clockwise seen on the print), scale_pct, rms_mm, tiles.
     """
     c = 0.5 * np.asarray(print_size_mm, dtype=np.float64)
-    keep = np.ones(len(p_design), dtype=bool)
+    n = len(p_design)
+    Winv = np.tile(np.eye(2), (n, 1, 1)) if jacobians is None else np.linalg.inv(jacobians)
+    x, y = p_shown[:, 0], p_shown[:, 1]
+    # p = [[a, -b], [b, a]] p' + t, as rows of 2 equations per tile
+    A = np.zeros((n, 2, 4))
+    A[:, 0] = np.stack([x, -y, np.ones_like(x), np.zeros_like(x)], 1)
+    A[:, 1] = np.stack([y, x, np.zeros_like(x), np.ones_like(x)], 1)
+    Aw = np.einsum("nij,njk->nik", Winv, A)
+    bw = np.einsum("nij,nj->ni", Winv, p_design)
+    keep = np.ones(n, dtype=bool)
     for _ in range(2):
-        x, y = p_shown[keep, 0], p_shown[keep, 1]
-        # p = [[a, -b], [b, a]] p' + t
-        A = np.zeros((2 * keep.sum(), 4))
-        A[0::2] = np.stack([x, -y, np.ones_like(x), np.zeros_like(x)], 1)
-        A[1::2] = np.stack([y, x, np.zeros_like(x), np.ones_like(x)], 1)
-        sol, *_ = np.linalg.lstsq(A, p_design[keep].ravel(), rcond=None)
-        a, b, tx, ty = sol
-        M = np.array([[a, -b], [b, a]])
-        res = np.linalg.norm(p_shown @ M.T + [tx, ty] - p_design, axis=1)
-        keep = res <= max(3.0 * np.median(res), 1e-3)
+        sol, *_ = np.linalg.lstsq(Aw[keep].reshape(-1, 4), bw[keep].ravel(), rcond=None)
+        res_px = np.linalg.norm(np.einsum("nik,k->ni", Aw, sol) - bw, axis=1)
+        keep = res_px <= max(3.0 * np.median(res_px), 1e-3)
+    a, b, tx, ty = sol
+    M = np.array([[a, -b], [b, a]])
+    res = np.linalg.norm(p_shown @ M.T + [tx, ty] - p_design, axis=1)
     theta = np.degrees(np.arctan2(M[1, 0], M[0, 0]))
     k = 1.0 / np.sqrt(np.linalg.det(M))
     d = np.linalg.solve(M, c - np.array([tx, ty])) - c
@@ -338,9 +355,12 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
     H, W = ref.shape
     centres, shifts = [], []
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6)
+    # tiles keep clear of the region's border by the largest shift they can measure:
+    # a shifted film brings the neighbouring view's content into a band that wide
+    clear = cv2.erode(mask.astype(np.uint8), np.ones((2 * MARGIN + 1, 2 * MARGIN + 1), np.uint8)).astype(bool)
     for y in range(0, H - TILE + 1, TILE // 2):
         for x in range(0, W - TILE + 1, TILE // 2):
-            if not inner[y : y + TILE, x : x + TILE].all():
+            if not clear[y : y + TILE, x : x + TILE].all():
                 continue
             a, b = gx[y : y + TILE, x : x + TILE], gy[y : y + TILE, x : x + TILE]
             S = np.array([[(a * a).mean(), (a * b).mean()], [(a * b).mean(), (b * b).mean()]])
@@ -365,9 +385,18 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
         if len(centres) >= 4:
             p0 = _bilinear(surface.print_mm, centres[:, 0], centres[:, 1])
             p1 = _bilinear(surface.print_mm, centres[:, 0] + shifts[:, 0], centres[:, 1] + shifts[:, 1])
-            good = np.isfinite(p0).all(1) & np.isfinite(p1).all(1)
+            # local Jacobian: print mm per view pixel along view x and view y at each tile
+            jx = _bilinear(surface.print_mm, centres[:, 0] + 1, centres[:, 1]) - p0
+            jy = _bilinear(surface.print_mm, centres[:, 0], centres[:, 1] + 1) - p0
+            J = np.stack([jx, jy], axis=2)
+            good = (
+                np.isfinite(p0).all(1)
+                & np.isfinite(p1).all(1)
+                & np.isfinite(J).all((1, 2))
+                & (np.abs(np.linalg.det(np.nan_to_num(J))) > 1e-12)
+            )
             if good.sum() >= 4:
-                film = fit_film(p0[good], p1[good], print_size_mm)
+                film = fit_film(p0[good], p1[good], print_size_mm, jacobians=J[good])
     # similarity after alignment: the photo aligned on the design by one homography,
     # then the design blurred like the photo, exposure matched by a linear fit
     sim, blur = 0.0, 0.0

@@ -17,15 +17,27 @@ $(STAMP): pyproject.toml
 test: install
 	$(PY) -m pytest -q
 
+WB := $(VENV)/bin/workbench
+DEMO := out/demo
+
+# the whole pipeline on the bundled default job: design, print PDF, fixture PDF, two
+# synthetic photos (one perfect, one with the film 0.8 mm off), validation and QA report
 demo: install
-	$(VENV)/bin/workbench design fixtures/default/job.toml --out out/demo
-	@echo "pictures: out/demo/print.png (the print), out/demo/views.png (which view owns what),"
-	@echo "          out/demo/stretch.png (film stretch); 3D: out/demo/decorated.glb"
+	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
+	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf
+	$(WB) board fixture fixtures/default/job.toml -o $(DEMO)/fixture.pdf
+	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic -o $(DEMO)/photo_perfect.jpg
+	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic --film-offset-mm 0.8,0 \
+		-o $(DEMO)/photo_film_0.8mm.jpg
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg $(DEMO)/photo_film_0.8mm.jpg \
+		--camera $(DEMO)/photo_perfect.json --out $(DEMO)/validation
+	$(PY) fixtures/demo_summary.py $(DEMO)
 
 bench: install
 	$(PY) benchmarks/bench_flatten.py $(if $(BIG),--big)
 	$(PY) benchmarks/bench_design.py
 	$(PY) benchmarks/bench_render.py
+	$(PY) benchmarks/bench_validate.py
 	$(PY) -m pytest -q -m slow
 
 lint: install

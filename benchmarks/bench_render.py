@@ -35,8 +35,22 @@ def main() -> None:
         design = tmp / "design"
         subprocess.run([WB, "design", str(job), "--out", str(design), "-q"], check=True)
         faces = json.loads((design / "design.json").read_text())["mesh"]["faces"]
-        cmd = [WB, "render", str(design), "--orbit", "25,40,700", "--size", "4000x3000", "--supersample", "2",
-               "--realistic", "--distortion=-0.08,0.03,0,0,0", "-o", str(tmp / "photo.jpg"), "-q"]
+        cmd = [
+            WB,
+            "render",
+            str(design),
+            "--orbit",
+            "25,40,700",
+            "--size",
+            "4000x3000",
+            "--supersample",
+            "2",
+            "--realistic",
+            "--distortion=-0.08,0.03,0,0,0",
+            "-o",
+            str(tmp / "photo.jpg"),
+            "-q",
+        ]
         runs = [run_child(cmd) for _ in range(2)]
         best = min(r[0] for r in runs)
         peak = max(r[1] for r in runs)

@@ -41,7 +41,7 @@ bench: install
 	$(PY) -m pytest -q -m slow
 
 lint: install
-	$(VENV)/bin/ruff check workbench tests benchmarks fixtures docs
+	$(VENV)/bin/ruff check workbench tests benchmarks fixtures docs calib
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -7,6 +7,7 @@ import sys
 
 from workbench import __version__
 from workbench.commands import board as board_cmd
+from workbench.commands import calibrate as calibrate_cmd
 from workbench.commands import design as design_cmd
 from workbench.commands import flatten as flatten_cmd
 from workbench.commands import pdf as pdf_cmd
@@ -33,6 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     board_cmd.add_parser(sub)
     render_cmd.add_parser(sub)
     validate_cmd.add_parser(sub)
+    calibrate_cmd.add_parser(sub)
     return parser
 
 

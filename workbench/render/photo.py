@@ -119,21 +119,13 @@ def build_scene(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, imp: Imperfect
     Vs, Fs, uvs, ns, tex = [V], [F], [uv], [normals], [np.zeros(len(F), np.int8)]
     textures = [print_rgb]
     if fixture is not None:
-        img, bppm = board_texture(fixture)
-        m = PLATE_MARGIN_MM
-        bw = fixture["squares"][0] * fixture["square_mm"]
-        bh = fixture["squares"][1] * fixture["square_mm"]
-        o = np.asarray(fixture["origin_mm"], dtype=np.float64)
-        # plate corners in the board frame (x right, y down), then the mesh frame
-        corners = np.array([[-m, -m], [bw + m, -m], [bw + m, bh + m], [-m, bh + m]])
-        Vp = np.stack([o[0] + corners[:, 0], o[1] - corners[:, 1], np.full(4, o[2])], axis=1)
-        Vs.append(Vp)
-        # counter-clockwise seen from above (+z): the board's y axis points to -y
-        Fs.append(np.array([[0, 3, 2], [0, 2, 1]]) + len(V))
-        uvs.append((corners + m) * bppm - 0.5)
-        ns.append(np.tile([0.0, 0.0, 1.0], (4, 1)))
+        plate = board_scene(fixture, fixture["origin_mm"])
+        Vs.append(plate.V)
+        Fs.append(plate.F + len(V))
+        uvs.append(plate.uv)
+        ns.append(plate.normals)
         tex.append(np.ones(2, np.int8))
-        textures.append(img)
+        textures.append(plate.textures[0])
     return Scene(
         np.concatenate(Vs),
         np.concatenate(Fs),
@@ -143,6 +135,36 @@ def build_scene(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, imp: Imperfect
         textures,
         len(F),
     )
+
+
+def board_scene(definition: dict, origin_mm=(0.0, 0.0, 0.0)) -> Scene:
+    """A printed ChArUco board (with a white margin) lying flat, its top edge towards +y.
+
+    Board point (x, y) (board frame: x right, y down, mm) is at origin + (x, -y, 0).
+
+    Parameters
+    ----------
+    definition : dict
+        Board definition (``workbench board``).
+    origin_mm : (3,) float
+        Where the board's top-left corner is.
+
+    Returns
+    -------
+    Scene
+        Two triangles with the board texture: an object of its own (calibration
+        photos), or appended to a part as its fixture plate.
+    """
+    img, bppm = board_texture(definition)
+    m = PLATE_MARGIN_MM
+    bw = definition["squares"][0] * definition["square_mm"]
+    bh = definition["squares"][1] * definition["square_mm"]
+    o = np.asarray(origin_mm, dtype=np.float64)
+    corners = np.array([[-m, -m], [bw + m, -m], [bw + m, bh + m], [-m, bh + m]])
+    V = np.stack([o[0] + corners[:, 0], o[1] - corners[:, 1], np.full(4, o[2])], axis=1)
+    # counter-clockwise seen from above (+z): the board's y axis points to -y
+    F = np.array([[0, 3, 2], [0, 2, 1]])
+    return Scene(V, F, (corners + m) * bppm - 0.5, np.tile([0.0, 0.0, 1.0], (4, 1)), np.zeros(2, np.int8), [img], 2)
 
 
 @numba.njit(inline="always", **_JIT)

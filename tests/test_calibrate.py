@@ -1,0 +1,140 @@
+"""workbench calibrate: camera and printer, against renders and scans with known truth."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from conftest import ROOT
+
+from workbench.camera import Camera
+from workbench.cli import main
+from workbench.export import png_bytes
+from workbench.printing.boards import CharucoSpec, definition
+from workbench.render.imperfections import Imperfections
+from workbench.render.photo import board_scene, render_photo
+
+K_TRUE = np.array([[1400.0, 0, 803.2], [0, 1400.0, 597.6], [0, 0, 1]])
+DIST_TRUE = (-0.12, 0.05, 0.0005, -0.0003, 0.0)
+
+
+def board_definition(tmp_path):
+    board = definition(CharucoSpec((9, 7), 25.0, 15.0, "DICT_5X5_250"), "charuco")
+    path = tmp_path / "board.json"
+    path.write_text(json.dumps(board))
+    return board, path
+
+
+def calibration_photos(tmp_path, board, n=15, size=(1600, 1200), seed=0):
+    """Views of the board lying flat, from 50 to 80 degrees of elevation, 260 to 320 mm away."""
+    scene = board_scene(board)
+    centre = np.array([112.5, -87.5, 0.0])
+    rng = np.random.default_rng(seed)
+    paths = []
+    for k in range(n):
+        az, el, d = rng.uniform(-180, 180), rng.uniform(50, 80), rng.uniform(260, 320)
+        a, e = np.radians(az), np.radians(el)
+        eye = centre + d * np.array([np.sin(a) * np.cos(e), -np.cos(a) * np.cos(e), np.sin(e)])
+        look = centre + rng.uniform(-45, 45, 3) * [1, 1, 0]
+        pose = Camera.look_at(eye, look, [0, 1, 0], 50, *size)
+        cam = Camera(K_TRUE, pose.R, pose.t, *size)
+        imp = Imperfections(distortion=DIST_TRUE, blur_px=0.8, noise=2.0, seed=k)
+        p = tmp_path / f"view{k:02d}.png"
+        p.write_bytes(png_bytes(render_photo(scene, cam, imp)))
+        paths.append(p)
+    return paths
+
+
+def test_camera_calibration_recovers_the_intrinsics(tmp_path):
+    board, board_path = board_definition(tmp_path)
+    photos = calibration_photos(tmp_path, board)
+    out = tmp_path / "cam.json"
+    assert main(["calibrate", "camera", *map(str, photos), "--board", str(board_path), "-o", str(out), "-q"]) == 0
+    prof = json.loads(out.read_text())
+    K = np.asarray(prof["K"])
+    assert prof["rms_px"] <= 0.1
+    assert K[0, 0] == pytest.approx(1400.0, rel=1e-3) and K[1, 1] == pytest.approx(1400.0, rel=1e-3)
+    assert abs(K[0, 2] - 803.2) <= 0.5 and abs(K[1, 2] - 597.6) <= 0.5
+    assert prof["dist"][0] == pytest.approx(-0.12, abs=0.01)
+    assert all(v["used"] for v in prof["views"]) and out.with_suffix(".png").read_bytes().startswith(b"\x89PNG")
+    # the weekly check: the same camera's photos are within tolerance with these intrinsics
+    assert main(["calibrate", "check", str(out), *map(str, photos[:3]), "-q"]) == 0
+
+
+def test_camera_bad_input(tmp_path, capsys):
+    board, board_path = board_definition(tmp_path)
+    photos = calibration_photos(tmp_path, board, n=3)
+    blank = tmp_path / "blank.png"
+    blank.write_bytes(png_bytes(np.full((1200, 1600, 3), 128, np.uint8)))
+    out = tmp_path / "cam.json"
+    assert (
+        main(["calibrate", "camera", *map(str, photos), str(blank), "--board", str(board_path), "-o", str(out), "-q"])
+        == 1
+    )
+    err = capsys.readouterr().err
+    assert "3 usable views of the board, need at least 5" in err and "blank.png: no markers of the board" in err
+    assert not out.exists()
+
+
+def stretch_and_scan(hi, sx, sy):
+    """The page rendered at 600 dpi, printed stretched by (sx, sy), scanned at 300 dpi.
+
+    Scan pixel j (centre at (j + 0.5) / 300 in on the paper) sees the page at
+    (j + 0.5) / (300 sx) in, i.e. render pixel (j + 0.5) 2 / sx - 0.5: an exact affine
+    map (cv2.resize would round the output size and with it the scale).
+    """
+    h, w = hi.shape
+    blurred = cv2.GaussianBlur(hi.astype(np.float32), (0, 0), 1.2)  # the scanner's optics, at 600 dpi
+    M = np.array([[2 / sx, 0, 1 / sx - 0.5], [0, 2 / sy, 1 / sy - 0.5]])
+    size = (int(np.floor(w * sx / 2)), int(np.floor(h * sy / 2)))
+    return cv2.warpAffine(blurred, M, size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderValue=255)
+
+
+def printed_scan(tmp_path, sx, sy, paper="A4", dpi=300):
+    """A printer target printed with scale errors sx, sy and scanned flat at `dpi`."""
+    import pypdfium2 as pdfium
+
+    pdf = tmp_path / "target.pdf"
+    assert main(["board", "printer-target", "--paper", paper, "-o", str(pdf), "-q"]) == 0
+    page = pdfium.PdfDocument(str(pdf))[0]
+    hi = np.asarray(page.render(scale=2 * dpi / 72, grayscale=True).to_pil().convert("L"))
+    scan = stretch_and_scan(hi, sx, sy)
+    scan = np.clip(scan + np.random.default_rng(3).normal(0, 1.5, scan.shape), 0, 255).astype(np.uint8)
+    path = tmp_path / f"scan_{sx}_{sy}.png"
+    path.write_bytes(png_bytes(scan, dpi))
+    return path, pdf.with_suffix(".json")
+
+
+def test_printer_scale_is_recovered(tmp_path):
+    scan, board = printed_scan(tmp_path, 1.015, 0.993)
+    out = tmp_path / "printer.json"
+    assert main(["calibrate", "printer", str(scan), "--board", str(board), "--dpi", "300", "-o", str(out), "-q"]) == 0
+    prof = json.loads(out.read_text())
+    assert prof["scale_x"] == pytest.approx(1.015, abs=2e-4) and prof["scale_y"] == pytest.approx(0.993, abs=2e-4)
+    assert abs(prof["skew_deg"]) < 0.01
+    # the profile feeds workbench pdf, and a regression check on a new scan
+    assert main(["calibrate", "check", str(out), str(scan), "-q"]) == 0
+    drifted, _ = printed_scan(tmp_path, 1.017, 0.993)
+    assert main(["calibrate", "check", str(out), str(drifted), "-q"]) == 1
+
+
+def test_printer_bad_input(tmp_path, capsys):
+    scan, board = printed_scan(tmp_path, 1.0, 1.0, paper="A5")
+    out = tmp_path / "p.json"
+    assert main(["calibrate", "printer", str(scan), "--board", str(board), "--dpi", "600", "-o", str(out), "-q"]) == 1
+    assert "the scan says 300.0 dpi, --dpi says 600" in capsys.readouterr().err
+    other = tmp_path / "other.json"
+    b = json.loads(board.read_text())
+    spec = CharucoSpec(tuple(b["squares"]), b["square_mm"], b["marker_mm"], b["dictionary"], first_id=80)
+    other.write_text(json.dumps(definition(spec, "printer-target")))
+    assert main(["calibrate", "printer", str(scan), "--board", str(other), "--dpi", "300", "-o", str(out), "-q"]) == 1
+    assert "markers of another board" in capsys.readouterr().err and not out.exists()
+
+
+def test_the_stored_regression_passes():
+    # calib/: the reference printer profile and the scan it was measured on
+    prof = ROOT / "calib" / "printers" / "reference-laser.json"
+    scan = ROOT / "calib" / "regression" / "printer-target-scan-300dpi.png"
+    assert main(["calibrate", "check", str(prof), str(scan), "-q"]) == 0

@@ -1,0 +1,249 @@
+"""``workbench calibrate``: camera intrinsics, printer scale, and the weekly regression check."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from workbench import __version__
+from workbench.atomic import write_files
+from workbench.calibration import calibrate_camera, detect_corners, measure_printer
+from workbench.errors import WorkbenchError
+from workbench.export import png_dpi
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("calibrate", help="camera and printer calibration, and their regression check")
+    s = p.add_subparsers(dest="what", metavar="WHAT", required=True)
+    c = s.add_parser(
+        "camera",
+        help="intrinsics from photos of a ChArUco board",
+        description="Camera matrix and distortion from photos of a ChArUco board (workbench board "
+        "charuco). Writes the profile (JSON) and a picture of the residuals beside it.",
+    )
+    c.add_argument("photos", metavar="PHOTO", nargs="+")
+    c.add_argument("--board", metavar="BOARD.json", required=True, help="board definition")
+    c.add_argument("-o", "--output", metavar="PROFILE.json", required=True)
+    c.add_argument("-q", "--quiet", action="store_true")
+    c.set_defaults(run=run_camera)
+    r = s.add_parser(
+        "printer",
+        help="a printer's scale from a scan of its printed target",
+        description="Print `workbench board printer-target` at 100 %, scan it flat at a known dpi, and "
+        "measure the printer's scale in x and y and its skew. Writes the printer profile "
+        "that `workbench pdf --printer-profile` applies.",
+    )
+    r.add_argument("scan", metavar="SCAN.png")
+    r.add_argument("--board", metavar="BOARD.json", required=True, help="definition of the printed target")
+    r.add_argument("--dpi", type=float, required=True, help="resolution of the scan")
+    r.add_argument("--name", help="printer name shown on pages (default: the profile's file name)")
+    r.add_argument("-o", "--output", metavar="PROFILE.json", required=True)
+    r.add_argument("-q", "--quiet", action="store_true")
+    r.set_defaults(run=run_printer)
+    k = s.add_parser(
+        "check",
+        help="re-measure against a stored profile; fail on drift",
+        description="Re-measure a camera profile (photos of its board) or a printer profile (scans of "
+        "its target) and fail (exit 1) when the drift exceeds the tolerance.",
+    )
+    k.add_argument("profile", metavar="PROFILE.json")
+    k.add_argument("inputs", metavar="PHOTO_OR_SCAN", nargs="+")
+    k.add_argument("--tolerance-pct", type=float, default=0.05, help="printer: largest scale drift (default 0.05 %%)")
+    k.add_argument("--tolerance-px", type=float, default=0.5, help="camera: largest reprojection RMS (default 0.5 px)")
+    k.add_argument("-q", "--quiet", action="store_true")
+    k.set_defaults(run=run_check)
+
+
+def _log(args):
+    return (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+
+
+def _read_json(path: Path, what: str) -> dict:
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: no such {what}")
+    try:
+        d = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise WorkbenchError(f"{path}: not a JSON {what}: {exc}") from None
+    if not isinstance(d, dict):
+        raise WorkbenchError(f"{path}: not a {what}")
+    return d
+
+
+def load_board(path: Path) -> dict:
+    d = _read_json(path, "board definition")
+    for key in ("squares", "square_mm", "marker_mm", "dictionary", "charuco_corners", "markers"):
+        if key not in d:
+            raise WorkbenchError(f"{path}: {key}: missing; is it a board definition of workbench board?")
+    return d
+
+
+def _gray(path: Path) -> np.ndarray:
+    data = np.fromfile(str(path), dtype=np.uint8) if path.is_file() else np.zeros(0, np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
+    if img is None:
+        raise WorkbenchError(f"{path}: cannot read image")
+    return img
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _relative(path: Path, to: Path) -> str:
+    """``path`` as seen from the folder of ``to`` (so a profile finds its board wherever it is run from)."""
+    return os.path.relpath(path.resolve(), to.resolve().parent)
+
+
+def residual_picture(cal, title: str) -> bytes:
+    """Corner residuals over the image (arrows magnified), coloured by size."""
+    from workbench.figures import _figure
+
+    plt = _figure()
+    W, H = cal.image_size
+    fig, ax = plt.subplots(figsize=(8, 8 * H / W + 0.5), dpi=100)
+    pts = np.concatenate([p for p, _ in cal.residuals])
+    res = np.concatenate([r for _, r in cal.residuals])
+    mag = np.linalg.norm(res, axis=1)
+    q = ax.quiver(
+        pts[:, 0], pts[:, 1], res[:, 0], -res[:, 1], mag, cmap="viridis", angles="xy", scale_units="xy", scale=1 / 200
+    )
+    fig.colorbar(q, ax=ax, fraction=0.046, pad=0.04).set_label("residual (px); arrows x200")
+    ax.set_xlim(0, W)
+    ax.set_ylim(H, 0)
+    ax.set_aspect("equal")
+    ax.set_title(title, fontsize=9)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", metadata={"Software": None})
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def run_camera(args) -> int:
+    log = _log(args)
+    board_path = Path(args.board)
+    board = load_board(board_path)
+    images = [(str(p), _gray(Path(p))) for p in args.photos]
+    cal = calibrate_camera(images, board)
+    out = Path(args.output)
+    profile = {
+        "kind": "camera-profile",
+        "K": cal.K.tolist(),
+        "dist": cal.dist.tolist(),
+        "image_size": list(cal.image_size),
+        "rms_px": cal.rms_px,
+        "k3_fixed": cal.k3_fixed,
+        "corner_coverage": cal.coverage,
+        "views": cal.per_view,
+        "board": {"file": _relative(board_path, Path(args.output)), "sha256": _sha(board_path)},
+        "photos_sha256": {p: _sha(Path(p)) for p in args.photos},
+        "software": {"name": "workbench", "version": __version__},
+    }
+    pic = residual_picture(
+        cal, f"{out.name}: RMS {cal.rms_px:.3f} px over {sum(v['used'] for v in cal.per_view)} views"
+    )
+    write_files({out: (json.dumps(profile, indent=1) + "\n").encode(), out.with_suffix(".png"): pic})
+    for v in cal.per_view:
+        if not v["used"]:
+            log(f"left out {v['name']}: {v['reason']}")
+    log(
+        f"fx {cal.K[0, 0]:.2f} fy {cal.K[1, 1]:.2f} cx {cal.K[0, 2]:.2f} cy {cal.K[1, 2]:.2f} px; dist "
+        f"{np.round(cal.dist, 5).tolist()}; RMS {cal.rms_px:.3f} px; wrote {out}"
+    )
+    return 0
+
+
+def _check_dpi(path: Path, dpi: float) -> None:
+    if not dpi > 0:
+        raise WorkbenchError(f"--dpi {dpi}: must be positive")
+    recorded = png_dpi(path.read_bytes()) if path.suffix.lower() == ".png" and path.is_file() else None
+    if recorded is not None and abs(recorded - dpi) > 0.01 * dpi:
+        raise WorkbenchError(f"{path}: the scan says {recorded:.1f} dpi, --dpi says {dpi:g}: which is right?")
+
+
+def run_printer(args) -> int:
+    log = _log(args)
+    board_path, scan_path = Path(args.board), Path(args.scan)
+    board = load_board(board_path)
+    _check_dpi(scan_path, args.dpi)
+    m = measure_printer(_gray(scan_path), board, args.dpi)
+    out = Path(args.output)
+    profile = {
+        "kind": "printer-profile",
+        "name": args.name or out.stem,
+        "scale_x": m.scale_x,
+        "scale_y": m.scale_y,
+        "skew_deg": m.skew_deg,
+        "scan_rotation_deg": m.rotation_deg,
+        "fit_rms_mm": m.rms_mm,
+        "corners": m.corners,
+        "dpi": args.dpi,
+        "board": {"file": _relative(board_path, Path(args.output)), "sha256": _sha(board_path)},
+        "scan": {"file": _relative(scan_path, Path(args.output)), "sha256": _sha(scan_path)},
+        "software": {"name": "workbench", "version": __version__},
+    }
+    write_files({out: (json.dumps(profile, indent=1) + "\n").encode()})
+    log(
+        f"scale x {100 * (m.scale_x - 1):+.3f} %, y {100 * (m.scale_y - 1):+.3f} %, skew {m.skew_deg:+.3f}°, "
+        f"fit {m.rms_mm * 1000:.1f} µm over {m.corners} corners; wrote {out}"
+    )
+    return 0
+
+
+def run_check(args) -> int:
+    log = _log(args)
+    path = Path(args.profile)
+    prof = _read_json(path, "profile")
+    kind = prof.get("kind")
+    board_file = (prof.get("board") or {}).get("file")
+    if kind not in ("camera-profile", "printer-profile") or not board_file:
+        raise WorkbenchError(f"{path}: kind: not a camera-profile or printer-profile of workbench calibrate")
+    board_path = Path(board_file)
+    if not board_path.is_absolute():
+        board_path = path.parent / board_path
+    board = load_board(board_path)
+    failures = []
+    for item in args.inputs:
+        p = Path(item)
+        if kind == "printer-profile":
+            _check_dpi(p, prof["dpi"])
+            m = measure_printer(_gray(p), board, prof["dpi"])
+            dx, dy = 100 * (m.scale_x - prof["scale_x"]), 100 * (m.scale_y - prof["scale_y"])
+            ok = max(abs(dx), abs(dy)) <= args.tolerance_pct
+            log(
+                f"{p.name}: scale drift x {dx:+.3f} %, y {dy:+.3f} % (tolerance {args.tolerance_pct} %): "
+                f"{'OK' if ok else 'DRIFT'}"
+            )
+        else:
+            K, dist = np.asarray(prof["K"]), np.asarray(prof["dist"])
+            img = _gray(p)
+            px, ids, problem = detect_corners(img, board)
+            if problem or len(ids) < 8:
+                raise WorkbenchError(f"{p}: {problem or 'too few corners of the board'}")
+            obj = np.column_stack([np.asarray(board["charuco_corners"]["board_mm"])[ids], np.zeros(len(ids))])
+            _, rvec, tvec = cv2.solvePnP(obj, px, K, dist, flags=cv2.SOLVEPNP_SQPNP)
+            rvec, tvec = cv2.solvePnPRefineLM(obj, px, K, dist, rvec, tvec)
+            proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+            rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - px) ** 2, axis=1))))
+            ok = rms <= args.tolerance_px
+            log(
+                f"{p.name}: reprojection RMS {rms:.3f} px with the stored intrinsics "
+                f"(tolerance {args.tolerance_px} px): "
+                f"{'OK' if ok else 'DRIFT'}"
+            )
+        if not ok:
+            failures.append(p.name)
+    if failures:
+        raise WorkbenchError(
+            f"calibration drifted beyond tolerance in {len(failures)} of {len(args.inputs)} "
+            f"({', '.join(failures)}): recalibrate"
+        )
+    log(f"{path.name}: within tolerance on all {len(args.inputs)} inputs")
+    return 0

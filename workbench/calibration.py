@@ -38,7 +38,7 @@ def detect_corners(gray: np.ndarray, definition: dict) -> tuple[np.ndarray, np.n
     problem : str or None
         Why there are none: no markers, or markers of another board.
     """
-    det = cv2.aruco.CharucoDetector(board_spec(definition).opencv())
+    det = cv2.aruco.CharucoDetector(CharucoSpec.from_definition(definition).opencv())
     corners, ids, _, mids = det.detectBoard(gray)
     ours = set(int(i) for i in definition["markers"]["ids"])
     if mids is None or len(mids) == 0:

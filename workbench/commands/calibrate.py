@@ -17,6 +17,7 @@ from workbench.atomic import write_files
 from workbench.calibration import calibrate_camera, detect_corners, measure_printer
 from workbench.errors import WorkbenchError
 from workbench.export import png_dpi
+from workbench.jsonfile import read_json
 
 
 def add_parser(sub) -> None:
@@ -65,20 +66,8 @@ def _log(args):
     return (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
 
 
-def _read_json(path: Path, what: str) -> dict:
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: no such {what}")
-    try:
-        d = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise WorkbenchError(f"{path}: not a JSON {what}: {exc}") from None
-    if not isinstance(d, dict):
-        raise WorkbenchError(f"{path}: not a {what}")
-    return d
-
-
 def load_board(path: Path) -> dict:
-    d = _read_json(path, "board definition")
+    d = read_json(path, "board definition")
     for key in ("squares", "square_mm", "marker_mm", "dictionary", "charuco_corners", "markers"):
         if key not in d:
             raise WorkbenchError(f"{path}: {key}: missing; is it a board definition of workbench board?")
@@ -200,7 +189,7 @@ def run_printer(args) -> int:
 def run_check(args) -> int:
     log = _log(args)
     path = Path(args.profile)
-    prof = _read_json(path, "profile")
+    prof = read_json(path, "profile")
     kind = prof.get("kind")
     board_file = (prof.get("board") or {}).get("file")
     if kind not in ("camera-profile", "printer-profile") or not board_file:

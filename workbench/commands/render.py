@@ -14,6 +14,7 @@ from workbench.atomic import write_files
 from workbench.camera import Camera
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_bytes
+from workbench.jsonfile import read_json
 from workbench.mesh.io import read_mesh
 from workbench.render.imperfections import REALISTIC, Imperfections
 from workbench.render.photo import build_scene, render_photo
@@ -120,14 +121,7 @@ def imperfections_from(args) -> Imperfections:
 
 def load_camera(path: Path) -> Camera:
     """A camera file: K (3x3), R (3x3), t (3), image_size [W, H], optional dist (5)."""
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: no such camera file")
-    try:
-        d = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise WorkbenchError(f"{path}: not a JSON camera file: {exc}") from None
-    if not isinstance(d, dict):
-        raise WorkbenchError(f"{path}: a camera file is a JSON object")
+    d = read_json(path, "camera file")
     shapes = {"K": (3, 3), "R": (3, 3), "t": (3,), "image_size": (2,)}
     vals = {}
     for key, shape in shapes.items():
@@ -290,14 +284,12 @@ def run(args) -> int:
 
 def load_camera_profile(path: Path) -> Camera:
     """Intrinsics only (K, dist, image_size): a calibration profile or a PHOTO.json."""
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: no such camera profile")
+    d = read_json(path, "camera profile")
     try:
-        d = json.loads(path.read_text())
         K = np.asarray(d["K"], dtype=np.float64)
         w, h = (int(v) for v in d["image_size"])
         dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()[:5]
-    except (UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError) as exc:
         raise WorkbenchError(f"{path}: not a camera profile (K, dist, image_size): {exc}") from None
     if K.shape != (3, 3):
         raise WorkbenchError(f"{path}: K: must be 3x3")

@@ -58,6 +58,11 @@ class CharucoSpec:
                 f"{n_markers} markers from id {self.first_id} do not fit in {self.dictionary} ({size} ids)"
             )
 
+    @classmethod
+    def from_definition(cls, d: dict) -> CharucoSpec:
+        """The board of a definition file written by ``workbench board`` (or ``fixture.json``)."""
+        return cls(tuple(d["squares"]), d["square_mm"], d["marker_mm"], d["dictionary"], d.get("first_id", 0))
+
     @property
     def size_mm(self) -> tuple[float, float]:
         return self.squares[0] * self.square_mm, self.squares[1] * self.square_mm

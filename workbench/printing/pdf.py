@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import datetime
 import io
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,6 +13,7 @@ import numpy as np
 
 from workbench import __version__
 from workbench.errors import WorkbenchError
+from workbench.jsonfile import read_json
 from workbench.printing.paper import choose_sheet
 
 PT_PER_MM = 72.0 / 25.4
@@ -53,14 +53,7 @@ def load_printer_profile(path: str | Path) -> PrinterProfile:
         Missing, not JSON, or a key missing or out of range; names the file and key.
     """
     path = Path(path)
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: no such printer profile")
-    try:
-        data = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise WorkbenchError(f"{path}: not a JSON printer profile: {exc}") from None
-    if not isinstance(data, dict):
-        raise WorkbenchError(f"{path}: a printer profile is a JSON object")
+    data = read_json(path, "printer profile")
     values = {}
     for key in ("scale_x", "scale_y"):
         v = data.get(key)

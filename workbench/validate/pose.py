@@ -78,7 +78,7 @@ def estimate_pose(gray: np.ndarray, fixture: dict, K: np.ndarray, dist: np.ndarr
     PoseError
         No markers, markers of another board, too few corners.
     """
-    spec = spec_of(fixture)
+    spec = CharucoSpec.from_definition(fixture)
     det = cv2.aruco.CharucoDetector(spec.opencv())
     corners, ids, mcorners, mids = det.detectBoard(gray)
     ours = set(int(i) for i in fixture["markers"]["ids"])

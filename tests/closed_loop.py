@@ -12,6 +12,7 @@ import numpy as np
 import trimesh
 
 from workbench.camera import Camera
+from workbench.validate.score import MARGIN, register_tile
 
 
 def render_decorated(V, F, vt, rgb, camera: Camera):
@@ -46,7 +47,10 @@ def render_decorated(V, F, vt, rgb, camera: Camera):
 
 
 def tile_misregistration(reference, image, mask, tile=64, min_texture=50.0):
-    """Translation between two images on square tiles, by ECC, where it is well defined.
+    """Translation between two images on square tiles, where it is well defined.
+
+    Each tile is registered as ``workbench validate`` does (normalised correlation, then
+    Lucas-Kanade; OpenCV's ECC on same-size tiles is biased towards zero shift).
 
     Tiles must lie wholly inside ``mask`` and carry gradients in two directions (the
     smaller eigenvalue of the structure tensor per pixel above ``min_texture``): a tile
@@ -58,8 +62,10 @@ def tile_misregistration(reference, image, mask, tile=64, min_texture=50.0):
         Per tile, the (dx, dy) with ``image(x + d) ≈ reference(x)``: how far, in pixels,
         the image's content is displaced from the reference's.
     """
-    ref = cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    img = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    # both smoothed alike (as validate does): a sharp image against a softer one is then
+    # registered without bias
+    ref = cv2.GaussianBlur(cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY).astype(np.float32), (0, 0), 1.0)
+    img = cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32), (0, 0), 1.0)
     gx = cv2.Sobel(ref, cv2.CV_32F, 1, 0, ksize=3) / 8
     gy = cv2.Sobel(ref, cv2.CV_32F, 0, 1, ksize=3) / 8
     shifts = []
@@ -73,19 +79,9 @@ def tile_misregistration(reference, image, mask, tile=64, min_texture=50.0):
             S = np.array([[(a * a).mean(), (a * b).mean()], [(a * b).mean(), (b * b).mean()]])
             if np.linalg.eigvalsh(S)[0] < min_texture:
                 continue
-            warp = np.eye(2, 3, dtype=np.float32)
-            try:
-                cc, warp = cv2.findTransformECC(
-                    ref[y : y + tile, x : x + tile],
-                    img[y : y + tile, x : x + tile],
-                    warp,
-                    cv2.MOTION_TRANSLATION,
-                    (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6),
-                    None,
-                    1,
-                )
-            except cv2.error:
+            if y < MARGIN or x < MARGIN or y + tile + MARGIN > H or x + tile + MARGIN > W:
                 continue
-            if cc > 0.9:
-                shifts.append(warp[:, 2].copy())
+            d, cc = register_tile(ref[y : y + tile, x : x + tile], img, x, y)
+            if d is not None and cc > 0.9:
+                shifts.append(d)
     return np.array(shifts).reshape(-1, 2)

@@ -72,7 +72,8 @@ def test_the_measure_sees_an_injected_shift():
     rows, cols = r.grid.shape
     mis, _ = view_check(job, r, vt, 0, shift_vt=(8.0 / cols, 0.0))
     scale = r.view_px_per_print_px[0]
-    assert np.median(mis) == pytest.approx(8.0 * scale, rel=0.35)
+    # `scale` is the view's median over all its faces, not at these tiles: 10 %
+    assert np.median(mis) == pytest.approx(8.0 * scale, rel=0.1)
     assert np.median(mis) > 1.0
 
 

@@ -13,6 +13,7 @@ from workbench.raster import _JIT, _face_edges, _row_span, _setup, _weight
 from workbench.views.visibility import ViewVisibility, project_point, unoccluded
 
 MM_PER_INCH = 25.4
+BAND_ROWS = 256  # print rows synthesised at a time
 
 
 @dataclass(frozen=True)
@@ -79,16 +80,6 @@ def prefilter(image: np.ndarray, camera: Camera, view_px_per_print_px: float) ->
     return cv2.resize(image, (cam.width, cam.height), interpolation=cv2.INTER_AREA), cam
 
 
-@numba.njit(parallel=True, **_JIT)
-def _fill(out, owner, background):
-    for i in numba.prange(out.shape[0]):
-        for j in range(out.shape[1]):
-            out[i, j, 0] = background[0]
-            out[i, j, 1] = background[1]
-            out[i, j, 2] = background[2]
-            owner[i, j] = -1
-
-
 @numba.njit(inline="always", **_JIT)
 def _inside(e0, e1, e2, x, y):
     _, ok0 = _weight(e0, x, y)
@@ -97,30 +88,16 @@ def _inside(e0, e1, e2, x, y):
     return ok0 and ok1 and ok2
 
 
-@numba.njit(inline="always", **_JIT)
-def _sample(images, isize, v, xs, ys, out, py, px):
-    """Bilinear sample of view v at pixel (xs, ys) into out[py, px].
-
-    The stack has a one-pixel replicated border, so view pixel (i, j) is at
-    [i + 1, j + 1] and the image edge is sampled as OpenCV's BORDER_REPLICATE would.
-    """
-    xs = min(max(xs, -0.5), isize[v, 0] - 0.5)
-    ys = min(max(ys, -0.5), isize[v, 1] - 0.5)
-    jx = int(np.floor(xs))
-    iy = int(np.floor(ys))
-    fx = xs - jx
-    fy = ys - iy
-    for c in range(3):
-        a = images[v, iy + 1, jx + 1, c] * (1.0 - fx) + images[v, iy + 1, jx + 2, c] * fx
-        b = images[v, iy + 2, jx + 1, c] * (1.0 - fx) + images[v, iy + 2, jx + 2, c] * fx
-        out[py, px, c] = np.uint8(min(max(a * (1.0 - fy) + b * fy + 0.5, 0.0), 255.0))
-
-
 @numba.njit(parallel=True, **_JIT)
-def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isize, out, owner):
+def _maps(P, F, V, orient, status, cams, offsets, isize, dcams, depth, dsize, faces, row0, mapx, mapy, owner):
+    """For the print rows [row0, row0 + band height): owning view and atlas position of every pixel.
+
+    Pixels no view owns keep the caller's values (a position outside the atlas).
+    """
     n_views = status.shape[1]
-    H, W = out.shape[0], out.shape[1]
-    for f in numba.prange(F.shape[0]):
+    Hb, W = mapx.shape[0], mapx.shape[1]
+    for k in numba.prange(faces.shape[0]):
+        f = faces[k]
         first = -1  # the first view claiming f
         for v in range(n_views):
             if status[f, v] != 0:
@@ -128,9 +105,10 @@ def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isiz
                 break
         if first < 0:
             continue
-        x0, x1, y0, y1, area2 = _setup(P, F, f, W, H)
-        if area2 * orient <= 0.0 or x1 < x0:
-            continue  # collapsed or folded in the print: covered by its neighbours
+        x0, x1, y0, y1, area2 = _setup(P, F, f, W, row0 + Hb)
+        y0 = max(y0, row0)
+        if area2 * orient <= 0.0 or x1 < x0 or y1 < y0:
+            continue  # collapsed or folded in the print (covered by its neighbours), or not in this band
         inv = 1.0 / abs(area2)
         e0, e1, e2 = _face_edges(P, F, f, orient)
         i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
@@ -143,12 +121,12 @@ def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isiz
         if whole:
             cam = cams[first]
             L = np.empty((3, 3))
-            for k in range(3):
-                e = e0 if k == 0 else (e1 if k == 1 else e2)
-                # w_k = s (dx (y - ly) - dy (x - lx)) = a x + b y + c
-                L[k, 0] = -e[0] * e[4] * inv
-                L[k, 1] = e[0] * e[3] * inv
-                L[k, 2] = e[0] * (e[4] * e[1] - e[3] * e[2]) * inv
+            for r in range(3):
+                e = e0 if r == 0 else (e1 if r == 1 else e2)
+                # w_r = s (dx (y - ly) - dy (x - lx)) = a x + b y + c
+                L[r, 0] = -e[0] * e[4] * inv
+                L[r, 1] = e[0] * e[3] * inv
+                L[r, 2] = e[0] * (e[4] * e[1] - e[3] * e[2]) * inv
             for r in range(3):
                 # row r of K [R | t] (fx, fy, cx, cy; R row-major; t)
                 if r == 0:
@@ -165,11 +143,13 @@ def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isiz
                     m0, m1, m2, m3 = cam[10], cam[11], cam[12], cam[15]
                 for col in range(3):
                     acc = 0.0
-                    for k in range(3):
-                        vk = F[f, k]
-                        acc += (m0 * V[vk, 0] + m1 * V[vk, 1] + m2 * V[vk, 2]) * L[k, col]
-                    # the translation column multiplies Σ λ = 1, i.e. the constant term
+                    for q in range(3):
+                        vq = F[f, q]
+                        acc += (m0 * V[vq, 0] + m1 * V[vq, 1] + m2 * V[vq, 2]) * L[q, col]
+                    # the translation column multiplies the barycentrics' sum, 1: the constant term
                     h[3 * r + col] = acc + (m3 if col == 2 else 0.0)
+        wv, hv = isize[first, 0], isize[first, 1]
+        ox, oy = offsets[first, 0], offsets[first, 1]
         for py in range(y0, y1 + 1):
             y = float(py)
             xs, xe = _row_span(e0, e1, e2, y, x0, x1)
@@ -178,14 +158,16 @@ def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isiz
                 xs += 1
             while xe >= xs and not _inside(e0, e1, e2, float(xe), y):
                 xe -= 1
+            row = py - row0
             if whole:
                 U = h[0] * xs + h[1] * y + h[2]
                 Vv = h[3] * xs + h[4] * y + h[5]
                 Z = h[6] * xs + h[7] * y + h[8]
                 for px in range(xs, xe + 1):
                     iz = 1.0 / Z
-                    _sample(images, isize, first, U * iz, Vv * iz, out, py, px)
-                    owner[py, px] = first
+                    mapx[row, px] = min(max(U * iz, -0.5), wv - 0.5) + ox
+                    mapy[row, px] = min(max(Vv * iz, -0.5), hv - 0.5) + oy
+                    owner[row, px] = first
                     U += h[0]
                     Vv += h[3]
                     Z += h[6]
@@ -212,8 +194,9 @@ def _synthesize(P, F, V, orient, status, cams, dcams, depth, dsize, images, isiz
                     break
                 if chosen >= 0:
                     xv, yv, _ = project_point(cams[chosen], X0, X1, X2)
-                    _sample(images, isize, chosen, xv, yv, out, py, px)
-                    owner[py, px] = chosen
+                    mapx[row, px] = min(max(xv, -0.5), isize[chosen, 0] - 0.5) + offsets[chosen, 0]
+                    mapy[row, px] = min(max(yv, -0.5), isize[chosen, 1] - 0.5) + offsets[chosen, 1]
+                    owner[row, px] = chosen
 
 
 def synthesize_print(
@@ -272,34 +255,61 @@ def synthesize_print(
         img2, cam2 = prefilter(img, vis.camera, s)
         used.append(img2)
         cams.append(cam2)
-    hmax = max(im.shape[0] for im in used) + 2
-    wmax = max(im.shape[1] for im in used) + 2
-    stack = np.zeros((len(used), hmax, wmax, 3), dtype=np.uint8)
-    for v, im in enumerate(used):
-        stack[v, : im.shape[0] + 2, : im.shape[1] + 2] = cv2.copyMakeBorder(im, 1, 1, 1, 1, cv2.BORDER_REPLICATE)
+    # the views stacked into one atlas, each with a one-pixel replicated border, so that one
+    # cv2.remap samples them all; view pixel (i, j) is at atlas (offset_y + i, 1 + j)
+    width = max(im.shape[1] for im in used) + 2
+    offsets, rows_at = [], 1
+    for im in used:
+        offsets.append((1.0, float(rows_at)))
+        rows_at += im.shape[0] + 2
+    atlas = np.zeros((rows_at - 1, width, 3), dtype=np.uint8)
+    for (_, oy), im in zip(offsets, used, strict=True):
+        y = int(oy) - 1
+        atlas[y : y + im.shape[0] + 2, : im.shape[1] + 2] = cv2.copyMakeBorder(im, 1, 1, 1, 1, cv2.BORDER_REPLICATE)
     dh = max(vis.depth.shape[0] for vis in visibilities)
     dw = max(vis.depth.shape[1] for vis in visibilities)
     depth = np.full((len(visibilities), dh, dw), np.inf)
     for v, vis in enumerate(visibilities):
         depth[v, : vis.depth.shape[0], : vis.depth.shape[1]] = vis.depth
+    # bands of rows: the maps of a band stay in cache, and memory stays small at any size
+    y_lo = np.ceil(np.min(P[F, 1], axis=1)).astype(np.int64)
+    y_hi = np.floor(np.max(P[F, 1], axis=1)).astype(np.int64)
+    order = np.argsort(y_lo, kind="stable")
+    y_sorted = y_lo[order]
+    tallest = int(max((y_hi - y_lo).max(), 0)) + 1
     out = np.empty((rows, cols, 3), dtype=np.uint8)
     owner = np.empty((rows, cols), dtype=np.int8)
-    _fill(out, owner, np.asarray(background, dtype=np.uint8))
-    _synthesize(
+    mapx = np.empty((BAND_ROWS, cols), dtype=np.float32)
+    mapy = np.empty((BAND_ROWS, cols), dtype=np.float32)
+    args = (
         np.ascontiguousarray(P),
         np.ascontiguousarray(F, dtype=np.int64),
         np.ascontiguousarray(V, dtype=np.float64),
         orient,
         np.ascontiguousarray(status),
         np.stack([c.packed() for c in cams]),
+        np.asarray(offsets),
+        np.array([[c.width, c.height] for c in cams], dtype=np.int64),
         np.stack([vis.camera.packed() for vis in visibilities]),
         depth,
         np.array([[vis.camera.width, vis.camera.height] for vis in visibilities], dtype=np.int64),
-        stack,
-        np.array([[c.width, c.height] for c in cams], dtype=np.int64),
-        out,
-        owner,
     )
+    bg = tuple(int(c) for c in background)
+    for row0 in range(0, rows, BAND_ROWS):
+        n = min(BAND_ROWS, rows - row0)
+        mx, my, ow = mapx[:n], mapy[:n], owner[row0 : row0 + n]
+        mx.fill(-1e4)  # outside the atlas: the background colour
+        my.fill(-1e4)
+        ow.fill(-1)
+        # faces reaching into the band: first row before its end, last row after its start
+        lo = np.searchsorted(y_sorted, row0 - tallest, side="left")
+        hi = np.searchsorted(y_sorted, row0 + n, side="left")
+        faces = order[lo:hi]
+        faces = np.ascontiguousarray(faces[y_hi[faces] >= row0])
+        _maps(*args, faces, row0, mx, my, ow)
+        cv2.remap(
+            atlas, mx, my, cv2.INTER_LINEAR, dst=out[row0 : row0 + n], borderMode=cv2.BORDER_CONSTANT, borderValue=bg
+        )
     return out, owner, scales
 
 

@@ -15,17 +15,6 @@ MIN_VIEWS = 5
 K3_COVERAGE = 0.7  # share of a 8 x 6 grid of the image that corners must reach before k3 is fitted
 
 
-def board_spec(definition: dict) -> CharucoSpec:
-    """The board of a definition file (``workbench board``)."""
-    return CharucoSpec(
-        tuple(definition["squares"]),
-        definition["square_mm"],
-        definition["marker_mm"],
-        definition["dictionary"],
-        definition.get("first_id", 0),
-    )
-
-
 def detect_corners(gray: np.ndarray, definition: dict) -> tuple[np.ndarray, np.ndarray, str | None]:
     """ChArUco corners of a board in an image.
 

@@ -66,13 +66,7 @@ def board_texture(definition: dict) -> tuple[np.ndarray, float]:
     """
     from workbench.printing.boards import CharucoSpec
 
-    spec = CharucoSpec(
-        tuple(definition["squares"]),
-        definition["square_mm"],
-        definition["marker_mm"],
-        definition["dictionary"],
-        definition.get("first_id", 0),
-    )
+    spec = CharucoSpec.from_definition(definition)
     bw, bh = spec.size_mm
     ppm = BOARD_PX_PER_MM
     img = spec.opencv().generateImage((int(round(bw * ppm)), int(round(bh * ppm))), marginSize=0, borderBits=1)

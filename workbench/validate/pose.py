@@ -40,16 +40,6 @@ class PoseError(Exception):
     """No pose: the reason, for an INVALID verdict."""
 
 
-def spec_of(fixture: dict) -> CharucoSpec:
-    return CharucoSpec(
-        tuple(fixture["squares"]),
-        fixture["square_mm"],
-        fixture["marker_mm"],
-        fixture["dictionary"],
-        fixture.get("first_id", 0),
-    )
-
-
 def estimate_pose(gray: np.ndarray, fixture: dict, K: np.ndarray, dist: np.ndarray, min_corners: int = 8) -> Pose:
     """Pose of the camera that took ``gray`` relative to the fixture (the job's mesh frame).
 

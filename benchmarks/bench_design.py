@@ -50,7 +50,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench_flatten import WORKBENCH, Timing, run_child  # noqa: E402
 
-from fixtures.make_fixtures import checker_image, grid_mesh, write_png  # noqa: E402
+from fixtures.make_fixtures import checker_image, domed_part, write_png  # noqa: E402
 from workbench.design import design, read_image  # noqa: E402
 from workbench.job import load_job  # noqa: E402
 from workbench.mesh.io import format_obj  # noqa: E402
@@ -98,11 +98,7 @@ fov_deg = 45
 
 def a4_part() -> tuple[np.ndarray, np.ndarray]:
     """The dome over the A4 footprint, x in [-148.5, 148.5], y in [-105, 105] mm."""
-    P, F = grid_mesh(GRID_N, GRID_N, np.random.default_rng(2026))
-    x = (2 * P[:, 0] - 1) * HALF_X_MM
-    y = (2 * P[:, 1] - 1) * HALF_Y_MM
-    z = DOME_MM * (1 - (x / HALF_X_MM) ** 2) ** 2 * (1 - (y / HALF_Y_MM) ** 2) ** 2
-    return np.stack([x, y, z], axis=1), F
+    return domed_part(GRID_N, GRID_N, 2 * HALF_X_MM, 2 * HALF_Y_MM, DOME_MM)
 
 
 def write_job(tmp: Path) -> tuple[Path, int, int]:

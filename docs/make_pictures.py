@@ -53,6 +53,62 @@ def main() -> None:
     for src, name in ((pdf, "pdf-default.png"), (fixture, "board-fixture-default.png")):
         page = pdfium.PdfDocument(str(src))[0].render(scale=110 / 72).to_pil()
         page.save(IMG / name, optimize=True)
+    # validate: a photo with the film 0.8 mm off, its heat map
+    photo = out / "photo_offset.jpg"
+    subprocess.run(
+        [
+            wb,
+            "render",
+            str(out / "design"),
+            "--orbit",
+            "10,55,330",
+            "--size",
+            "2000x1500",
+            "--realistic",
+            "--film-offset-mm",
+            "0.8,0",
+            "-o",
+            str(photo),
+            "-q",
+        ],
+        check=True,
+        cwd=ROOT,
+    )
+    subprocess.run(
+        [
+            wb,
+            "validate",
+            str(out / "design"),
+            str(photo),
+            "--camera",
+            str(photo.with_suffix(".json")),
+            "--out",
+            str(out / "validation"),
+            "-q",
+        ],
+        check=True,
+        cwd=ROOT,
+    )
+    heat = cv2.imread(str(out / "validation" / "photo_offset_heatmap_front.png"))
+    shot = fit(cv2.imread(str(photo)), heat.shape[0] - 40)
+    cv2.imwrite(
+        str(IMG / "validate-default.png"),
+        np.hstack([label(shot, "photo: film 0.8 mm off"), cv2.resize(heat, (heat.shape[1], shot.shape[0] + 40))]),
+    )
+    # calibrate: residuals of a camera calibration on 15 synthetic views
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_calibrate import board_definition, calibration_photos
+
+    cal = out / "calib"
+    cal.mkdir(exist_ok=True)
+    board, board_path = board_definition(cal)
+    views = calibration_photos(cal, board)
+    subprocess.run(
+        [wb, "calibrate", "camera", *map(str, views), "--board", str(board_path), "-o", str(cal / "camera.json"), "-q"],
+        check=True,
+        cwd=ROOT,
+    )
+    (IMG / "calibrate-residuals.png").write_bytes((cal / "camera.png").read_bytes())
     logo = cv2.imread(str(ROOT / "fixtures/default/logo.png"))
     front = cv2.imread(str(ROOT / "fixtures/default/front.png"))
     printed = cv2.imread(str(out / "design" / "print.png"))

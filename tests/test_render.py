@@ -10,9 +10,10 @@ import pytest
 from closed_loop import render_decorated, tile_misregistration
 from conftest import ROOT
 
-from workbench.camera import Camera
+from workbench.camera import Camera, load_camera
 from workbench.cli import main
-from workbench.commands.render import Design, load_camera
+from workbench.design_dir import Design
+from workbench.export import texture_uv
 from workbench.printing.boards import CharucoSpec
 from workbench.render.imperfections import Imperfections
 from workbench.render.photo import Scene, render_linear, render_photo
@@ -97,9 +98,7 @@ def test_a_designed_view_renders_its_image(default_design):
     # the logo view owns all the part it sees (it comes first): compare where a ray hits
     p = d.info["print"]
     rows, cols = d.rgb.shape[:2]
-    vt = np.stack(
-        [d.flat[:, 0] * p["dpi"] / 25.4 / cols, 1 - (p["height_mm"] - d.flat[:, 1]) * p["dpi"] / 25.4 / rows], 1
-    )
+    vt = texture_uv(d.flat, cols * 25.4 / p["dpi"], rows * 25.4 / p["dpi"], p["height_mm"])
     _, px = render_decorated(d.V, d.F, vt, d.rgb, cam)
     hit = np.isfinite(px[..., 0])
     mask = cv2.erode(hit.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)

@@ -12,7 +12,7 @@ from conftest import ROOT
 
 from workbench.camera import Camera
 from workbench.cli import main
-from workbench.commands.render import Design
+from workbench.design_dir import Design
 from workbench.export import png_bytes
 from workbench.render.imperfections import Imperfections
 from workbench.render.photo import render_photo

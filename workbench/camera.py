@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+
+from workbench.errors import WorkbenchError
+from workbench.jsonfile import read_json
 
 
 @dataclass(frozen=True)
@@ -116,3 +120,44 @@ class Camera:
             "t": self.t.tolist(),
             "image_size": [self.width, self.height],
         }
+
+
+def load_camera(path: Path) -> Camera:
+    """A camera file: K (3x3), R (3x3), t (3), image_size [W, H], optional dist (5)."""
+    d = read_json(path, "camera file")
+    shapes = {"K": (3, 3), "R": (3, 3), "t": (3,), "image_size": (2,)}
+    vals = {}
+    for key, shape in shapes.items():
+        try:
+            arr = np.asarray(d[key], dtype=np.float64)
+        except KeyError:
+            raise WorkbenchError(f"{path}: {key}: missing") from None
+        except (TypeError, ValueError):
+            arr = np.zeros(0)
+        if arr.shape != shape or not np.isfinite(arr).all():
+            raise WorkbenchError(f"{path}: {key}: must be {'x'.join(map(str, shape))} numbers")
+        vals[key] = arr
+    R = vals["R"]
+    if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+        raise WorkbenchError(f"{path}: R: not a rotation matrix")
+    dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()
+    if dist.size < 5:
+        dist = np.concatenate([dist, np.zeros(5 - dist.size)])
+    w, h = (int(v) for v in vals["image_size"])
+    if w < 8 or h < 8:
+        raise WorkbenchError(f"{path}: image_size: {w} x {h} is too small")
+    return Camera(K=vals["K"], R=R, t=vals["t"], width=w, height=h, dist=dist[:5])
+
+
+def load_camera_profile(path: Path) -> Camera:
+    """Intrinsics only (K, dist, image_size): a calibration profile or a PHOTO.json."""
+    d = read_json(path, "camera profile")
+    try:
+        K = np.asarray(d["K"], dtype=np.float64)
+        w, h = (int(v) for v in d["image_size"])
+        dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()[:5]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise WorkbenchError(f"{path}: not a camera profile (K, dist, image_size): {exc}") from None
+    if K.shape != (3, 3):
+        raise WorkbenchError(f"{path}: K: must be 3x3")
+    return Camera(K, np.eye(3), np.zeros(3), w, h, np.concatenate([dist, np.zeros(5 - len(dist))]))

@@ -18,6 +18,15 @@ def _figure():
     return plt
 
 
+def figure_png(fig) -> bytes:
+    """A matplotlib figure as PNG bytes (no software stamp: reproducible), and closed."""
+    buf = io.BytesIO()
+    # light zlib compression: the pictures are small either way, and level 6 costs 0.1 s
+    fig.savefig(buf, format="png", metadata={"Software": None}, pil_kwargs={"compress_level": 1})
+    _figure().close(fig)
+    return buf.getvalue()
+
+
 def face_image(
     uv: np.ndarray, F: np.ndarray, values: np.ndarray, width_mm: float, height_mm: float, max_px: int = 800
 ) -> np.ndarray:
@@ -129,11 +138,7 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_title(title, fontsize=10)
-    buf = io.BytesIO()
-    # light zlib compression: the picture is small either way, and level 6 costs 0.1 s
-    fig.savefig(buf, format="png", metadata={"Software": None}, pil_kwargs={"compress_level": 1})
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig)
 
 
 VIEW_COLOURS = [
@@ -204,7 +209,4 @@ def views_figure(
     ax.set_ylabel("y (mm)")
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None}, pil_kwargs={"compress_level": 1})
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
 import sys
@@ -93,7 +92,7 @@ def _relative(path: Path, to: Path) -> str:
 
 def residual_picture(cal, title: str) -> bytes:
     """Corner residuals over the image (arrows magnified), coloured by size."""
-    from workbench.figures import _figure
+    from workbench.figures import _figure, figure_png
 
     plt = _figure()
     W, H = cal.image_size
@@ -109,10 +108,7 @@ def residual_picture(cal, title: str) -> bytes:
     ax.set_ylim(H, 0)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=9)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None})
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig)
 
 
 def run_camera(args) -> int:

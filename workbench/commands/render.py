@@ -11,13 +11,12 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import write_files
-from workbench.camera import Camera
-from workbench.errors import UsageError, WorkbenchError
+from workbench.camera import Camera, load_camera, load_camera_profile
+from workbench.design_dir import Design
+from workbench.errors import UsageError
 from workbench.export import png_bytes
-from workbench.jsonfile import read_json
-from workbench.mesh.io import read_mesh
 from workbench.render.imperfections import REALISTIC, Imperfections
-from workbench.render.photo import build_scene, render_photo
+from workbench.render.photo import render_photo
 
 
 def add_parser(sub) -> None:
@@ -119,93 +118,6 @@ def imperfections_from(args) -> Imperfections:
     return Imperfections(**kw)
 
 
-def load_camera(path: Path) -> Camera:
-    """A camera file: K (3x3), R (3x3), t (3), image_size [W, H], optional dist (5)."""
-    d = read_json(path, "camera file")
-    shapes = {"K": (3, 3), "R": (3, 3), "t": (3,), "image_size": (2,)}
-    vals = {}
-    for key, shape in shapes.items():
-        try:
-            arr = np.asarray(d[key], dtype=np.float64)
-        except KeyError:
-            raise WorkbenchError(f"{path}: {key}: missing") from None
-        except (TypeError, ValueError):
-            arr = np.zeros(0)
-        if arr.shape != shape or not np.isfinite(arr).all():
-            raise WorkbenchError(f"{path}: {key}: must be {'x'.join(map(str, shape))} numbers")
-        vals[key] = arr
-    R = vals["R"]
-    if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
-        raise WorkbenchError(f"{path}: R: not a rotation matrix")
-    dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()
-    if dist.size < 5:
-        dist = np.concatenate([dist, np.zeros(5 - dist.size)])
-    w, h = (int(v) for v in vals["image_size"])
-    if w < 8 or h < 8:
-        raise WorkbenchError(f"{path}: image_size: {w} x {h} is too small")
-    return Camera(K=vals["K"], R=R, t=vals["t"], width=w, height=h, dist=dist[:5])
-
-
-class Design:
-    """What render needs of a design directory."""
-
-    def __init__(self, directory: Path):
-        if not directory.is_dir():
-            raise WorkbenchError(f"{directory}: no such design directory (run workbench design first)")
-        need = ("design.json", "print.png", "flat.obj", "decorated.obj", "fixture.json")
-        for name in need:
-            if not (directory / name).is_file():
-                raise WorkbenchError(f"{directory / name}: missing; is {directory} the output of workbench design?")
-        self.dir = directory
-        self.info = json.loads((directory / "design.json").read_text())
-        self.fixture = json.loads((directory / "fixture.json").read_text())
-        # the decorated mesh: the part in mm, in the input's vertex order
-        self.V, self.F = read_mesh(directory / "decorated.obj")
-        flat, _ = read_mesh(directory / "flat.obj")
-        self.flat = flat[:, :2]
-        img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_COLOR)
-        if img is None:
-            raise WorkbenchError(f"{directory / 'print.png'}: cannot read")
-        self.rgb = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-        owner = cv2.imread(str(directory / "owner.png"), cv2.IMREAD_UNCHANGED)
-        # owning view + 1 per print pixel, 0 for none (see design)
-        self.owner = None if owner is None else owner.astype(np.int16) - 1
-
-    def view_image(self, index: int) -> np.ndarray:
-        """The image of designed view ``index`` (RGB), as the design used it."""
-        name = self.info["views"][index]["name"]
-        path = self.dir / f"view-{name}.png"
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None:
-            raise WorkbenchError(f"{path}: missing; rerun workbench design")
-        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-
-    def scene(self, imp: Imperfections, fixture: bool = True):
-        p = self.info["print"]
-        return build_scene(
-            self.V, self.F, self.flat, p["height_mm"], self.rgb, p["dpi"], imp, self.fixture if fixture else None
-        )
-
-    def view_camera(self, name: str) -> Camera:
-        for v in self.info["views"]:
-            if v["name"] == name:
-                c = v["camera"]
-                return Camera(np.asarray(c["K"]), np.asarray(c["R"]), np.asarray(c["t"]), *c["image_size"])
-        names = ", ".join(v["name"] for v in self.info["views"])
-        raise WorkbenchError(f"no view named {name!r} in {self.dir / 'design.json'} (views: {names})")
-
-    def orbit_camera(self, az_deg, el_deg, dist_mm, width, height, fov_deg, intrinsics: Camera | None) -> Camera:
-        centre = 0.5 * (self.V.min(axis=0) + self.V.max(axis=0))
-        a, e = np.radians(az_deg), np.radians(el_deg)
-        # azimuth 0: in front of the part (towards -y), counter-clockwise seen from above
-        eye = centre + dist_mm * np.array([np.sin(a) * np.cos(e), -np.cos(a) * np.cos(e), np.sin(e)])
-        up = [0.0, 0.0, 1.0] if abs(el_deg) < 89 else [0.0, 1.0, 0.0]
-        cam = Camera.look_at(eye, centre, up, fov_deg, width, height)
-        if intrinsics is not None:
-            cam = Camera(intrinsics.K, cam.R, cam.t, intrinsics.width, intrinsics.height, intrinsics.dist)
-        return cam
-
-
 def _size(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     if text is None:
         return default
@@ -280,20 +192,6 @@ def run(args) -> int:
     )
     log(f"wrote {out} ({cam.width} x {cam.height}) and {out.with_suffix('.json')}")
     return 0
-
-
-def load_camera_profile(path: Path) -> Camera:
-    """Intrinsics only (K, dist, image_size): a calibration profile or a PHOTO.json."""
-    d = read_json(path, "camera profile")
-    try:
-        K = np.asarray(d["K"], dtype=np.float64)
-        w, h = (int(v) for v in d["image_size"])
-        dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()[:5]
-    except (KeyError, TypeError, ValueError) as exc:
-        raise WorkbenchError(f"{path}: not a camera profile (K, dist, image_size): {exc}") from None
-    if K.shape != (3, 3):
-        raise WorkbenchError(f"{path}: K: must be 3x3")
-    return Camera(K, np.eye(3), np.zeros(3), w, h, np.concatenate([dist, np.zeros(5 - len(dist))]))
 
 
 def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> int:

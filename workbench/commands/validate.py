@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import sys
 import time
@@ -14,9 +13,9 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import write_files
-from workbench.camera import Camera
-from workbench.commands.render import Design, load_camera_profile
+from workbench.camera import Camera, load_camera_profile
 from workbench.design import read_image
+from workbench.design_dir import Design
 from workbench.errors import WorkbenchError
 from workbench.export import png_bytes
 from workbench.raster import depth_buffer
@@ -55,7 +54,7 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def markers_under_the_part(pose, gray, design: Design) -> list[int]:
+def markers_under_the_part(pose, design: Design) -> list[int]:
     """Markers seen where the part, if it sat where the fixture says, would hide them."""
     cam = Camera(pose.camera.K, pose.camera.R, pose.camera.t, pose.camera.width, pose.camera.height)
     xy, z = cam.project(design.V)
@@ -88,7 +87,7 @@ def stats(values: np.ndarray) -> dict:
 
 def heatmap_png(design_rgb, sc, title: str) -> bytes:
     """The view's image in grey with each tile coloured by its misregistration (mm), and a colour bar."""
-    from workbench.figures import _figure
+    from workbench.figures import _figure, figure_png
 
     plt = _figure()
     grey = cv2.cvtColor(cv2.cvtColor(design_rgb, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
@@ -114,13 +113,10 @@ def heatmap_png(design_rgb, sc, title: str) -> bytes:
     fig.colorbar(sca, ax=ax, fraction=0.046, pad=0.04).set_label("misregistration on the surface (mm)")
     ax.set_title(title, fontsize=9)
     ax.set_axis_off()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None}, pil_kwargs={"compress_level": 1})
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig)
 
 
-def validate_photo(path: Path, design: Design, profile, view_name, tolerance_mm, cache, log) -> tuple[dict, dict]:
+def validate_photo(path: Path, design: Design, profile, view_name, tolerance_mm, cache) -> tuple[dict, dict]:
     """Score one photo; never raises for a bad photo (its verdict says why)."""
     entry: dict = {"photo": str(path), "verdict": "INVALID", "reason": None}
     files: dict = {}
@@ -154,7 +150,7 @@ def validate_photo(path: Path, design: Design, profile, view_name, tolerance_mm,
             f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"
         )
         return entry, files
-    hidden = markers_under_the_part(pose, gray, design)
+    hidden = markers_under_the_part(pose, design)
     if hidden:
         entry["reason"] = (
             f"the object is not where the fixture says: marker {hidden[0]} is visible where the part "
@@ -163,9 +159,7 @@ def validate_photo(path: Path, design: Design, profile, view_name, tolerance_mm,
         return entry, files
     views = design.info["views"]
     if view_name is None:
-        dists = [
-            np.linalg.norm(np.asarray(v["camera"].get("center_mm", _centre(v))) - pose.camera.center) for v in views
-        ]
+        dists = [np.linalg.norm(np.asarray(_centre(v)) - pose.camera.center) for v in views]
         vi = int(np.argmin(dists))
     else:
         vi = [v["name"] for v in views].index(view_name)
@@ -242,7 +236,7 @@ def run(args) -> int:
     entries, files = [], {}
     for photo in args.photos:
         t0 = time.perf_counter()
-        entry, pics = validate_photo(Path(photo), design, profile, args.view, args.tolerance_mm, cache, log)
+        entry, pics = validate_photo(Path(photo), design, profile, args.view, args.tolerance_mm, cache)
         entry["seconds"] = round(time.perf_counter() - t0, 3)
         entries.append(entry)
         files.update({out / k: v for k, v in pics.items()})

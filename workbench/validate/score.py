@@ -13,7 +13,7 @@ from workbench.views.visibility import _unoccluded_many
 
 TILE = 64
 MIN_TEXTURE = 50.0  # smallest structure-tensor eigenvalue of a usable tile (grey levels² per px²)
-MIN_ECC = 0.8
+MIN_CORRELATION = 0.8  # normalised correlation a registered tile must reach
 REGISTRATION_BLUR_PX = 1.0
 MARGIN = 24  # largest shift a tile can measure, view pixels
 
@@ -369,7 +369,7 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
             if y < MARGIN or x < MARGIN or y + TILE + MARGIN > H or x + TILE + MARGIN > W:
                 continue
             d, cc = register_tile(ref[y : y + TILE, x : x + TILE], wr, x, y)
-            if d is not None and cc >= MIN_ECC and np.abs(d).max() < MARGIN - 1:
+            if d is not None and cc >= MIN_CORRELATION and np.abs(d).max() < MARGIN - 1:
                 centres.append((x + (TILE - 1) / 2, y + (TILE - 1) / 2))
                 shifts.append(d)
     centres = np.array(centres).reshape(-1, 2)

@@ -1,0 +1,75 @@
+"""Reading a design directory (the output of ``workbench design``): what render and validate need."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from workbench.camera import Camera
+from workbench.errors import WorkbenchError
+from workbench.mesh.io import read_mesh
+from workbench.render.imperfections import Imperfections
+from workbench.render.photo import build_scene
+
+
+class Design:
+    """A design directory: the part, its flat layout, print, ownership, views and fixture."""
+
+    def __init__(self, directory: Path):
+        if not directory.is_dir():
+            raise WorkbenchError(f"{directory}: no such design directory (run workbench design first)")
+        need = ("design.json", "print.png", "flat.obj", "decorated.obj", "fixture.json")
+        for name in need:
+            if not (directory / name).is_file():
+                raise WorkbenchError(f"{directory / name}: missing; is {directory} the output of workbench design?")
+        self.dir = directory
+        self.info = json.loads((directory / "design.json").read_text())
+        self.fixture = json.loads((directory / "fixture.json").read_text())
+        # the decorated mesh: the part in mm, in the input's vertex order
+        self.V, self.F = read_mesh(directory / "decorated.obj")
+        flat, _ = read_mesh(directory / "flat.obj")
+        self.flat = flat[:, :2]
+        img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_COLOR)
+        if img is None:
+            raise WorkbenchError(f"{directory / 'print.png'}: cannot read")
+        self.rgb = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+        owner = cv2.imread(str(directory / "owner.png"), cv2.IMREAD_UNCHANGED)
+        # owning view + 1 per print pixel, 0 for none (see design)
+        self.owner = None if owner is None else owner.astype(np.int16) - 1
+
+    def view_image(self, index: int) -> np.ndarray:
+        """The image of designed view ``index`` (RGB), as the design used it."""
+        name = self.info["views"][index]["name"]
+        path = self.dir / f"view-{name}.png"
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None:
+            raise WorkbenchError(f"{path}: missing; rerun workbench design")
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+    def scene(self, imp: Imperfections, fixture: bool = True):
+        p = self.info["print"]
+        return build_scene(
+            self.V, self.F, self.flat, p["height_mm"], self.rgb, p["dpi"], imp, self.fixture if fixture else None
+        )
+
+    def view_camera(self, name: str) -> Camera:
+        for v in self.info["views"]:
+            if v["name"] == name:
+                c = v["camera"]
+                return Camera(np.asarray(c["K"]), np.asarray(c["R"]), np.asarray(c["t"]), *c["image_size"])
+        names = ", ".join(v["name"] for v in self.info["views"])
+        raise WorkbenchError(f"no view named {name!r} in {self.dir / 'design.json'} (views: {names})")
+
+    def orbit_camera(self, az_deg, el_deg, dist_mm, width, height, fov_deg, intrinsics: Camera | None) -> Camera:
+        centre = 0.5 * (self.V.min(axis=0) + self.V.max(axis=0))
+        a, e = np.radians(az_deg), np.radians(el_deg)
+        # azimuth 0: in front of the part (towards -y), counter-clockwise seen from above
+        eye = centre + dist_mm * np.array([np.sin(a) * np.cos(e), -np.cos(a) * np.cos(e), np.sin(e)])
+        up = [0.0, 0.0, 1.0] if abs(el_deg) < 89 else [0.0, 1.0, 0.0]
+        cam = Camera.look_at(eye, centre, up, fov_deg, width, height)
+        if intrinsics is not None:
+            cam = Camera(intrinsics.K, cam.R, cam.t, intrinsics.width, intrinsics.height, intrinsics.dist)
+        return cam

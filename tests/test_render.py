@@ -159,6 +159,14 @@ def test_previews(tmp_path, default_design):
     out = tmp_path / "prev"
     assert main(["render", str(default_design.dir), "--previews", "-o", str(out), "-q"]) == 0
     assert {p.name for p in out.iterdir()} >= {"logo.png", "front.png", "generic.png", "contact_sheet.png"}
+    # each designed view's preview is that view's camera, and shows that view's image where the part is
+    logo = cv2.cvtColor(cv2.imread(str(out / "logo.png")), cv2.COLOR_BGR2RGB)
+    cam = default_design.view_camera("logo")
+    assert logo.shape[:2] == (cam.height, cam.width)
+    ref = default_design.view_image(0)
+    assert np.median(np.abs(logo.astype(int) - ref.astype(int))) <= 2
+    sheet = cv2.imread(str(out / "contact_sheet.png"))
+    assert sheet.shape[0] == 336  # one row of 300 px tiles with their labels
 
 
 @pytest.mark.parametrize(

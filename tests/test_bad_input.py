@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import trimesh
 
 from workbench.cli import main
-from workbench.mesh.io import format_obj
+from workbench.mesh.io import format_obj, read_mesh
 from workbench.mesh.topology import unique_edges
 
 
@@ -168,38 +170,27 @@ def test_unreadable_files(capsys, tmp_path):
     expect(capsys, tmp_path, out_of_range, "face 0 refers to a vertex that does not exist")
 
 
-def test_large_face_that_would_collapse_is_refused(capsys, tmp_path, square):
-    # an ear below side AB: its apex has one face; as a non-corner its angle must open
-    # to 180°, so the ear (0.5 % of the surface) collapses onto AB and gets no print
+@pytest.mark.parametrize("depth", [0.5, 20.0], ids=["small-ear", "long-ear"])
+def test_ears_are_opened_by_intrinsic_flips(capsys, tmp_path, square, depth):
+    # an ear below side AB: its apex has one face, and as a non-corner its angle must
+    # open to 180°; on the input triangles it collapses (the earlier refusal), with
+    # Ptolemy flips the apex gains a second triangle and the map exists
     V, F = square
     ear = len(V)
-    V = np.vstack([V, [[5.0, -0.5, 0.0]]])
+    V = np.vstack([V, [[5.0, -depth, 0.0]]])
     F = np.vstack([F, [[2, ear, 3]]])
-    err = expect(
-        capsys,
-        tmp_path,
-        write(tmp_path, V, F),
-        f"largest face {len(F) - 1} with vertices 2, {ear}, 3) collapse onto a line in the print",
-        "--corners",
-        "0,5,29,24",
-    )
-    assert "make the boundary vertex of such a face a corner" in err
-
-
-def test_metric_that_degenerates_even_after_flips_is_refused(capsys, tmp_path, square):
-    # a long ear: its apex would need a 180° angle and no Delaunay flip can give it one
-    V, F = square
-    V = np.vstack([V, [[5.0, -20.0, 0.0]]])
-    F = np.vstack([F, [[2, len(V) - 1, 3]]])
-    err = expect(
-        capsys,
-        tmp_path,
-        write(tmp_path, V, F),
-        "even on the intrinsic Delaunay triangulation",
-        "--corners",
-        "0,5,29,24",
-    )
-    assert "remesh it" in err
+    path = write(tmp_path, V, F)
+    assert main(["flatten", str(path), "--out", str(tmp_path / "o"), "-q", "--corners", "0,5,29,24"]) == 0
+    info = json.loads((tmp_path / "o" / "flatten.json").read_text())
+    assert info["intrinsic_flips"] > 0 and info["flipped_faces"] == 0
+    assert info["collapsed_faces"]["count"] == 0
+    flat, Fo = read_mesh(tmp_path / "o" / "flat.obj")
+    assert len(flat) == info["output_mesh"]["vertices"] and len(Fo) == info["output_mesh"]["faces"]
+    a, b, c = flat[Fo[:, 0], :2], flat[Fo[:, 1], :2], flat[Fo[:, 2], :2]
+    cross = (b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0]
+    assert (cross > 0).all()
+    # the ear's apex lies on side AB of the rectangle
+    assert flat[ear, 1] == pytest.approx(0.0, abs=1e-9)
 
 
 def test_usage_error_without_mesh(capsys):

@@ -125,6 +125,9 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         V, F, FlattenOptions(corners=job.object.corners, scale=job.print.scale), str(job.object.mesh), log=say
     )
     t["flatten"] = time.perf_counter() - t0
+    # from here on the part is the flattened mesh: the input, or its common subdivision
+    # with the flat triangulation (input vertices first), on which the map is exact
+    V, F = flat.V, flat.F
     grid = PrintGrid(flat.width_mm, flat.height_mm, job.print.dpi)
     check_print_fits(grid, f"{job.path}: [print].dpi")
 

@@ -20,8 +20,10 @@ class CotanAssembler:
     Parameters
     ----------
     E : (#E, 2) int
-        Undirected edges, ``E[:, 0] < E[:, 1]``, sorted lexicographically
-        (as :func:`workbench.mesh.topology.unique_edges` returns them).
+        Undirected edges, ``E[:, 0] <= E[:, 1]``, sorted lexicographically
+        (as :func:`workbench.mesh.topology.unique_edges` returns them); two edges
+        joining the same vertices are one row (their weights add up), and loops
+        ``E[:, 0] == E[:, 1]`` are left out.
     FE : (#F, 3) int
         Edge opposite each face corner.
     n_vertices : int
@@ -44,7 +46,10 @@ class CotanAssembler:
         free_id[self.free] = np.arange(n)
         lo, hi = free_id[E[:, 0]], free_id[E[:, 1]]
         # free_id is increasing, so kept edges stay sorted by (row, column)
-        self._kept = np.flatnonzero((lo >= 0) & (hi >= 0))
+        # an edge from a vertex to itself (intrinsic triangulations have them) adds
+        # w (u_i - u_i)² = 0 to the energy: it has no entry at all
+        self._loop = E[:, 0] == E[:, 1]
+        self._kept = np.flatnonzero((lo >= 0) & (hi >= 0) & ~self._loop)
         self._lo, self._hi = lo, hi
         per_row = 1 + np.bincount(lo[self._kept], minlength=n)
         self._indptr = np.concatenate([[0], np.cumsum(per_row)]).astype(np.int32)
@@ -76,6 +81,7 @@ class CotanAssembler:
         """
         # w_ij = (cot α + cot β) / 2 over the corners facing edge ij
         w = np.bincount(self._FE.ravel(), weights=0.5 * cot.ravel(), minlength=self._n_edges)
+        w[self._loop] = 0.0
         degree = np.bincount(self._E[:, 0], w, self._n_vertices) + np.bincount(self._E[:, 1], w, self._n_vertices)
         data = np.empty(len(self._indices))
         data[self._diag] = degree[self.free]

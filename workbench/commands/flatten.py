@@ -25,9 +25,10 @@ def add_parser(sub) -> None:
         help="map a disc-shaped mesh conformally onto a rectangle (CETM)",
         description=(
             "Map a disc-shaped mesh conformally onto a rectangle at physical scale "
-            "(Springborn, Schröder, Pinkall 2008). Writes DIR/flat.obj (same vertices and "
-            "faces, z = 0, mm, corner A at the origin, A→B along +x), DIR/flatten.json and "
-            "DIR/flatten.png (film stretch over the print)."
+            "(Springborn, Schröder, Pinkall 2008; intrinsic Delaunay flips after Gillespie, Springborn, "
+            "Crane 2021 where the mesh needs them). Writes DIR/flat.obj (z = 0, mm, corner A at the origin, "
+            "A→B along +x; the input's vertices first in their order, then, where edges were flipped, the "
+            "vertices of the common subdivision), DIR/flatten.json and DIR/flatten.png (film stretch)."
         ),
     )
     p.add_argument(
@@ -97,6 +98,9 @@ def summary(result: FlattenResult, V: np.ndarray, F: np.ndarray) -> dict:
         "surface_area_mm2": float(w.sum()),
         "print_area_mm2": result.width_mm * result.height_mm,
         "mesh": {"vertices": len(V), "faces": len(F)},
+        # flat.obj's triangulation: the input's, or its common subdivision with the flat
+        # triangulation when the solve flipped edges (input vertices first, in order)
+        "output_mesh": {"vertices": len(result.V), "faces": len(result.F)},
     }
 
 
@@ -123,15 +127,15 @@ def run(args) -> int:
         },
         **summary(result, V, F),
     }
-    flat = np.column_stack([result.uv, np.zeros(len(V))])
+    flat = np.column_stack([result.uv, np.zeros(len(result.uv))])
     obj = format_obj(
         flat,
-        F,
+        result.F,
         header=f"workbench {__version__} flatten of {mesh_path.name}\nmm, corner A at the origin, A->B along +x",
     )
     png = stretch_figure(
         result.uv,
-        F,
+        result.F,
         result.stretch,
         result.corners,
         result.width_mm,

@@ -248,6 +248,13 @@ class NewtonOptions:
     max_iterations: int = 50
 
 
+
+# Budget of a solve on the fixed input triangulation before flips take over: a clean
+# mesh converges in 2 to 6 steps with full steps.
+FIXED_MAX_ITERATIONS = 20
+FIXED_MAX_HALVINGS = 4
+
+
 @dataclass(frozen=True)
 class NewtonResult:
     """Outcome of :func:`conformal_scale_factors`.
@@ -257,45 +264,113 @@ class NewtonResult:
     u : (#V,) float
         Log scale factors, ``u[fixed] == 0``.
     alpha : (#F, 3) float
-        Corner angles of the scaled metric.
+        Corner angles of the scaled metric on the final triangulation.
     cot : (#F, 3) float
         Their cotangents.
+    degenerate : (#F,) bool
+        Final triangles whose scaled lengths violate (or meet) the triangle inequality.
     iterations : int
         Newton steps taken.
     residual_rad : float
         Final max |Θ - angle sum|.
     history : list of float
         Residual before each step and after the last.
+    flips : int
+        Ptolemy flips made during the solve.
     assembler : CotanAssembler
-        Builds this triangulation's Laplacian without the fixed vertex.
+        Builds the final triangulation's Laplacian without the fixed vertex.
     solver : SPDSolver or None
-        Factorisation of the last Hessian (None if no step was needed): a close
-        preconditioner for systems with the final Laplacian.
+        Factorisation of the last Hessian on the final triangulation (None if
+        there was none): a close preconditioner for systems with the final
+        Laplacian.
     """
 
     u: np.ndarray
     alpha: np.ndarray
     cot: np.ndarray
+    degenerate: np.ndarray
     iterations: int
     residual_rad: float
     history: list[float]
+    flips: int
     assembler: CotanAssembler
     solver: SPDSolver | None
 
 
+def scaled_face_angles(F: np.ndarray, lam: np.ndarray, u: np.ndarray):
+    """:func:`triangle_angles` of the lengths ``exp((λ + u_i + u_j) / 2)``.
+
+    Parameters
+    ----------
+    F : (#F, 3) int
+        Triangles.
+    lam : (#F, 3) float
+        ``2 log l`` of the edge opposite each corner.
+    u : (#V,) float
+        Log scale factors.
+
+    Returns
+    -------
+    alpha, cot, degenerate
+        As :func:`triangle_angles`.
+    """
+    lt = lam + u[F[:, [1, 2, 0]]] + u[F[:, [2, 0, 1]]]
+    # only ratios within a triangle matter: removing the face's mean log-length
+    # keeps every exponential in range, whatever the scale factors
+    return triangle_angles(np.exp(0.5 * (lt - lt.mean(axis=1, keepdims=True))))
+
+
+def _newton_direction(assembler: CotanAssembler, cot: np.ndarray, g: np.ndarray, solver: SPDSolver | None):
+    """``-H⁻¹ g`` on the free vertices, with fallbacks when a factorisation fails.
+
+    The Hessian is positive semi-definite; a vertex whose triangles are all
+    degenerate has an empty row. A tiny diagonal shift makes it definite; when a
+    backend still reports a zero pivot, the portable backend and then a larger
+    shift are tried.
+    """
+    rhs = -g[assembler.free]
+    attempts = [(1e-12, None), (1e-12, "qdldl"), (1e-8, "qdldl"), (1e-6, "qdldl")]
+    for shift, backend in attempts:
+        H = assembler.upper(cot, shift=shift)
+        try:
+            with np.errstate(all="ignore"):
+                if solver is not None and backend is None and shift == attempts[0][0]:
+                    solver.refactor(H)
+                else:
+                    solver = SPDSolver(H, backend=backend)
+                x = solver.solve(rhs)
+        except Exception:  # noqa: BLE001 - any backend failure (zero pivot, MKL error) has a fallback
+            solver = None
+            continue
+        if np.all(np.isfinite(x)):
+            return x, solver
+        solver = None
+    raise WorkbenchError("conformal map: the Newton system could not be factorised (singular Hessian)")
+
+
 def conformal_scale_factors(
-    metric: Metric,
+    tri,
     theta: np.ndarray,
     fixed: int = 0,
     options: NewtonOptions = NewtonOptions(),
     progress: Callable[[int, float], None] | None = None,
+    flip: bool = True,
 ) -> NewtonResult:
-    """Log scale factors giving prescribed angle sums, by damped Newton.
+    """Log scale factors giving prescribed angle sums, by Newton's method with Ptolemy flips.
+
+    At every evaluation the triangulation is made Delaunay for the current scaled
+    metric (:meth:`IntrinsicTriangulation.make_delaunay`): then the energy is a
+    convex, twice differentiable function of ``u`` alone, with gradient
+    ``Θ - (angle sums)`` and Hessian the cotangent Laplacian of the Delaunay
+    triangulation, and a minimiser exists for any valid targets (Gillespie,
+    Springborn, Crane 2021). Each Newton step is shortened until the directional
+    derivative along it is no longer negative (the convex energy then has not
+    increased; Campen et al. 2021) unless it at least halves the residual.
 
     Parameters
     ----------
-    metric : Metric
-        Original edge log-lengths.
+    tri : IntrinsicTriangulation
+        Triangulation and Penner coordinates; flipped in place.
     theta : (#V,) float
         Target angle sum at every vertex, radians. Must satisfy Gauss-Bonnet
         (``Σ Θ = π #F``), otherwise no solution exists.
@@ -306,6 +381,11 @@ def conformal_scale_factors(
         Stopping rule.
     progress : callable(iteration, residual_rad), optional
         Called before every step.
+    flip : bool
+        False: keep the triangulation as it is (Springborn, Schröder, Pinkall
+        2008) and give up early, with :class:`DegenerateMetricError`, as soon as
+        a step has to leave a triangle degenerate, needs a long line search, or
+        the solve drags on: the caller then solves again with flips.
 
     Returns
     -------
@@ -313,79 +393,84 @@ def conformal_scale_factors(
 
     Raises
     ------
+    DegenerateMetricError
+        With ``flip=False``: the fixed triangulation does not carry the solution.
     WorkbenchError
-        No convergence, or a minimiser with degenerate triangles (slivers).
+        No convergence, a line search that cannot descend, flips that do not
+        terminate, or a Hessian that cannot be factorised.
     """
-    F, n = metric.F, metric.n_vertices
-    if abs(theta.sum() - np.pi * len(F)) > 1e-6 * len(F):
+    n = len(theta)
+    n_faces = len(tri.F)
+    if abs(theta.sum() - np.pi * n_faces) > 1e-6 * n_faces:
         raise WorkbenchError(
-            f"target angles violate Gauss-Bonnet: sum {theta.sum():.6f} rad, needed π·#F = {np.pi * len(F):.6f}"
+            f"target angles violate Gauss-Bonnet: sum {theta.sum():.6f} rad, needed π·#F = {np.pi * n_faces:.6f}"
         )
-    assembler = CotanAssembler(metric.E, metric.FE, n, np.array([fixed]))
-    free = assembler.free
+    flips_before = tri.flips
 
     def state(u: np.ndarray):
-        alpha, cot, degenerate = triangle_angles(metric.face_lengths(u))
-        g = theta - angle_sums(F, alpha, n)
-        return alpha, cot, degenerate, g, float(np.abs(g).max())
+        # a trial step can overshoot wildly (crowded meshes): overflow then gives a
+        # non-finite residual, which the line search rejects like any worse point
+        with np.errstate(over="ignore", invalid="ignore"):
+            if flip and tri.make_delaunay(u) < 0:
+                raise WorkbenchError("conformal map: Delaunay edge flips did not terminate")
+            alpha, cot, degenerate = scaled_face_angles(tri.F, tri.lam, u)
+            g = theta - angle_sums(tri.F, alpha, n)
+            res = float(np.abs(g).max())
+        return alpha, cot, degenerate, g, res if np.isfinite(res) else np.inf
 
     u = np.zeros(n)
     alpha, cot, degenerate, g, res = state(u)
-    solver: SPDSolver | None = None
+    assembler, pattern, solver = None, -1, None
     history: list[float] = []
-    energy: float | None = None
     for it in range(options.max_iterations + 1):
         history.append(res)
         if progress is not None:
             progress(it, res)
         if res <= options.tol_rad:
             break
+        if not np.isfinite(res):
+            raise WorkbenchError("conformal map: the angle residual is not finite")
+        if not flip and it == FIXED_MAX_ITERATIONS:
+            raise DegenerateMetricError(f"no convergence in {it} steps on the input triangulation", np.array([]))
         if it == options.max_iterations:
             raise WorkbenchError(f"conformal map did not converge in {it} Newton steps (angle residual {res:.2e} rad)")
-        # tiny diagonal shift: a vertex whose every triangle is degenerate has no
-        # curvature in the extended energy, which would leave H singular
-        H = assembler.upper(cot, shift=1e-12)
-        if solver is None:
-            solver = SPDSolver(H)
-        else:
-            solver.refactor(H)
+        if pattern != tri.flips:
+            # flips change the sparsity pattern: new assembly, new symbolic analysis
+            E, FE, _ = unique_edges(tri.F)
+            assembler, pattern, solver = CotanAssembler(E, FE, n, np.array([fixed])), tri.flips, None
+        x, solver = _newton_direction(assembler, cot, g, solver)
         step = np.zeros(n)
-        step[free] = solver.solve(-g[free])
-        # A full step that at least halves the residual is taken as it is: in the
-        # quadratic regime the energy can only have gone down. Otherwise backtrack
-        # on the energy (Armijo), which is what guarantees global convergence.
-        trial = u + step
-        new = state(trial)
-        if new[4] > 0.5 * res:
-            if energy is None:
-                energy = cetm_energy(metric, u, theta)
-            slope = float(g @ step)  # directional derivative of E, negative
-            t = 1.0
-            for _ in range(40):
-                e_trial = cetm_energy(metric, trial, theta)
-                if e_trial <= energy + 1e-4 * t * slope:
-                    break
-                # near the minimum the energy decrease drops below its rounding
-                # error; then the gradient is the reliable merit function
-                if abs(e_trial - energy) <= 1e-12 * (abs(energy) + 1.0) and new[4] < res:
-                    break
-                t *= 0.5
-                trial = u + t * step
-                new = state(trial)
-            else:
-                raise WorkbenchError(f"conformal map: line search failed at angle residual {res:.2e} rad")
-            energy = e_trial
+        step[assembler.free] = x
+        t = 1.0
+        for halvings in range(60):
+            if not flip and halvings == FIXED_MAX_HALVINGS:
+                raise DegenerateMetricError("a long line search on the input triangulation", np.array([]))
+            trial = u + t * step
+            new = state(trial)
+            # accept: residual halved (quadratic regime), or the convex energy's slope
+            # along the step still non-positive (so the energy has not increased)
+            if new[4] <= 0.5 * res or (np.isfinite(new[4]) and float(new[3] @ step) <= 0.0):
+                break
+            t *= 0.5
         else:
-            energy = None
+            raise WorkbenchError(f"conformal map: line search failed at angle residual {res:.2e} rad")
         u = trial
         alpha, cot, degenerate, g, res = new
-    degenerate = np.flatnonzero(degenerate)
-    if len(degenerate):
-        raise DegenerateMetricError(
-            f"the conformal metric degenerates in {len(degenerate)} triangles (face {int(degenerate[0])}): "
-            "the mesh has slivers that a conformal map cannot keep; remesh it (isotropic remeshing) and retry",
-            degenerate,
-        )
+        if not flip and degenerate.any():
+            bad = np.flatnonzero(degenerate)
+            raise DegenerateMetricError(f"{len(bad)} triangles degenerate on the input triangulation", bad)
+    if pattern != tri.flips:
+        E, FE, _ = unique_edges(tri.F)
+        assembler, solver = CotanAssembler(E, FE, n, np.array([fixed])), None
     return NewtonResult(
-        u=u, alpha=alpha, cot=cot, iterations=it, residual_rad=res, history=history, assembler=assembler, solver=solver
+        u=u,
+        alpha=alpha,
+        cot=cot,
+        degenerate=degenerate,
+        iterations=it,
+        residual_rad=res,
+        history=history,
+        flips=tri.flips - flips_before,
+        assembler=assembler,
+        solver=solver,
     )

@@ -8,17 +8,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.conformal.cetm import (
-    DegenerateMetricError,
-    Metric,
-    NewtonOptions,
-    NewtonResult,
-    conformal_scale_factors,
-)
+from workbench.conformal.cetm import DegenerateMetricError, NewtonOptions, NewtonResult, conformal_scale_factors
 from workbench.conformal.corners import choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values
-from workbench.conformal.intrinsic import intrinsic_delaunay
+from workbench.conformal.intrinsic import IntrinsicTriangulation
 from workbench.conformal.layout import flat_layout, rectangle_boundary, signed_areas
+from workbench.conformal.overlay import common_subdivision, trace_input_edges
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.validate import check_disc, face_areas
 
@@ -77,22 +72,40 @@ class FlattenOptions:
         How the physical size is fixed.
     newton : NewtonOptions
         Convergence rule of the conformal solve.
+    flips : bool or None
+        None: solve on the input triangulation and flip only when it does not
+        carry the solution; True: always keep the triangulation Delaunay.
     """
 
     corners: tuple[int, int, int, int] | None = None
     scale: ScaleMode = ScaleMode()
     newton: NewtonOptions = NewtonOptions()
+    flips: bool | None = None
 
 
 @dataclass
 class FlattenResult:
     """A mesh mapped conformally onto a rectangle.
 
+    When the solve flipped edges, the map of an input triangle is piecewise
+    (projective) over the common subdivision of the input and the flat
+    triangulation; the result then carries that subdivision as its mesh: the
+    input vertices first, in their order, then the points where flat edges cross
+    input edges. Otherwise ``V``, ``F`` are the input's.
+
     Attributes
     ----------
-    uv : (#V, 2) float
-        Flat positions in mm, corner A at the origin, A→B along +x, in the input's
-        vertex order.
+    V : (#Vs, 3) float
+        Surface positions in mm of the output mesh's vertices; ``V[:n_input_vertices]``
+        are the input's.
+    F : (#Fs, 3) int
+        Output triangles, counter-clockwise, each inside one input triangle.
+    parent : (#Fs,) int
+        The input triangle each output triangle lies in.
+    n_input_vertices : int
+        #V of the input.
+    uv : (#Vs, 2) float
+        Flat positions in mm, corner A at the origin, A→B along +x.
     corners : (4,) int
         Vertices A, B, C, D.
     corner_rule : str
@@ -103,25 +116,28 @@ class FlattenResult:
         Scale mode applied.
     newton : NewtonResult
         The conformal solve.
-    sigma : (#F, 2) float
-        Singular values of the flat-to-surface map per face (see
+    sigma : (#Fs, 2) float
+        Singular values of the flat-to-surface map per output face (see
         :func:`flat_to_surface_singular_values`).
-    area_3d : (#F,) float
-        Surface area of each face, mm².
+    area_3d : (#Fs,) float
+        Surface area of each output face, mm².
     flipped_faces : int
-        Faces with negative area in the plane.
-    collapsed : (#F,) bool
-        Faces with (numerically) zero area in the plane: slivers whose vertices land
-        on one line. ``sigma`` is NaN there and statistics leave them out.
+        Output faces with negative area in the plane.
+    collapsed : (#Fs,) bool
+        Output faces with (numerically) zero area in the plane. ``sigma`` is NaN
+        there and statistics leave them out.
     intrinsic_flips : int
-        Edge flips of the intrinsic Delaunay triangulation the solve used (0 when
-        the input triangulation was used as it is).
+        Ptolemy edge flips the solve made.
     rectangle_mismatch : float
         Relative length difference of opposite sides before they are equalised.
     timings_s : dict
         Seconds per stage.
     """
 
+    V: np.ndarray
+    F: np.ndarray
+    parent: np.ndarray
+    n_input_vertices: int
     uv: np.ndarray
     corners: np.ndarray
     corner_rule: str
@@ -180,6 +196,47 @@ def scale_factor(mode: ScaleMode, sigma: np.ndarray, area_3d: np.ndarray, width:
     raise UsageError(f"unknown scale mode {mode.kind!r}")
 
 
+
+
+def input_log_lengths(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> np.ndarray:
+    """Penner coordinates of a mesh, normalised: ``2 log(l / l̄)`` with ``l̄`` the geometric mean length.
+
+    Normalising makes every later number independent of the mesh's unit: the same
+    mesh in µm, mm or m gives the same coordinates up to round-off.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions.
+    F : (#F, 3) int
+        Triangles.
+    name : str
+        The mesh's name in error messages.
+
+    Returns
+    -------
+    lam : (#F, 3) float
+        For the edge opposite each corner.
+
+    Raises
+    ------
+    WorkbenchError
+        An edge of zero length (two vertices at one position).
+    """
+    L = np.linalg.norm(V[F[:, [2, 0, 1]]] - V[F[:, [1, 2, 0]]], axis=2)
+    zero = np.argwhere(L <= 0)
+    if len(zero):
+        f, k = (int(i) for i in zero[0])
+        a, b = int(F[f, (k + 1) % 3]), int(F[f, (k + 2) % 3])
+        raise WorkbenchError(
+            f"{name}: {len(zero) // 2 or 1} edges have zero length (vertices {a} and {b} of face {f} are at one "
+            "position); merge duplicate vertices"
+        )
+    with np.errstate(divide="ignore"):
+        logL = np.log(L)
+    return 2.0 * (logL - logL.mean())
+
+
 def flatten(
     V: np.ndarray,
     F: np.ndarray,
@@ -189,10 +246,13 @@ def flatten(
 ) -> FlattenResult:
     """Map a disc-shaped mesh conformally onto a rectangle at physical scale.
 
-    Target angle sums: 2π inside, π on the boundary, π/2 at the four corners
-    (CETM); Newton's method to a max angle residual of ``options.newton.tol_rad``;
-    the boundary placed on the rectangle by arc length and the interior by one
-    harmonic solve with the flat metric's cotangent weights; then scaled.
+    Target angle sums: 2π inside, π on the boundary, π/2 at the four corners.
+    Newton's method with Ptolemy flips that keep the triangulation Delaunay for
+    the current metric (:func:`conformal_scale_factors`) to a max angle residual
+    of ``options.newton.tol_rad``; the boundary placed on the rectangle by arc
+    length and the interior by one harmonic solve with the flat metric's cotangent
+    weights; then, when edges were flipped, the common subdivision of input and
+    flat triangulation (:mod:`workbench.conformal.overlay`); then scaled.
 
     Parameters
     ----------
@@ -214,91 +274,105 @@ def flatten(
     Raises
     ------
     WorkbenchError
-        The mesh is not a clean disc, the corners are invalid, or the solve fails.
+        The mesh is not a clean disc, the corners are invalid, the solve fails, or
+        part of the surface would collapse in the print.
     """
     say = log or (lambda _msg: None)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    loop, E, FE = check_disc(V, F, name)
+    loop, _, _ = check_disc(V, F, name)
     if options.corners is None:
         corners, rule = choose_corners(V, F, loop)
     else:
         corners, rule = np.asarray(options.corners, dtype=np.int64), "given"
-    pos = corner_positions(loop, corners, len(V))
+    corner_positions(loop, corners, len(V))
     start = int(np.flatnonzero(loop == corners[0])[0])
     loop = np.roll(loop, -start)
     say(f"corners A,B,C,D = {','.join(map(str, corners.tolist()))} ({rule})")
+    lam = input_log_lengths(V, F, name)
     timings["check"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    theta = np.full(len(V), 2.0 * np.pi)
-    theta[loop] = np.pi
-    theta[corners] = 0.5 * np.pi
-    # A boundary vertex with one face must open that face to 180°: degenerate on this
-    # triangulation whatever the solver does, so go straight to the intrinsic one.
-    valence = np.bincount(F.ravel(), minlength=len(V))
-    ears = np.setdiff1d(loop[valence[loop] == 1], corners)
-    T, flips = F, 0
-    metric = Metric.from_mesh(V, F, E, FE)
-    newton = None
-    if len(ears) == 0:
-        try:
-            newton = _solve(metric, theta, corners, options, say)
-        except DegenerateMetricError as exc:
-            say(f"{exc.faces.size} triangles degenerate; retrying on the intrinsic Delaunay triangulation")
-    else:
-        say(f"{len(ears)} boundary vertices with a single face; using the intrinsic Delaunay triangulation")
-    if newton is None:
-        L = np.exp(0.5 * metric.lam[metric.FE])
-        force = np.isin(F, ears)  # flip the edge facing each single-face boundary vertex
-        T, L, flips = intrinsic_delaunay(F, L, force=force)
-        say(f"intrinsic Delaunay: {flips} edge flips")
-        metric = Metric.from_lengths(T, L, len(V))
-        try:
-            newton = _solve(metric, theta, corners, options, say)
-        except DegenerateMetricError as exc:
+    n_input = len(V)
+    splits = 0
+    face_origin = np.arange(len(F))  # input face of each face of the (split) mesh
+    for _round in range(MAX_SPLIT_ROUNDS + 1):
+        newton, tri = _solve(V, F, lam, loop, corners, options, say)
+        if not newton.degenerate.any():
+            break
+        # Without the double cover of the disc (Campen et al. 2021), boundary edges are
+        # never flipped, and a triangle on the boundary can end degenerate (its apex
+        # pushed onto the boundary line). Splitting that boundary edge on the input mesh
+        # gives the apex room: the surface is unchanged, the new vertex comes after
+        # the input's.
+        bad = np.flatnonzero(newton.degenerate)
+        edges = _boundary_edges_near(tri, bad)
+        if _round == MAX_SPLIT_ROUNDS or len(edges) == 0:
             raise WorkbenchError(
-                f"{name}: the conformal metric degenerates in {exc.faces.size} triangles even on the intrinsic "
-                "Delaunay triangulation: the mesh has slivers a conformal map cannot keep; remesh it "
-                "(isotropic remeshing) or choose other corners"
-            ) from None
+                f"{name}: the conformal metric degenerates in {len(bad)} triangles at the boundary even after "
+                f"{splits} boundary edge splits (near vertex {int(tri.F[bad[0], 0])}); remesh the boundary"
+            )
+        V, F, loop, origin = _split_boundary_edges(V, F, loop, edges)
+        face_origin = face_origin[origin]
+        splits += len(edges)
+        lam = input_log_lengths(V, F, name)
+        say(f"{len(bad)} triangles degenerate at the boundary: split {len(edges)} boundary edges and solve again")
     timings["newton"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    lengths = metric.edge_lengths(newton.u)
-    key = np.sort(np.stack([loop, np.roll(loop, -1)], axis=1), axis=1)
-    edge_id = np.searchsorted(metric.E[:, 0] * len(V) + metric.E[:, 1], key[:, 0] * len(V) + key[:, 1])
-    boundary_xy, width, height, mismatch = rectangle_boundary(lengths[edge_id], pos)
-    uv = flat_layout(newton.cot, loop, boundary_xy, newton.assembler, newton.solver)
+    u = newton.u
+    # boundary edges are never flipped: each boundary vertex keeps its outgoing edge
+    bf, bk = np.nonzero(tri.T < 0)
+    src = tri.F[bf, (bk + 1) % 3]
+    blen = np.zeros(len(V))
+    lt = tri.lam[bf, bk] + u[src] + u[tri.F[bf, (bk + 2) % 3]]
+    blen[src] = np.exp(0.5 * lt)
+    boundary_xy, width, height, mismatch = rectangle_boundary(blen[loop], corner_positions(loop, corners, len(V)))
+    X = flat_layout(newton.cot, loop, boundary_xy, newton.assembler, newton.solver)
     timings["layout"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    area_3d = face_areas(V, F)
-    # input faces drawn through an intrinsic triangulation can collapse onto a line
-    # (a boundary sliver whose three vertices end up on one side of the rectangle)
-    flat_area = signed_areas(uv, F)
-    flipped = int((flat_area < -1e-9 * area_3d).sum())
-    collapsed = np.abs(flat_area) <= 1e-9 * area_3d
+    if newton.flips:
+        crossings = trace_input_edges(F, lam, tri, u, len(V))
+        V_out, F_out, uv, parent = common_subdivision(V, F, tri.F, X, crossings)
+        say(f"common subdivision: {len(crossings['t_in'])} edge crossings, {len(F_out)} triangles")
+    else:
+        V_out, F_out, uv, parent = V, F, X, np.arange(len(F))
+    parent = face_origin[parent]
+    timings["overlay"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    area_3d = face_areas(V_out, F_out)
+    flat_area = signed_areas(uv, F_out)
+    # relative to the face's share of the surface: the map's own area scale is
+    # (width·height) / (surface area)
+    rel = flat_area / (area_3d * (width * height / area_3d.sum()))
+    flipped = int((rel < -1e-9).sum())
+    collapsed = np.abs(rel) <= 1e-9
     lost = area_3d[collapsed].sum() / area_3d.sum()
     if lost > MAX_COLLAPSED_AREA:
         f = int(np.flatnonzero(collapsed)[np.argmax(area_3d[collapsed])])
         raise WorkbenchError(
-            f"{name}: {int(collapsed.sum())} faces ({100 * lost:.2g} % of the surface, largest face {f} with vertices "
-            f"{', '.join(map(str, F[f].tolist()))}) collapse onto a line in the print and would get no print; "
-            "make the boundary vertex of such a face a corner, or split the face"
+            f"{name}: {int(collapsed.sum())} faces ({100 * lost:.2g} % of the surface, largest input face "
+            f"{int(parent[f])}) shrink to nothing in the print; a rectangle crowds this part of the surface: "
+            "choose other corners"
         )
-    sigma = np.full((len(F), 2), np.nan)
+    sigma = np.full((len(F_out), 2), np.nan)
     ok = ~collapsed
-    sigma[ok] = flat_to_surface_singular_values(V, F[ok], uv)
+    sigma[ok] = flat_to_surface_singular_values(V_out, F_out[ok], uv)
     s = scale_factor(options.scale, sigma[ok], area_3d[ok], width, height)
-    uv *= s
+    uv = uv * s
     sigma /= s
     if flipped:
         say(f"warning: {flipped} faces are flipped in the layout")
     timings["metrics"] = time.perf_counter() - t0
     return FlattenResult(
+        V=V_out,
+        F=F_out,
+        parent=parent,
+        n_input_vertices=n_input,
         uv=uv,
         corners=corners,
         corner_rule=rule,
@@ -310,17 +384,78 @@ def flatten(
         area_3d=area_3d,
         flipped_faces=flipped,
         collapsed=collapsed,
-        intrinsic_flips=flips,
+        intrinsic_flips=newton.flips,
         rectangle_mismatch=mismatch,
         timings_s=timings,
     )
 
 
-def _solve(metric, theta, corners, options, say):
-    return conformal_scale_factors(
-        metric,
-        theta,
-        fixed=int(corners[0]),
-        options=options.newton,
-        progress=lambda it, res: say(f"Newton step {it}: max angle residual {res:.2e} rad"),
-    )
+# Rounds of boundary edge splits before a degenerate boundary triangle is reported.
+MAX_SPLIT_ROUNDS = 4
+
+
+def _solve(V, F, lam, loop, corners, options, say):
+    """Conformal scale factors on the input triangulation, else with Ptolemy flips."""
+    theta = np.full(len(V), 2.0 * np.pi)
+    theta[loop] = np.pi
+    theta[corners] = 0.5 * np.pi
+    # The input triangulation first: on a clean mesh it carries the solution and the
+    # map stays linear on every input triangle (no subdivision). When it does not
+    # (a triangle would degenerate), Ptolemy flips keep the triangulation Delaunay.
+    for flip in (True,) if options.flips else (False, True):
+        tri = IntrinsicTriangulation.from_mesh(F, lam, len(V))
+        try:
+            newton = conformal_scale_factors(
+                tri,
+                theta,
+                fixed=int(corners[0]),
+                options=options.newton,
+                progress=lambda it, res: say(f"Newton step {it}: max angle residual {res:.2e} rad"),
+                flip=flip,
+            )
+        except DegenerateMetricError as exc:
+            say(f"{exc}; solving again with intrinsic Delaunay flips")
+            continue
+        if newton.flips:
+            say(f"{newton.flips} Ptolemy edge flips kept the triangulation Delaunay")
+        return newton, tri
+    raise AssertionError("unreachable: the flipped solve returns or raises")
+
+
+def _boundary_edges_near(tri: IntrinsicTriangulation, faces: np.ndarray) -> np.ndarray:
+    """Boundary edges (from, to) of the given triangles, else those at their vertices; (k, 2)."""
+    bf, bk = np.nonzero(tri.T < 0)
+    src, dst = tri.F[bf, (bk + 1) % 3], tri.F[bf, (bk + 2) % 3]
+    own = np.isin(bf, faces)
+    if not own.any():
+        own = np.isin(src, tri.F[faces]) | np.isin(dst, tri.F[faces])
+    return np.unique(np.stack([src[own], dst[own]], 1), axis=0)
+
+
+def _split_boundary_edges(V, F, loop, edges):
+    """Split each boundary edge (p, q) at its midpoint; the new vertices go after the others.
+
+    Returns the new ``V``, ``F``, boundary loop, and for each new face the row of the
+    old ``F`` it lies in.
+    """
+    V, F = V.copy(), F.copy()
+    extra_faces, origin = [], list(range(len(F)))
+    nxt = {int(p): int(q) for p, q in zip(loop, np.roll(loop, -1), strict=True)}
+    for p, q in edges.tolist():
+        m = len(V)
+        V = np.vstack([V, 0.5 * (V[p] + V[q])])
+        # the face running p -> q: (p, q, r) becomes (p, m, r) and (m, q, r)
+        hit = np.flatnonzero(((F == p) & (np.roll(F, -1, axis=1) == q)).any(axis=1))[0]
+        k = int(np.flatnonzero(F[hit] == p)[0])
+        r = int(F[hit, (k + 2) % 3])
+        F[hit] = (p, m, r)
+        extra_faces.append((m, q, r))
+        origin.append(int(hit))
+        nxt[p], nxt[m] = m, q
+    F = np.vstack([F, np.array(extra_faces, dtype=np.int64)])
+    start = int(loop[0])
+    new_loop, v = [start], nxt[start]
+    while v != start:
+        new_loop.append(v)
+        v = nxt[v]
+    return V, F, np.array(new_loop, dtype=np.int64), np.array(origin, dtype=np.int64)

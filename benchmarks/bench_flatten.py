@@ -17,6 +17,10 @@ Prints three blocks:
    peer process doing libigl's harmonic map onto the same rectangle (boundary by arc
    length between the same four corners) on the same OBJ file.
 3. One line per size for the README table.
+4. The real-mesh corpus (``tests/data/corpus`` and, when present, the shared meshes
+   beside the checkout), each at its own scale: how many flatten, how many needed
+   Ptolemy flips, how many flips, and the time they cost (whole ``flatten`` against the
+   solve on the input triangulation alone, where that one succeeds).
 
 Notes
 -----
@@ -283,6 +287,50 @@ def readme_lines(rows: list[dict]) -> None:
         )
 
 
+def real_meshes() -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from workbench.conformal.flatten import flatten
+    from workbench.errors import WorkbenchError
+    from workbench.mesh.io import read_mesh
+
+    root = Path(__file__).resolve().parents[1]
+    paths = sorted((root / "tests" / "data" / "corpus").glob("*.npz"))
+    shared = root.parent / "shared" / "meshes"
+    if shared.is_dir():
+        paths += sorted(p for p in shared.iterdir() if p.suffix in (".obj", ".off"))
+    print("\nreal disc meshes (own scale): flattened / refused for crowding, Ptolemy flips and their cost")
+    ok = refused = flipped_runs = 0
+    total_flips, t_flip = 0, 0.0
+    for p in paths:
+        if p.suffix == ".npz":
+            d = np.load(p)
+            V, F = d["V"].astype(np.float64), d["F"].astype(np.int64)
+        else:
+            V, F = read_mesh(p)
+        t0 = time.perf_counter()
+        try:
+            r = flatten(V, F, name=p.name)
+        except WorkbenchError as exc:
+            refused += 1
+            print(f"  {p.stem:32s} refused: {str(exc)[len(p.name) + 2 :][:90]}")
+            continue
+        dt = time.perf_counter() - t0
+        ok += 1
+        if r.intrinsic_flips:
+            flipped_runs += 1
+            total_flips += r.intrinsic_flips
+            t_flip += dt
+        print(
+            f"  {p.stem:32s} {len(F):6d} faces  flips {r.intrinsic_flips:6d}  subdivision {len(r.F):6d} faces  "
+            f"flipped faces {r.flipped_faces}  {dt:5.2f} s (newton {r.timings_s['newton']:.2f}, "
+            f"overlay {r.timings_s['overlay']:.2f})"
+        )
+    print(
+        f"  {ok} of {len(paths)} flatten with no flipped face, {refused} refused for crowding; {flipped_runs} needed "
+        f"flips ({total_flips} in all, {t_flip:.1f} s for those meshes)"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--big", action="store_true", help=f"also time {BIG_SIZE}x{BIG_SIZE} vertices (1 run)")
@@ -290,6 +338,7 @@ def main() -> None:
     convergence_table()
     rows = timings(list(TIMING_SIZES) + ([BIG_SIZE] if args.big else []))
     readme_lines(rows)
+    real_meshes()
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import write_files
 from workbench.conformal.distortion import weighted_quantiles
-from workbench.conformal.flatten import FlattenOptions, FlattenResult, ScaleMode, flatten
+from workbench.conformal.flatten import FlattenOptions, FlattenResult, ScaleMode, flatten, flatten_auto_corners
 from workbench.errors import UsageError
 from workbench.figures import stretch_figure
 from workbench.mesh.io import UNITS_MM, format_obj, read_mesh
@@ -39,7 +39,9 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--corners",
         metavar="A,B,C,D",
-        help="four boundary vertex indices (0-based), counter-clockwise; default: chosen automatically",
+        help="four boundary vertex indices (0-based), counter-clockwise; or 'auto': compare several corner "
+        "choices and keep the one that prints every face with the least area distortion; "
+        "default: the sharpest boundary turns (else the bounding box)",
     )
     p.add_argument(
         "--scale", default="isometric", metavar="MODE", help="isometric (default), no-shrink, width=MM or height=MM"
@@ -54,7 +56,7 @@ def add_parser(sub) -> None:
 
 def parse_corners(text: str | None) -> tuple[int, int, int, int] | None:
     """``'A,B,C,D'`` → four ints; None stays None."""
-    if text is None:
+    if text is None or text == "auto":
         return None
     parts = text.split(",")
     try:
@@ -115,7 +117,11 @@ def run(args) -> int:
     V, F = read_mesh(mesh_path, args.units)
     t_read = time.perf_counter() - t0
     log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
-    result = flatten(V, F, FlattenOptions(corners=corners, scale=scale), name=str(mesh_path), log=log)
+    compared = None
+    if args.corners == "auto":
+        result, compared = flatten_auto_corners(V, F, FlattenOptions(scale=scale), name=str(mesh_path), log=log)
+    else:
+        result = flatten(V, F, FlattenOptions(corners=corners, scale=scale), name=str(mesh_path), log=log)
 
     t0 = time.perf_counter()
     info = {
@@ -127,6 +133,8 @@ def run(args) -> int:
         },
         **summary(result, V, F),
     }
+    if compared is not None:
+        info["corner_search"] = compared
     flat = np.column_stack([result.uv, np.zeros(len(result.uv))])
     obj = format_obj(
         flat,

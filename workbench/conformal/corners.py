@@ -152,3 +152,44 @@ def corner_positions(loop: np.ndarray, corners: np.ndarray, n_vertices: int) -> 
             f"(seen from the decorated side); did you mean {','.join(map(str, fixed))}?"
         )
     return pos
+
+
+def candidate_corners(
+    V: np.ndarray, loop: np.ndarray, rotations: int = 8, sides: tuple[float, ...] = (0.15, 0.25, 0.35)
+) -> list[np.ndarray]:
+    """Corner quadruples spread along the boundary, for a search over corners.
+
+    Rule: for each of ``rotations`` starting points ``t`` evenly spaced over half the
+    perimeter (a quadruple and its half-turn are the same four corners) and each side
+    fraction ``s``, the boundary vertices at arc-length fractions
+    ``t, t + s, t + 1/2, t + 1/2 + s``.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions.
+    loop : (#B,) int
+        Boundary loop, counter-clockwise.
+    rotations : int
+        Number of starting points.
+    sides : tuple of float
+        Fractions of the perimeter between the first two corners.
+
+    Returns
+    -------
+    list of (4,) int
+        Quadruples A, B, C, D, counter-clockwise, no two with the same four vertices.
+    """
+    seg = np.linalg.norm(V[np.roll(loop, -1)] - V[loop], axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg)[:-1]]) / seg.sum()
+    out, seen = [], set()
+    for side in sides:
+        for r in range(rotations):
+            t = 0.5 * r / rotations
+            fr = (t + np.array([0.0, side, 0.5, 0.5 + side])) % 1.0
+            pos = sorted({int(np.argmin(np.minimum(np.abs(arc - x), 1 - np.abs(arc - x)))) for x in fr})
+            if len(pos) < 4 or frozenset(pos) in seen:
+                continue
+            seen.add(frozenset(pos))
+            out.append(loop[np.array(pos)].astype(np.int64))
+    return out

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.conformal.cetm import DegenerateMetricError, NewtonOptions, NewtonResult, conformal_scale_factors
-from workbench.conformal.corners import choose_corners, corner_positions
+from workbench.conformal.corners import candidate_corners, choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values
 from workbench.conformal.intrinsic import IntrinsicTriangulation
 from workbench.conformal.layout import flat_layout, rectangle_boundary, signed_areas
@@ -355,9 +355,10 @@ def flatten(
     if lost > MAX_COLLAPSED_AREA:
         f = int(np.flatnonzero(collapsed)[np.argmax(area_3d[collapsed])])
         raise WorkbenchError(
-            f"{name}: {int(collapsed.sum())} faces ({100 * lost:.2g} % of the surface, largest input face "
-            f"{int(parent[f])}) shrink to nothing in the print; a rectangle crowds this part of the surface: "
-            "choose other corners"
+            f"{name}: {int(collapsed.sum())} faces ({100 * lost:.2g} % of the surface, around input vertices "
+            f"{', '.join(map(str, F[parent[f]].tolist()))} of face {int(parent[f])}) shrink to nothing in the print "
+            f"with corners {','.join(map(str, corners.tolist()))}: a rectangle crowds that part of the surface; "
+            "try --corners auto (a search for corners that print every face)"
         )
     sigma = np.full((len(F_out), 2), np.nan)
     ok = ~collapsed
@@ -459,3 +460,88 @@ def _split_boundary_edges(V, F, loop, edges):
         new_loop.append(v)
         v = nxt[v]
     return V, F, np.array(new_loop, dtype=np.int64), np.array(origin, dtype=np.int64)
+
+
+def area_distortion(result: FlattenResult) -> float:
+    """Area-weighted standard deviation of the log area scale, over faces that print; 0 for an isometry."""
+    ok = ~result.collapsed
+    log_area = np.log(result.sigma[ok, 0] * result.sigma[ok, 1])
+    w = result.area_3d[ok]
+    mean = np.average(log_area, weights=w)
+    return float(np.sqrt(np.average((log_area - mean) ** 2, weights=w)))
+
+
+def flatten_auto_corners(
+    V: np.ndarray,
+    F: np.ndarray,
+    options: FlattenOptions = FlattenOptions(),
+    name: str = "mesh",
+    log: Callable[[str], None] | None = None,
+    rotations: int = 8,
+) -> tuple[FlattenResult, list[dict]]:
+    """Flatten with the corners that print every face with the least area distortion.
+
+    Candidates: the automatic rule's corners (:func:`choose_corners`) and
+    :func:`candidate_corners`. Each is flattened in full; those refused (part of the
+    surface would shrink to nothing) or with a flipped face are out; of the rest the
+    one with the least :func:`area_distortion` wins.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions in mm.
+    F : (#F, 3) int
+        Triangles.
+    options : FlattenOptions
+        As for :func:`flatten`; ``corners`` is ignored.
+    name : str
+        The mesh's name in messages.
+    log : callable(str), optional
+        Receives one line per candidate.
+    rotations : int
+        Starting points of :func:`candidate_corners`.
+
+    Returns
+    -------
+    result : FlattenResult
+        The winner's.
+    compared : list of dict
+        One per candidate: ``corners``, ``outcome`` ('ok', 'refused' or 'flipped'),
+        ``area_distortion`` (None unless ok), ``reason``.
+
+    Raises
+    ------
+    WorkbenchError
+        Not a clean disc, or no candidate prints every face.
+    """
+    say = log or (lambda _m: None)
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    loop, _, _ = check_disc(V, F, name)
+    first, _ = choose_corners(V, F, loop)
+    candidates = [first] + [c for c in candidate_corners(V, loop, rotations) if not np.array_equal(c, first)]
+    best, best_score, compared = None, np.inf, []
+    for i, c in enumerate(candidates):
+        opts = FlattenOptions(corners=tuple(int(x) for x in c), scale=options.scale, newton=options.newton)
+        row = {"corners": [int(x) for x in c], "outcome": "ok", "area_distortion": None, "reason": ""}
+        try:
+            r = flatten(V, F, opts, name)
+        except WorkbenchError as exc:
+            row["outcome"], row["reason"] = "refused", str(exc).removeprefix(f"{name}: ")
+        else:
+            if r.flipped_faces:
+                row["outcome"], row["reason"] = "flipped", f"{r.flipped_faces} flipped faces"
+            else:
+                row["area_distortion"] = area_distortion(r)
+                if row["area_distortion"] < best_score:
+                    best, best_score = r, row["area_distortion"]
+        compared.append(row)
+        score = "" if row["area_distortion"] is None else f", area distortion {row['area_distortion']:.3f}"
+        say(f"corners {i + 1}/{len(candidates)} {','.join(map(str, row['corners']))}: {row['outcome']}{score}")
+    if best is None:
+        raise WorkbenchError(
+            f"{name}: none of {len(candidates)} corner choices prints every face onto a rectangle (the part is "
+            "too long and thin for one rectangle); split it into several films"
+        )
+    best.corner_rule = "auto"
+    return best, compared

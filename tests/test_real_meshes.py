@@ -1,0 +1,76 @@
+"""Real disc meshes (scans, CAD, coarse and broken patches): flattened without a fold, or refused in one line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_conformal_maps import check_subdivision
+
+from workbench.cli import main
+from workbench.conformal.flatten import flatten
+from workbench.errors import WorkbenchError
+from workbench.mesh.io import read_mesh
+
+HERE = Path(__file__).resolve().parent
+SHARED = HERE.parents[1] / "shared" / "meshes"
+CORPUS = sorted((HERE / "data" / "corpus").glob("*.npz"))
+# a representative subset for `make test`; `make bench` runs them all
+FAST = {"bunny-0", "fandisk-1-needles", "lion-1-valence3", "cow-valence30", "decimated-knight-0-noise", "beetle-1"}
+
+
+def load(path: Path):
+    d = np.load(path)
+    return d["V"].astype(np.float64), d["F"].astype(np.int64)
+
+
+def flattens_or_is_refused_for_crowding(V, F, name):
+    try:
+        r = flatten(V, F, name=name)
+    except WorkbenchError as exc:
+        assert "shrink to nothing in the print" in str(exc) and "--corners auto" in str(exc), str(exc)
+        return None
+    check_subdivision(r, V, F)
+    assert not r.collapsed.any() or r.area_3d[r.collapsed].sum() <= 1e-3 * r.area_3d.sum()
+    return r
+
+
+@pytest.mark.parametrize(
+    "path",
+    [pytest.param(p, id=p.stem, marks=() if p.stem in FAST else pytest.mark.slow) for p in CORPUS],
+)
+def test_corpus_disc(path):
+    V, F = load(path)
+    for size in (None, 150.0):
+        s = 1.0 if size is None else size / np.linalg.norm(V.max(0) - V.min(0))
+        flattens_or_is_refused_for_crowding(V * s, F, path.name)
+
+
+def test_corpus_is_large_enough():
+    assert len(CORPUS) >= 30
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="the shared meshes are not beside this checkout")
+@pytest.mark.parametrize("name", ["camelhead.off", "lilium.obj", "face.obj"])
+def test_same_map_at_any_unit(name):
+    # a conformal map does not depend on scale: the same mesh in µm-, mm- and m-sized
+    # numbers gives the same map up to that scale, and the same triangulation
+    V, F = read_mesh(SHARED / name)
+    ref = flatten(V, F)
+    check_subdivision(ref, V, F)
+    diag = np.linalg.norm(ref.uv.max(0) - ref.uv.min(0))
+    for unit in (1e-3, 1e3):
+        r = flatten(V * unit, F)
+        np.testing.assert_array_equal(r.F, ref.F)
+        assert np.abs(r.uv / unit - ref.uv).max() <= 1e-9 * diag
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="the shared meshes are not beside this checkout")
+def test_crowded_part_is_refused_in_one_line(capsys, tmp_path):
+    # camel_b: legs and head that any rectangle shrinks to nothing
+    out = tmp_path / "o"
+    assert main(["flatten", str(SHARED / "camel_b.obj"), "--out", str(out), "-q"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "shrink to nothing" in err and "around input vertices" in err
+    assert not out.exists()

@@ -138,3 +138,26 @@ def test_same_job_same_bytes(tmp_path):
     b = json.loads((tmp_path / "b" / "design.json").read_text())
     a.pop("timings_s"), b.pop("timings_s")
     assert a == b
+
+
+@pytest.mark.parametrize("name", ["default", "two-views"])
+def test_closed_loop_holds_through_the_common_subdivision(monkeypatch, name):
+    # Forced Ptolemy flips: the print is synthesised through the common subdivision of
+    # input and flat triangulation, decorated.obj carries it; every view must still
+    # see its image to the same figures as without flips.
+    import functools
+
+    from workbench.conformal.flatten import FlattenOptions
+    from workbench.conformal.layout import signed_areas
+
+    monkeypatch.setattr("workbench.design.FlattenOptions", functools.partial(FlattenOptions, flips=True))
+    job, r, vt = designed(name)
+    V_in, _ = read_mesh(job.object.mesh, job.object.units)
+    assert r.flat.intrinsic_flips > 0 and len(r.V) > len(V_in)
+    np.testing.assert_array_equal(r.V[: len(V_in)], V_in)
+    assert (signed_areas(vt, r.F) > 0).all()  # no fold in the texture coordinates either
+    for v in range(len(job.views)):
+        mis, coverage = view_check(job, r, vt, v)
+        assert np.median(mis) <= 0.1, (job.views[v].name, np.median(mis))
+        assert np.percentile(mis, 95) <= 0.3, (job.views[v].name, np.percentile(mis, 95))
+        assert coverage >= 0.99, (job.views[v].name, coverage)

@@ -13,7 +13,15 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import write_files
 from workbench.conformal.distortion import weighted_quantiles
-from workbench.conformal.flatten import FlattenOptions, FlattenResult, ScaleMode, flatten, flatten_auto_corners
+from workbench.conformal.flatten import (
+    CrowdingError,
+    FlattenOptions,
+    FlattenResult,
+    ScaleMode,
+    crowding_advice,
+    flatten,
+    flatten_auto_corners,
+)
 from workbench.errors import UsageError
 from workbench.figures import stretch_figure
 from workbench.mesh.io import UNITS_MM, format_obj, read_mesh
@@ -48,6 +56,12 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--units", default="mm", choices=sorted(UNITS_MM), help="unit of the mesh file's coordinates (default mm)"
+    )
+    p.add_argument(
+        "--dpi",
+        type=float,
+        default=300.0,
+        help="print resolution the map must serve: a face printed below half a pixel is crowded (default 300)",
     )
     p.add_argument("--out", metavar="DIR", help="output directory (default: flatten-<mesh name>)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
@@ -118,10 +132,16 @@ def run(args) -> int:
     t_read = time.perf_counter() - t0
     log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
     compared = None
+    if not (np.isfinite(args.dpi) and 1 <= args.dpi <= 10000):
+        raise UsageError(f"--dpi {args.dpi:g}: must be between 1 and 10000")
+    options = FlattenOptions(corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi)
     if args.corners == "auto":
-        result, compared = flatten_auto_corners(V, F, FlattenOptions(scale=scale), name=str(mesh_path), log=log)
+        result, compared = flatten_auto_corners(V, F, options, name=str(mesh_path), log=log)
     else:
-        result = flatten(V, F, FlattenOptions(corners=corners, scale=scale), name=str(mesh_path), log=log)
+        try:
+            result = flatten(V, F, options, name=str(mesh_path), log=log)
+        except CrowdingError as exc:
+            raise crowding_advice(exc, V, F, options, str(mesh_path), log) from None
 
     t0 = time.perf_counter()
     info = {

@@ -355,6 +355,7 @@ def conformal_scale_factors(
     options: NewtonOptions = NewtonOptions(),
     progress: Callable[[int, float], None] | None = None,
     flip: bool = True,
+    edges: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> NewtonResult:
     """Log scale factors giving prescribed angle sums, by Newton's method with Ptolemy flips.
 
@@ -386,6 +387,8 @@ def conformal_scale_factors(
         2008) and give up early, with :class:`DegenerateMetricError`, as soon as
         a step has to leave a triangle degenerate, needs a long line search, or
         the solve drags on: the caller then solves again with flips.
+    edges : (E, FE), optional
+        :func:`unique_edges` of ``tri.F`` as given, when already computed.
 
     Returns
     -------
@@ -421,6 +424,8 @@ def conformal_scale_factors(
     u = np.zeros(n)
     alpha, cot, degenerate, g, res = state(u)
     assembler, pattern, solver = None, -1, None
+    if edges is not None and tri.flips == flips_before:
+        assembler, pattern = CotanAssembler(edges[0], edges[1], n, np.array([fixed])), tri.flips
     history: list[float] = []
     for it in range(options.max_iterations + 1):
         history.append(res)

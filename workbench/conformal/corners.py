@@ -66,16 +66,20 @@ def choose_corners(V: np.ndarray, F: np.ndarray, loop: np.ndarray) -> tuple[np.n
     if nb < 4:
         raise WorkbenchError(f"the boundary has {nb} vertices; a rectangle needs at least 4")
     seg = np.linalg.norm(V[np.roll(loop, -1)] - V[loop], axis=1)
+    # in fractions of the perimeter, rounded, and turning rounded to 1e-9 rad: the
+    # choice must not depend on the mesh's unit, and round-off must not break ties
+    # (regular grids have many) differently in mm than in m
+    seg = np.round(seg / seg.sum(), 12)
     perimeter = seg.sum()
     arc = np.concatenate([[0.0], np.cumsum(seg)[:-1]])
-    kappa = boundary_turning(V, F, loop)
+    kappa = np.round(boundary_turning(V, F, loop), 9)
     # windowed turning via prefix sums over the loop taken three times (wrap-around)
     arc3 = np.concatenate([arc - perimeter, arc, arc + perimeter])
     k3 = np.concatenate([[0.0], np.cumsum(np.tile(kappa, 3))])
     w = WINDOW * perimeter
     lo = np.searchsorted(arc3, arc - w, side="left")
     hi = np.searchsorted(arc3, arc + w, side="right")
-    turn = k3[hi] - k3[lo]
+    turn = np.round(k3[hi] - k3[lo], 9)
     picked: list[int] = []
     order = np.lexsort((np.arange(nb), -turn))
     for p in order:

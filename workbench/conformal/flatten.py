@@ -10,16 +10,44 @@ import numpy as np
 
 from workbench.conformal.cetm import DegenerateMetricError, NewtonOptions, NewtonResult, conformal_scale_factors
 from workbench.conformal.corners import candidate_corners, choose_corners, corner_positions
-from workbench.conformal.distortion import flat_to_surface_singular_values
+from workbench.conformal.distortion import flat_to_surface_singular_values, weighted_quantiles
 from workbench.conformal.intrinsic import IntrinsicTriangulation
 from workbench.conformal.layout import flat_layout, rectangle_boundary, signed_areas
 from workbench.conformal.overlay import common_subdivision, trace_input_edges
 from workbench.errors import UsageError, WorkbenchError
+from workbench.mesh.topology import face_components, unique_edges
 from workbench.mesh.validate import check_disc, face_areas
 
-# Faces that collapse in the print get no print; beyond this share of the surface
-# area that is a visible hole in the decoration, not a sliver.
-MAX_COLLAPSED_AREA = 1e-3
+# Faces the print crowds below what it can carry get no print of their own; a connected
+# region of them beyond this share of the surface area is a visible hole in the
+# decoration, not a sliver.
+MAX_CROWDED_AREA = 1e-3
+# A face is crowded when it prints below what the print can carry and this many times
+# smaller than the map's typical scale would print it.
+CROWDING = 4.0
+# What a print can carry: half a pixel at 300 dpi, mm (design passes its own dpi).
+DEFAULT_MIN_PRINT_MM = 0.5 * 25.4 / 300
+
+
+class CrowdingError(WorkbenchError):
+    """The rectangle shrinks part of the surface below what the print can carry.
+
+    Attributes
+    ----------
+    corners : (4,) int
+        The corners used.
+    share : float
+        Share of the surface area crowded.
+    region_vertices : (k,) int
+        Input vertices of the largest connected crowded region.
+    region_share : float
+        Its share of the surface area.
+    """
+
+    def __init__(self, message, corners, share, region_vertices, region_share):
+        super().__init__(message)
+        self.corners, self.share = corners, share
+        self.region_vertices, self.region_share = region_vertices, region_share
 
 
 @dataclass(frozen=True)
@@ -75,12 +103,18 @@ class FlattenOptions:
     flips : bool or None
         None: solve on the input triangulation and flip only when it does not
         carry the solution; True: always keep the triangulation Delaunay.
+    min_print_mm : float
+        The smallest printed size (square root of a face's printed area, mm) the
+        print can carry; a face that prints smaller, and ``CROWDING`` times smaller
+        than the map's typical scale would print it, is crowded. Default half a
+        pixel at 300 dpi.
     """
 
     corners: tuple[int, int, int, int] | None = None
     scale: ScaleMode = ScaleMode()
     newton: NewtonOptions = NewtonOptions()
     flips: bool | None = None
+    min_print_mm: float = DEFAULT_MIN_PRINT_MM
 
 
 @dataclass
@@ -126,6 +160,10 @@ class FlattenResult:
     collapsed : (#Fs,) bool
         Output faces with (numerically) zero area in the plane. ``sigma`` is NaN
         there and statistics leave them out.
+    crowded : (#Fs,) bool
+        Output faces printed smaller than ``min_print_mm`` (collapsed ones too);
+        no connected region of them covers more than ``MAX_CROWDED_AREA`` of the
+        surface, or flatten refuses.
     intrinsic_flips : int
         Ptolemy edge flips the solve made.
     rectangle_mismatch : float
@@ -149,6 +187,7 @@ class FlattenResult:
     area_3d: np.ndarray
     flipped_faces: int
     collapsed: np.ndarray
+    crowded: np.ndarray
     intrinsic_flips: int
     rectangle_mismatch: float
     timings_s: dict = field(default_factory=dict)
@@ -282,7 +321,7 @@ def flatten(
     t0 = time.perf_counter()
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    loop, _, _ = check_disc(V, F, name)
+    loop, E, FE = check_disc(V, F, name)
     if options.corners is None:
         corners, rule = choose_corners(V, F, loop)
     else:
@@ -299,7 +338,10 @@ def flatten(
     splits = 0
     face_origin = np.arange(len(F))  # input face of each face of the (split) mesh
     for _round in range(MAX_SPLIT_ROUNDS + 1):
-        newton, tri = _solve(V, F, lam, loop, corners, options, say)
+        try:
+            newton, tri = _solve(V, F, lam, loop, corners, options, say, (E, FE) if splits == 0 else None)
+        except WorkbenchError as exc:
+            raise WorkbenchError(f"{name}: {exc}") from None
         if not newton.degenerate.any():
             break
         # Without the double cover of the disc (Campen et al. 2021), boundary edges are
@@ -323,20 +365,27 @@ def flatten(
 
     t0 = time.perf_counter()
     u = newton.u
-    # boundary edges are never flipped: each boundary vertex keeps its outgoing edge
-    bf, bk = np.nonzero(tri.T < 0)
-    src = tri.F[bf, (bk + 1) % 3]
+    # boundary edges are never flipped: their Penner coordinates are the input's
+    if splits:
+        _, FE, _ = unique_edges(F)
+    bf, bk = np.nonzero(np.bincount(FE.ravel(), minlength=FE.max() + 1)[FE] == 1)
+    src = F[bf, (bk + 1) % 3]
     blen = np.zeros(len(V))
-    lt = tri.lam[bf, bk] + u[src] + u[tri.F[bf, (bk + 2) % 3]]
-    blen[src] = np.exp(0.5 * lt)
+    blen[src] = np.exp(0.5 * (lam[bf, bk] + u[src] + u[F[bf, (bk + 2) % 3]]))
     boundary_xy, width, height, mismatch = rectangle_boundary(blen[loop], corner_positions(loop, corners, len(V)))
-    X = flat_layout(newton.cot, loop, boundary_xy, newton.assembler, newton.solver)
+    try:
+        X = flat_layout(newton.cot, loop, boundary_xy, newton.assembler, newton.solver)
+    except WorkbenchError as exc:
+        raise WorkbenchError(f"{name}: {exc}") from None
     timings["layout"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     if newton.flips:
-        crossings = trace_input_edges(F, lam, tri, u, len(V))
-        V_out, F_out, uv, parent = common_subdivision(V, F, tri.F, X, crossings)
+        try:
+            crossings = trace_input_edges(F, lam, tri, u, len(V))
+            V_out, F_out, uv, parent = common_subdivision(V, F, tri.F, X, crossings)
+        except WorkbenchError as exc:
+            raise WorkbenchError(f"{name}: {exc}") from None
         say(f"common subdivision: {len(crossings['t_in'])} edge crossings, {len(F_out)} triangles")
     else:
         V_out, F_out, uv, parent = V, F, X, np.arange(len(F))
@@ -351,21 +400,26 @@ def flatten(
     rel = flat_area / (area_3d * (width * height / area_3d.sum()))
     flipped = int((rel < -1e-9).sum())
     collapsed = np.abs(rel) <= 1e-9
-    lost = area_3d[collapsed].sum() / area_3d.sum()
-    if lost > MAX_COLLAPSED_AREA:
-        f = int(np.flatnonzero(collapsed)[np.argmax(area_3d[collapsed])])
-        raise WorkbenchError(
-            f"{name}: {int(collapsed.sum())} faces ({100 * lost:.2g} % of the surface, around input vertices "
-            f"{', '.join(map(str, F[parent[f]].tolist()))} of face {int(parent[f])}) shrink to nothing in the print "
-            f"with corners {','.join(map(str, corners.tolist()))}: a rectangle crowds that part of the surface; "
-            "try --corners auto (a search for corners that print every face)"
-        )
     sigma = np.full((len(F_out), 2), np.nan)
     ok = ~collapsed
     sigma[ok] = flat_to_surface_singular_values(V_out, F_out[ok], uv)
     s = scale_factor(options.scale, sigma[ok], area_3d[ok], width, height)
     uv = uv * s
     sigma /= s
+    # crowded: printed smaller than the print can carry, and shrunk at least CROWDING
+    # times more than the map's typical (area-weighted median) scale: a tiny face of a
+    # fine mesh is not crowded, a face of a protrusion the rectangle squeezes is
+    printed = np.sqrt(np.abs(flat_area)) * s
+    scale_of_face = printed / np.sqrt(area_3d)
+    typical = float(weighted_quantiles(scale_of_face[ok], area_3d[ok], [0.5])[0])
+    crowded = collapsed | ((printed < options.min_print_mm) & (scale_of_face * CROWDING < typical))
+    share = float(area_3d[crowded].sum() / area_3d.sum())
+    if share > MAX_CROWDED_AREA:
+        # a region the print cannot carry, not scattered single triangles (the ears of a
+        # jagged scan boundary are squeezed locally, whatever the corners)
+        err = _crowding_error(name, F, F_out, parent, crowded, area_3d, corners, share, options.min_print_mm)
+        if err.region_share > MAX_CROWDED_AREA:
+            raise err
     if flipped:
         say(f"warning: {flipped} faces are flipped in the layout")
     timings["metrics"] = time.perf_counter() - t0
@@ -385,9 +439,30 @@ def flatten(
         area_3d=area_3d,
         flipped_faces=flipped,
         collapsed=collapsed,
+        crowded=crowded,
         intrinsic_flips=newton.flips,
         rectangle_mismatch=mismatch,
         timings_s=timings,
+    )
+
+
+def _crowding_error(name, F_in, F_out, parent, crowded, area_3d, corners, share, min_print_mm) -> CrowdingError:
+    """The refusal, naming the largest connected crowded region."""
+    idx = np.flatnonzero(crowded)
+    labels = face_components(F_out[idx])
+    sizes = np.bincount(labels, area_3d[idx])
+    region = idx[labels == np.argmax(sizes)]
+    verts = np.unique(F_in[parent[region]])
+    region_share = float(area_3d[region].sum() / area_3d.sum())
+    shown = ", ".join(map(str, verts[:6].tolist())) + (", ..." if len(verts) > 6 else "")
+    return CrowdingError(
+        f"{name}: the rectangle with corners {','.join(map(str, corners.tolist()))} shrinks {100 * share:.2g} % of "
+        f"the surface below {min_print_mm:.3g} mm in the print (largest region: {100 * region_share:.2g} % of the "
+        f"surface, {len(verts)} input vertices: {shown})",
+        corners,
+        share,
+        verts,
+        region_share,
     )
 
 
@@ -395,7 +470,7 @@ def flatten(
 MAX_SPLIT_ROUNDS = 4
 
 
-def _solve(V, F, lam, loop, corners, options, say):
+def _solve(V, F, lam, loop, corners, options, say, edges):
     """Conformal scale factors on the input triangulation, else with Ptolemy flips."""
     theta = np.full(len(V), 2.0 * np.pi)
     theta[loop] = np.pi
@@ -404,7 +479,7 @@ def _solve(V, F, lam, loop, corners, options, say):
     # map stays linear on every input triangle (no subdivision). When it does not
     # (a triangle would degenerate), Ptolemy flips keep the triangulation Delaunay.
     for flip in (True,) if options.flips else (False, True):
-        tri = IntrinsicTriangulation.from_mesh(F, lam, len(V))
+        tri = IntrinsicTriangulation.from_mesh(F, lam, len(V), None if edges is None else edges[1], flips=flip)
         try:
             newton = conformal_scale_factors(
                 tri,
@@ -413,6 +488,7 @@ def _solve(V, F, lam, loop, corners, options, say):
                 options=options.newton,
                 progress=lambda it, res: say(f"Newton step {it}: max angle residual {res:.2e} rad"),
                 flip=flip,
+                edges=edges,
             )
         except DegenerateMetricError as exc:
             say(f"{exc}; solving again with intrinsic Delaunay flips")
@@ -460,6 +536,45 @@ def _split_boundary_edges(V, F, loop, edges):
         new_loop.append(v)
         v = nxt[v]
     return V, F, np.array(new_loop, dtype=np.int64), np.array(origin, dtype=np.int64)
+
+
+# Candidates the corner search adds where a refused one crowded.
+MAX_GUIDED = 8
+
+
+def corners_flanking(loop: np.ndarray, region: np.ndarray) -> np.ndarray | None:
+    """Corners that open a crowded region: two at the ends of its stretch of boundary.
+
+    Parameters
+    ----------
+    loop : (#B,) int
+        Boundary loop, counter-clockwise.
+    region : (k,) int
+        Vertices of the crowded region.
+
+    Returns
+    -------
+    (4,) int or None
+        A, B at the two ends of the boundary stretch the region covers, C, D
+        splitting the rest of the loop into thirds (by vertex count); None when the
+        region does not reach the boundary or the stretch is too short.
+    """
+    nb = len(loop)
+    pos = np.sort(np.flatnonzero(np.isin(loop, region)))
+    if len(pos) < 2:
+        return None
+    # the stretch is the loop minus the largest gap between the region's boundary vertices
+    gaps = np.diff(np.append(pos, pos[0] + nb))
+    g = int(np.argmax(gaps))
+    start, end = int(pos[(g + 1) % len(pos)]), int(pos[g])
+    rest = (start - end) % nb
+    if rest < 3 or (end - start) % nb < 1:
+        return None
+    c, d = (end + rest // 3) % nb, (end + 2 * rest // 3) % nb
+    quad = [start, end, c, d]
+    if len(set(quad)) < 4:
+        return None
+    return loop[np.array(quad)].astype(np.int64)
 
 
 def area_distortion(result: FlattenResult) -> float:
@@ -520,12 +635,30 @@ def flatten_auto_corners(
     loop, _, _ = check_disc(V, F, name)
     first, _ = choose_corners(V, F, loop)
     candidates = [first] + [c for c in candidate_corners(V, loop, rotations) if not np.array_equal(c, first)]
-    best, best_score, compared = None, np.inf, []
-    for i, c in enumerate(candidates):
-        opts = FlattenOptions(corners=tuple(int(x) for x in c), scale=options.scale, newton=options.newton)
+    seen = {frozenset(c.tolist()) for c in candidates}
+    best, best_score, compared, guided = None, np.inf, [], 0
+    i = 0
+    while i < len(candidates):
+        c = candidates[i]
+        i += 1
+        opts = FlattenOptions(
+            corners=tuple(int(x) for x in c),
+            scale=options.scale,
+            newton=options.newton,
+            flips=options.flips,
+            min_print_mm=options.min_print_mm,
+        )
         row = {"corners": [int(x) for x in c], "outcome": "ok", "area_distortion": None, "reason": ""}
         try:
             r = flatten(V, F, opts, name)
+        except CrowdingError as exc:
+            row["outcome"], row["reason"] = "refused", str(exc).removeprefix(f"{name}: ")
+            # guided: open the crowded region by putting two corners where it meets the boundary
+            flank = corners_flanking(loop, exc.region_vertices)
+            if flank is not None and guided < MAX_GUIDED and frozenset(flank.tolist()) not in seen:
+                seen.add(frozenset(flank.tolist()))
+                candidates.append(flank)
+                guided += 1
         except WorkbenchError as exc:
             row["outcome"], row["reason"] = "refused", str(exc).removeprefix(f"{name}: ")
         else:
@@ -537,7 +670,7 @@ def flatten_auto_corners(
                     best, best_score = r, row["area_distortion"]
         compared.append(row)
         score = "" if row["area_distortion"] is None else f", area distortion {row['area_distortion']:.3f}"
-        say(f"corners {i + 1}/{len(candidates)} {','.join(map(str, row['corners']))}: {row['outcome']}{score}")
+        say(f"corners {i}/{len(candidates)} {','.join(map(str, row['corners']))}: {row['outcome']}{score}")
     if best is None:
         raise WorkbenchError(
             f"{name}: none of {len(candidates)} corner choices prints every face onto a rectangle (the part is "
@@ -545,3 +678,43 @@ def flatten_auto_corners(
         )
     best.corner_rule = "auto"
     return best, compared
+
+
+def crowding_advice(
+    exc: CrowdingError,
+    V: np.ndarray,
+    F: np.ndarray,
+    options: FlattenOptions,
+    name: str,
+    log: Callable[[str], None] | None = None,
+) -> WorkbenchError:
+    """The crowding refusal with corners that avoid it, found by :func:`flatten_auto_corners`.
+
+    Parameters
+    ----------
+    exc : CrowdingError
+        The refusal.
+    V, F, options, name, log
+        As given to :func:`flatten`.
+
+    Returns
+    -------
+    WorkbenchError
+        One line: the refusal, then either the corners to use instead or the
+        statement that no rectangle prints this part.
+    """
+    say = log or (lambda _m: None)
+    say("searching for corners that print every face")
+    try:
+        best, compared = flatten_auto_corners(V, F, options, name, log, rotations=4)
+    except WorkbenchError:
+        return WorkbenchError(
+            f"{exc}; none of the corner choices --corners auto compares prints every face: this part needs "
+            "another outline or several films"
+        )
+    c = ",".join(map(str, best.corners.tolist()))
+    n_ok = sum(row["outcome"] == "ok" for row in compared)
+    return WorkbenchError(
+        f"{exc}; corners {c} print every face (best of {n_ok} of {len(compared)} choices that do): "
+        f"use --corners {c}, or --corners auto"
+    )

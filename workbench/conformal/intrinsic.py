@@ -35,13 +35,15 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
 DELAUNAY_TOL = 1e-10
 
 
-def corner_twins(F: np.ndarray) -> np.ndarray:
+def corner_twins(F: np.ndarray, FE: np.ndarray | None = None) -> np.ndarray:
     """Twin of every face corner's opposite edge.
 
     Parameters
     ----------
     F : (#F, 3) int
         Triangles of an edge-manifold, consistently oriented mesh.
+    FE : (#F, 3) int, optional
+        :func:`unique_edges` of ``F``, when already computed.
 
     Returns
     -------
@@ -49,7 +51,8 @@ def corner_twins(F: np.ndarray) -> np.ndarray:
         ``T[f, k] = 3 g + m`` when the edge opposite corner ``k`` of ``f`` is the
         edge opposite corner ``m`` of ``g``; -1 on the boundary.
     """
-    _, FE, _ = unique_edges(F)
+    if FE is None:
+        _, FE, _ = unique_edges(F)
     e = FE.ravel()
     order = np.argsort(e, kind="stable")
     same = e[order][1:] == e[order][:-1]
@@ -268,7 +271,9 @@ class IntrinsicTriangulation:
     flips: int = 0
 
     @classmethod
-    def from_mesh(cls, F: np.ndarray, lam: np.ndarray, n_vertices: int) -> IntrinsicTriangulation:
+    def from_mesh(
+        cls, F: np.ndarray, lam: np.ndarray, n_vertices: int, FE: np.ndarray | None = None, flips: bool = True
+    ) -> IntrinsicTriangulation:
         """The input triangulation itself.
 
         Parameters
@@ -279,6 +284,11 @@ class IntrinsicTriangulation:
             ``2 log`` of the length of the edge opposite each corner.
         n_vertices : int
             #V.
+        FE : (#F, 3) int, optional
+            :func:`unique_edges` of ``F``, when already computed.
+        flips : bool
+            False: the triangulation will not be flipped; twins and reference
+            directions are left empty.
 
         Returns
         -------
@@ -289,7 +299,18 @@ class IntrinsicTriangulation:
             counter-clockwise (see :func:`reference_corners`).
         """
         F = np.array(F, dtype=np.int64)
-        T = corner_twins(F)
+        if not flips:
+            # a solve that keeps the triangulation reads only F and lam
+            empty = np.empty(0, dtype=np.int64)
+            return cls(
+                F=F,
+                T=np.empty((0, 3), dtype=np.int64),
+                lam=np.array(lam, dtype=np.float64),
+                ref_face=empty,
+                ref_corner=empty,
+                ref_offset=np.empty(0),
+            )
+        T = corner_twins(F, FE)
         ref_face, ref_corner = reference_corners(F, T, n_vertices)
         return cls(
             F=F,

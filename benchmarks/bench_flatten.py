@@ -18,7 +18,7 @@ Prints three blocks:
    length between the same four corners) on the same OBJ file.
 3. One line per size for the README table.
 4. The real-mesh corpus (``tests/data/corpus`` and, when present, the shared meshes
-   beside the checkout), each at its own scale: how many flatten, how many needed
+   beside the checkout), each as a 150 mm part at 300 dpi: how many flatten, how many needed
    Ptolemy flips, how many flips, and the time they cost (whole ``flatten`` against the
    solve on the input triangulation alone, where that one succeeds).
 
@@ -298,7 +298,7 @@ def real_meshes() -> None:
     shared = root.parent / "shared" / "meshes"
     if shared.is_dir():
         paths += sorted(p for p in shared.iterdir() if p.suffix in (".obj", ".off"))
-    print("\nreal disc meshes (own scale): flattened / refused for crowding, Ptolemy flips and their cost")
+    print("\nreal disc meshes as 150 mm parts at 300 dpi: flattened / refused for crowding, Ptolemy flips, cost")
     ok = refused = flipped_runs = 0
     total_flips, t_flip = 0, 0.0
     for p in paths:
@@ -307,6 +307,7 @@ def real_meshes() -> None:
             V, F = d["V"].astype(np.float64), d["F"].astype(np.int64)
         else:
             V, F = read_mesh(p)
+        V = V * (150.0 / np.linalg.norm(V.max(0) - V.min(0)))
         t0 = time.perf_counter()
         try:
             r = flatten(V, F, name=p.name)

@@ -161,3 +161,15 @@ def test_closed_loop_holds_through_the_common_subdivision(monkeypatch, name):
         assert np.median(mis) <= 0.1, (job.views[v].name, np.median(mis))
         assert np.percentile(mis, 95) <= 0.3, (job.views[v].name, np.percentile(mis, 95))
         assert coverage >= 0.99, (job.views[v].name, coverage)
+
+
+def test_job_corners_auto_is_never_worse_than_the_default():
+    # corners = "auto": the search includes the automatic corners, so the chosen map has
+    # at most their area distortion
+    from workbench.conformal.flatten import area_distortion
+
+    job = load_job(FIXTURES / "two-views" / "job.toml")
+    plain = design(job)
+    auto = design(dataclasses.replace(job, object=dataclasses.replace(job.object, corners="auto")))
+    assert auto.flat.corner_rule == "auto" and auto.flat.flipped_faces == 0
+    assert area_distortion(auto.flat) <= area_distortion(plain.flat) + 1e-12

@@ -11,7 +11,14 @@ import cv2
 import numpy as np
 
 from workbench.camera import Camera
-from workbench.conformal.flatten import CrowdingError, FlattenOptions, FlattenResult, crowding_advice, flatten
+from workbench.conformal.flatten import (
+    CrowdingError,
+    FlattenOptions,
+    FlattenResult,
+    crowding_advice,
+    flatten,
+    flatten_auto_corners,
+)
 from workbench.errors import WorkbenchError
 from workbench.job import Job
 from workbench.mesh.io import read_mesh
@@ -121,13 +128,17 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")
 
     t0 = time.perf_counter()
+    auto = job.object.corners == "auto"
     options = FlattenOptions(
-        corners=job.object.corners, scale=job.print.scale, min_print_mm=0.5 * 25.4 / job.print.dpi
+        corners=None if auto else job.object.corners, scale=job.print.scale, min_print_mm=0.5 * 25.4 / job.print.dpi
     )
-    try:
-        flat = flatten(V, F, options, str(job.object.mesh), log=say)
-    except CrowdingError as exc:
-        raise crowding_advice(exc, V, F, options, str(job.object.mesh), say) from None
+    if auto:
+        flat, _ = flatten_auto_corners(V, F, options, str(job.object.mesh), log=say)
+    else:
+        try:
+            flat = flatten(V, F, options, str(job.object.mesh), log=say)
+        except CrowdingError as exc:
+            raise crowding_advice(exc, V, F, options, str(job.object.mesh), say) from None
     t["flatten"] = time.perf_counter() - t0
     # from here on the part is the flattened mesh: the input, or its common subdivision
     # with the flat triangulation (input vertices first), on which the map is exact

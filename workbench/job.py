@@ -29,7 +29,7 @@ class ObjectSpec:
 
     mesh: Path
     units: str = "mm"
-    corners: tuple[int, int, int, int] | None = None
+    corners: tuple[int, int, int, int] | str | None = None  # or "auto"
     material: Material = Material()
 
 
@@ -260,13 +260,13 @@ def load_job(path: str | Path) -> Job:
 
     o = _Reader(path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material"})
     corners = o.get("corners")
-    if corners is not None:
+    if corners is not None and corners != "auto":
         if not (
             isinstance(corners, list)
             and len(corners) == 4
             and all(isinstance(c, int) and not isinstance(c, bool) for c in corners)
         ):
-            o.fail(f"must be a list of 4 vertex indices, got {corners!r}", "corners")
+            o.fail(f'must be a list of 4 vertex indices or "auto", got {corners!r}', "corners")
         corners = tuple(corners)
     m = _Reader(path, "object.material", o.get("material", {}), {"name", "max_stretch"})
     material = Material(name=m.string("name", "unspecified"), max_stretch=m.number("max_stretch", None, lo=0))

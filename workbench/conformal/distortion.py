@@ -30,15 +30,21 @@ def flat_to_surface_singular_values(V: np.ndarray, F: np.ndarray, uv: np.ndarray
     m2 = uv[F[:, 2]] - uv[F[:, 0]]
     s1 = V[F[:, 1]] - V[F[:, 0]]
     s2 = V[F[:, 2]] - V[F[:, 0]]
-    G = np.stack(
-        [np.stack([(s1 * s1).sum(1), (s1 * s2).sum(1)], 1), np.stack([(s1 * s2).sum(1), (s2 * s2).sum(1)], 1)], 1
-    )
-    M = np.stack([m1, m2], axis=2)
-    Minv = np.linalg.inv(M)
-    T = np.einsum("fji,fjk,fkl->fil", Minv, G, Minv)
+    g11, g12, g22 = np.einsum("ij,ij->i", s1, s1), np.einsum("ij,ij->i", s1, s2), np.einsum("ij,ij->i", s2, s2)
+    # M⁻¹ = [[d, -b], [-c, a]] / det for M = [[a, b], [c, d]] = [m1 m2]; written out per
+    # entry, T = M⁻ᵀ G M⁻¹ costs a few vector operations instead of batched 2x2 products
+    a, c, b, d = m1[:, 0], m1[:, 1], m2[:, 0], m2[:, 1]
+    det = a * d - b * c
+    p11, p12, p21, p22 = d / det, -b / det, -c / det, a / det  # M⁻¹
+    # G M⁻¹, then M⁻ᵀ (G M⁻¹)
+    q11, q12 = g11 * p11 + g12 * p21, g11 * p12 + g12 * p22
+    q21, q22 = g12 * p11 + g22 * p21, g12 * p12 + g22 * p22
+    T00 = p11 * q11 + p21 * q21
+    T01 = p11 * q12 + p21 * q22
+    T11 = p12 * q12 + p22 * q22
     # eigenvalues of a symmetric 2x2: mean ± sqrt(half-difference² + off-diagonal²)
-    mean = 0.5 * (T[:, 0, 0] + T[:, 1, 1])
-    rad = np.hypot(0.5 * (T[:, 0, 0] - T[:, 1, 1]), T[:, 0, 1])
+    mean = 0.5 * (T00 + T11)
+    rad = np.hypot(0.5 * (T00 - T11), T01)
     lam = np.stack([mean + rad, np.maximum(mean - rad, 0.0)], axis=1)
     return np.sqrt(lam)
 

@@ -124,5 +124,44 @@ def main() -> None:
     print(f"wrote {IMG}", file=sys.stderr)
 
 
+def real_mesh_picture(name: str = "arm-1-needles") -> None:
+    """A corpus disc that needs Ptolemy flips: the input, and its common subdivision in the print."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from workbench.conformal.flatten import flatten
+    from workbench.conformal.layout import signed_areas
+
+    d = np.load(ROOT / "tests" / "data" / "corpus" / f"{name}.npz")
+    V, F = d["V"].astype(np.float64), d["F"].astype(np.int64)
+    V *= 150.0 / np.linalg.norm(V.max(0) - V.min(0))
+    r = flatten(V, F)
+    cut = np.bincount(r.parent, minlength=len(F)) > 1  # input triangles the flips cut
+    P = V - V.mean(0)
+    Q = P @ np.linalg.svd(P, full_matrices=False)[2][:2].T
+    fig, ax = plt.subplots(1, 2, figsize=(12, 5.4), dpi=100)
+    colours = np.where(cut, "#f4a261", "#d9d9d9")
+    ax[0].add_collection(PolyCollection(Q[F], facecolors=colours, edgecolors="#555555", linewidths=0.15))
+    ax[0].set_title(f"{name}: {len(F)} input triangles; orange: cut by flipped edges", fontsize=10)
+    sub = np.where(cut[r.parent], "#f4a261", "#d9d9d9")
+    ax[1].add_collection(PolyCollection(r.uv[r.F], facecolors=sub, edgecolors="#555555", linewidths=0.15))
+    ax[1].set_title(
+        f"print, {r.width_mm:.0f} x {r.height_mm:.0f} mm: {r.intrinsic_flips} Ptolemy flips, {len(r.F)} triangles, "
+        f"{int((signed_areas(r.uv, r.F) <= 0).sum())} flipped",
+        fontsize=10,
+    )
+    for a in ax:
+        a.autoscale()
+        a.set_aspect("equal")
+        a.axis("off")
+    fig.tight_layout()
+    fig.savefig(IMG / "flatten-real.png")
+    print(f"wrote {IMG / 'flatten-real.png'}", file=sys.stderr)
+
+
 if __name__ == "__main__":
     main()
+    real_mesh_picture()

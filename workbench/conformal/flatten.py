@@ -235,8 +235,6 @@ def scale_factor(mode: ScaleMode, sigma: np.ndarray, area_3d: np.ndarray, width:
     raise UsageError(f"unknown scale mode {mode.kind!r}")
 
 
-
-
 def input_log_lengths(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> np.ndarray:
     """Penner coordinates of a mesh, normalised: ``2 log(l / l̄)`` with ``l̄`` the geometric mean length.
 
@@ -334,7 +332,7 @@ def flatten(
     timings["check"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    n_input = len(V)
+    n_input, F_input = len(V), F
     splits = 0
     face_origin = np.arange(len(F))  # input face of each face of the (split) mesh
     for _round in range(MAX_SPLIT_ROUNDS + 1):
@@ -417,7 +415,7 @@ def flatten(
     if share > MAX_CROWDED_AREA:
         # a region the print cannot carry, not scattered single triangles (the ears of a
         # jagged scan boundary are squeezed locally, whatever the corners)
-        err = _crowding_error(name, F, F_out, parent, crowded, area_3d, corners, share, options.min_print_mm)
+        err = _crowding_error(name, F_input, F_out, parent, crowded, area_3d, corners, share, options.min_print_mm)
         if err.region_share > MAX_CROWDED_AREA:
             raise err
     if flipped:

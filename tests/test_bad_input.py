@@ -196,3 +196,18 @@ def test_ears_are_opened_by_intrinsic_flips(capsys, tmp_path, square, depth):
 def test_usage_error_without_mesh(capsys):
     assert main(["flatten"]) == 2
     assert "the following arguments are required: MESH" in capsys.readouterr().err
+
+
+def test_tab_separated_obj_lines_are_read(tmp_path, square):
+    # a face line separated by TABs (and an indented vertex line) is read, not skipped
+    V, F = square
+    text = format_obj(V, F).decode().splitlines()
+    i = next(k for k, line in enumerate(text) if line.startswith("f "))
+    text[i] = text[i].replace(" ", "\t")
+    j = next(k for k, line in enumerate(text) if line.startswith("v "))
+    text[j] = "  " + text[j]
+    path = tmp_path / "tabs.obj"
+    path.write_text("\n".join(text) + "\n")
+    V2, F2 = read_mesh(path)
+    np.testing.assert_array_equal(F2, F)
+    np.testing.assert_allclose(V2, V, atol=1e-9)

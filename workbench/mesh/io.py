@@ -71,7 +71,11 @@ def _read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise WorkbenchError(f"{path}: not a text OBJ file") from None
+    # OBJ separates fields by any white space; tabs (seen in exported files) as spaces,
+    # and leading blanks dropped, so that no vertex or face line is skipped unseen
     lines = text.splitlines()
+    if "\t" in text or "\n " in text or text.startswith(" "):
+        lines = [line.lstrip() for line in text.replace("\t", " ").splitlines()]
     vlines = [line[2:] for line in lines if line.startswith("v ")]
     flines = [line[2:] for line in lines if line.startswith("f ")]
     # Fast path for the common file (x y z vertices, triangles without slashes):

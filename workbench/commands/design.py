@@ -50,7 +50,7 @@ def run(args) -> int:
     vt = texture_uv(flat.uv, image_w_mm, image_h_mm, flat.height_mm)
     obj, mtl = decorated_obj(result.V, result.F, vt, "decorated", "print.png")
     stats = view_statistics(result, names)
-    flat_summary = summary(flat, result.V, result.F)
+    flat_summary = summary(flat)
     limit = job.object.material.max_stretch
     over = None if limit is None else float(flat.area_3d[~flat.collapsed][flat.stretch[~flat.collapsed] > limit].sum())
     info = {

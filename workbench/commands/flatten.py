@@ -82,7 +82,7 @@ def parse_corners(text: str | None) -> tuple[int, int, int, int] | None:
     return corners  # type: ignore[return-value]
 
 
-def summary(result: FlattenResult, V: np.ndarray, F: np.ndarray) -> dict:
+def summary(result: FlattenResult) -> dict:
     """The figures of flatten.json (everything but inputs and timings)."""
     ok = ~result.collapsed
     stretch, dist, w = result.stretch[ok], result.conformal_distortion[ok], result.area_3d[ok]
@@ -113,7 +113,8 @@ def summary(result: FlattenResult, V: np.ndarray, F: np.ndarray) -> dict:
         "conformal_distortion": {"mean": float(np.average(dist, weights=w)), "max": float(dist.max())},
         "surface_area_mm2": float(w.sum()),
         "print_area_mm2": result.width_mm * result.height_mm,
-        "mesh": {"vertices": len(V), "faces": len(F)},
+        # every input face has at least one output face: the input's face count is the parent range
+        "mesh": {"vertices": result.n_input_vertices, "faces": int(result.parent.max()) + 1},
         # flat.obj's triangulation: the input's, or its common subdivision with the flat
         # triangulation when the solve flipped edges (input vertices first, in order)
         "output_mesh": {"vertices": len(result.V), "faces": len(result.F)},
@@ -151,7 +152,7 @@ def run(args) -> int:
             "sha256": hashlib.sha256(mesh_path.read_bytes()).hexdigest(),
             "units": args.units,
         },
-        **summary(result, V, F),
+        **summary(result),
     }
     if compared is not None:
         info["corner_search"] = compared

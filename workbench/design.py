@@ -130,9 +130,12 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     t0 = time.perf_counter()
     auto = job.object.corners == "auto"
     options = FlattenOptions(
-        corners=None if auto else job.object.corners, scale=job.print.scale, min_print_mm=0.5 * 25.4 / job.print.dpi
+        corners=None if auto else job.object.corners,
+        scale=job.print.scale,
+        min_print_mm=0.5 * 25.4 / job.print.dpi,
+        outline=job.print.outline,
     )
-    if auto:
+    if auto and job.print.outline == "rectangle":
         flat, _ = flatten_auto_corners(V, F, options, str(job.object.mesh), log=say)
     else:
         try:

@@ -119,7 +119,7 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
             transform=bar.ax.get_yaxis_transform(),
             clip_on=True,
         )
-    for name, v in zip("ABCD", corners, strict=True):
+    for name, v in zip("ABCD"[: len(corners)], corners, strict=True):
         x, y = uv[v]
         ax.plot([x], [y], "o", color="red", ms=6, clip_on=False)
         # labels point inwards so they stay clear of the colour bar and the title

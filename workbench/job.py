@@ -39,6 +39,7 @@ class PrintSpec:
 
     dpi: float = 300.0
     scale: ScaleMode = ScaleMode()
+    outline: str = "rectangle"
     background: tuple[int, int, int] = (255, 255, 255)
     margin_mm: float = 10.0
     bleed_mm: float = 3.0
@@ -274,7 +275,7 @@ def load_job(path: str | Path) -> Job:
         mesh=o.file("mesh"), units=o.string("units", "mm", choices=tuple(UNITS_MM)), corners=corners, material=material
     )
 
-    p = _Reader(path, "print", top.get("print", {}), {"dpi", "scale", "background", "margin_mm", "bleed_mm"})
+    p = _Reader(path, "print", top.get("print", {}), {"dpi", "scale", "outline", "background", "margin_mm", "bleed_mm"})
     try:
         scale = ScaleMode.parse(p.string("scale", "isometric"))
     except UsageError as exc:
@@ -282,6 +283,7 @@ def load_job(path: str | Path) -> Job:
     spec = PrintSpec(
         dpi=p.number("dpi", 300.0, lo=0),
         scale=scale,
+        outline=p.string("outline", "rectangle", choices=("rectangle", "free")),
         background=_colour(p, "background", "#ffffff"),
         margin_mm=p.number("margin_mm", 10.0, lo=-1e-300),
         bleed_mm=p.number("bleed_mm", 3.0, lo=-1e-300),

@@ -52,7 +52,17 @@ def add_parser(sub) -> None:
         "default: the sharpest boundary turns (else the bounding box)",
     )
     p.add_argument(
-        "--scale", default="isometric", metavar="MODE", help="isometric (default), no-shrink, width=MM or height=MM"
+        "--scale",
+        default="isometric",
+        metavar="MODE",
+        help="isometric (default), no-shrink, width=MM, height=MM, or rim (free outline: keep the rim's lengths)",
+    )
+    p.add_argument(
+        "--outline",
+        default="rectangle",
+        choices=("rectangle", "free"),
+        help="rectangle (default; four corners) or free (least area distortion: the film keeps the rim's lengths, "
+        "the outline follows)"
     )
     p.add_argument(
         "--units", default="mm", choices=sorted(UNITS_MM), help="unit of the mesh file's coordinates (default mm)"
@@ -133,10 +143,14 @@ def run(args) -> int:
     t_read = time.perf_counter() - t0
     log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
     compared = None
+    if args.outline == "free" and args.corners is not None:
+        raise UsageError("--corners belongs to --outline rectangle; a free outline has no corners")
     if not (np.isfinite(args.dpi) and 1 <= args.dpi <= 10000):
         raise UsageError(f"--dpi {args.dpi:g}: must be between 1 and 10000")
-    options = FlattenOptions(corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi)
-    if args.corners == "auto":
+    options = FlattenOptions(
+        corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline
+    )
+    if args.corners == "auto" and args.outline == "rectangle":
         result, compared = flatten_auto_corners(V, F, options, name=str(mesh_path), log=log)
     else:
         try:

@@ -351,7 +351,7 @@ def _newton_direction(assembler: CotanAssembler, cot: np.ndarray, g: np.ndarray,
 def conformal_scale_factors(
     tri,
     theta: np.ndarray,
-    fixed: int = 0,
+    fixed: int | np.ndarray = 0,
     options: NewtonOptions = NewtonOptions(),
     progress: Callable[[int, float], None] | None = None,
     flip: bool = True,
@@ -373,11 +373,14 @@ def conformal_scale_factors(
     tri : IntrinsicTriangulation
         Triangulation and Penner coordinates; flipped in place.
     theta : (#V,) float
-        Target angle sum at every vertex, radians. Must satisfy Gauss-Bonnet
-        (``Σ Θ = π #F``), otherwise no solution exists.
-    fixed : int
-        Vertex whose ``u`` stays 0 (the energy is invariant under adding a
-        constant to ``u``; fixing one removes the Hessian's null space).
+        Target angle sum at every vertex, radians; NaN where it is free. When all
+        are given they must satisfy Gauss-Bonnet (``Σ Θ = π #F``), otherwise no
+        solution exists.
+    fixed : int or (k,) int
+        Vertices whose ``u`` stays 0. With all targets given, one vertex (the
+        energy is invariant under adding a constant to ``u``; fixing one removes
+        the Hessian's null space); with free boundary angles (NaN targets), those
+        vertices (Dirichlet boundary: the film keeps the rim's lengths).
     options : NewtonOptions
         Stopping rule.
     progress : callable(iteration, residual_rad), optional
@@ -404,7 +407,12 @@ def conformal_scale_factors(
     """
     n = len(theta)
     n_faces = len(tri.F)
-    if abs(theta.sum() - np.pi * n_faces) > 1e-6 * n_faces:
+    fixed_v = np.atleast_1d(np.asarray(fixed, dtype=np.int64))
+    # NaN target: the angle sum is free there (its u stays 0, so it must be fixed)
+    free_angle = np.isnan(theta)
+    if not np.isin(np.flatnonzero(free_angle), fixed_v).all():
+        raise WorkbenchError("conformal map: a vertex with a free angle sum must have its scale factor fixed")
+    if not free_angle.any() and abs(theta.sum() - np.pi * n_faces) > 1e-6 * n_faces:
         raise WorkbenchError(
             f"target angles violate Gauss-Bonnet: sum {theta.sum():.6f} rad, needed π·#F = {np.pi * n_faces:.6f}"
         )
@@ -418,6 +426,7 @@ def conformal_scale_factors(
                 raise WorkbenchError("conformal map: Delaunay edge flips did not terminate")
             alpha, cot, degenerate = scaled_face_angles(tri.F, tri.lam, u)
             g = theta - angle_sums(tri.F, alpha, n)
+            g[free_angle] = 0.0
             res = float(np.abs(g).max())
         return alpha, cot, degenerate, g, res if np.isfinite(res) else np.inf
 
@@ -425,7 +434,7 @@ def conformal_scale_factors(
     alpha, cot, degenerate, g, res = state(u)
     assembler, pattern, solver = None, -1, None
     if edges is not None and tri.flips == flips_before:
-        assembler, pattern = CotanAssembler(edges[0], edges[1], n, np.array([fixed])), tri.flips
+        assembler, pattern = CotanAssembler(edges[0], edges[1], n, fixed_v), tri.flips
     history: list[float] = []
     for it in range(options.max_iterations + 1):
         history.append(res)
@@ -442,7 +451,7 @@ def conformal_scale_factors(
         if pattern != tri.flips:
             # flips change the sparsity pattern: new assembly, new symbolic analysis
             E, FE, _ = unique_edges(tri.F)
-            assembler, pattern, solver = CotanAssembler(E, FE, n, np.array([fixed])), tri.flips, None
+            assembler, pattern, solver = CotanAssembler(E, FE, n, fixed_v), tri.flips, None
         x, solver = _newton_direction(assembler, cot, g, solver)
         step = np.zeros(n)
         step[assembler.free] = x
@@ -466,7 +475,7 @@ def conformal_scale_factors(
             raise DegenerateMetricError(f"{len(bad)} triangles degenerate on the input triangulation", bad)
     if pattern != tri.flips:
         E, FE, _ = unique_edges(tri.F)
-        assembler, solver = CotanAssembler(E, FE, n, np.array([fixed])), None
+        assembler, solver = CotanAssembler(E, FE, n, fixed_v), None
     return NewtonResult(
         u=u,
         alpha=alpha,

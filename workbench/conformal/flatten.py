@@ -8,11 +8,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.conformal.cetm import DegenerateMetricError, NewtonOptions, NewtonResult, conformal_scale_factors
+from workbench.conformal.cetm import (
+    DegenerateMetricError,
+    NewtonOptions,
+    NewtonResult,
+    angle_sums,
+    conformal_scale_factors,
+)
 from workbench.conformal.corners import candidate_corners, choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values, weighted_quantiles
 from workbench.conformal.intrinsic import IntrinsicTriangulation
-from workbench.conformal.layout import flat_layout, rectangle_boundary, signed_areas
+from workbench.conformal.layout import dirichlet_layout, flat_layout, free_boundary, rectangle_boundary, signed_areas
 from workbench.conformal.overlay import common_subdivision, trace_input_edges
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.topology import face_components, unique_edges
@@ -56,9 +62,10 @@ class ScaleMode:
 
     Attributes
     ----------
-    kind : {'isometric', 'no-shrink', 'width', 'height'}
+    kind : {'isometric', 'no-shrink', 'width', 'height', 'rim'}
         ``isometric``: area-weighted mean of log(3D length / flat length) is 0,
-        exact for developable surfaces. ``no-shrink``: the flat print is nowhere
+        exact for developable surfaces. ``rim`` (free outline only): the film
+        keeps the part's rim lengths, as the free outline is solved. ``no-shrink``: the flat print is nowhere
         larger than the surface in any direction (film only stretches).
         ``width``/``height``: the rectangle's width or height is ``value_mm``.
     value_mm : float or None
@@ -70,8 +77,8 @@ class ScaleMode:
 
     @classmethod
     def parse(cls, text: str) -> ScaleMode:
-        """Read ``isometric``, ``no-shrink``, ``width=MM`` or ``height=MM``."""
-        if text in ("isometric", "no-shrink"):
+        """Read ``isometric``, ``no-shrink``, ``rim``, ``width=MM`` or ``height=MM``."""
+        if text in ("isometric", "no-shrink", "rim"):
             return cls(text)
         key, sep, value = text.partition("=")
         if sep and key in ("width", "height"):
@@ -82,7 +89,7 @@ class ScaleMode:
             if not (np.isfinite(mm) and mm > 0):
                 raise UsageError(f"--scale {text}: {key} must be a positive number of mm")
             return cls(key, mm)
-        raise UsageError(f"--scale {text!r}: use isometric, no-shrink, width=MM or height=MM")
+        raise UsageError(f"--scale {text!r}: use isometric, no-shrink, rim, width=MM or height=MM")
 
     def __str__(self) -> str:
         return self.kind if self.value_mm is None else f"{self.kind}={self.value_mm:g}"
@@ -103,6 +110,11 @@ class FlattenOptions:
     flips : bool or None
         None: solve on the input triangulation and flip only when it does not
         carry the solution; True: always keep the triangulation Delaunay.
+    outline : {'rectangle', 'free'}
+        ``rectangle``: corners at π/2, straight sides. ``free``: the conformal map
+        with the least area distortion, boundary scale factors 0 (the film keeps
+        the rim's lengths, as in Boundary First Flattening, Sawhney and Crane
+        2017), interior angle sums 2π, boundary angles free; ``corners`` unused.
     min_print_mm : float
         The smallest printed size (square root of a face's printed area, mm) the
         print can carry; a face that prints smaller, and ``CROWDING`` times smaller
@@ -115,6 +127,7 @@ class FlattenOptions:
     newton: NewtonOptions = NewtonOptions()
     flips: bool | None = None
     min_print_mm: float = DEFAULT_MIN_PRINT_MM
+    outline: str = "rectangle"
 
 
 @dataclass
@@ -203,7 +216,9 @@ class FlattenResult:
         return self.sigma[:, 0] / self.sigma[:, 1]
 
 
-def scale_factor(mode: ScaleMode, sigma: np.ndarray, area_3d: np.ndarray, width: float, height: float) -> float:
+def scale_factor(
+    mode: ScaleMode, sigma: np.ndarray, area_3d: np.ndarray, width: float, height: float, rim_ratio: float = 1.0
+) -> float:
     """Factor to multiply flat positions by so that the layout meets a scale mode.
 
     Parameters
@@ -216,6 +231,8 @@ def scale_factor(mode: ScaleMode, sigma: np.ndarray, area_3d: np.ndarray, width:
         Surface face areas, the weights of the isometric mean.
     width, height : float
         Current rectangle size.
+    rim_ratio : float
+        3D rim length / flat rim length, for ``rim``.
 
     Returns
     -------
@@ -232,6 +249,8 @@ def scale_factor(mode: ScaleMode, sigma: np.ndarray, area_3d: np.ndarray, width:
         return mode.value_mm / width
     if mode.kind == "height":
         return mode.value_mm / height
+    if mode.kind == "rim":
+        return rim_ratio
     raise UsageError(f"unknown scale mode {mode.kind!r}")
 
 
@@ -320,14 +339,24 @@ def flatten(
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     loop, E, FE = check_disc(V, F, name)
-    if options.corners is None:
-        corners, rule = choose_corners(V, F, loop)
+    free = options.outline == "free"
+    if options.outline not in ("rectangle", "free"):
+        raise UsageError(f"outline {options.outline!r}: use rectangle or free")
+    if free:
+        if options.corners is not None:
+            raise UsageError("corners belong to a rectangle; a free outline has none (leave them out)")
+        corners, rule = np.empty(0, dtype=np.int64), "free outline"
     else:
-        corners, rule = np.asarray(options.corners, dtype=np.int64), "given"
-    corner_positions(loop, corners, len(V))
-    start = int(np.flatnonzero(loop == corners[0])[0])
-    loop = np.roll(loop, -start)
-    say(f"corners A,B,C,D = {','.join(map(str, corners.tolist()))} ({rule})")
+        if options.scale.kind == "rim":
+            raise UsageError("scale rim keeps the rim's lengths: it needs outline free")
+        if options.corners is None:
+            corners, rule = choose_corners(V, F, loop)
+        else:
+            corners, rule = np.asarray(options.corners, dtype=np.int64), "given"
+        corner_positions(loop, corners, len(V))
+        start = int(np.flatnonzero(loop == corners[0])[0])
+        loop = np.roll(loop, -start)
+        say(f"corners A,B,C,D = {','.join(map(str, corners.tolist()))} ({rule})")
     lam = input_log_lengths(V, F, name)
     timings["check"] = time.perf_counter() - t0
 
@@ -370,9 +399,17 @@ def flatten(
     src = F[bf, (bk + 1) % 3]
     blen = np.zeros(len(V))
     blen[src] = np.exp(0.5 * (lam[bf, bk] + u[src] + u[F[bf, (bk + 2) % 3]]))
-    boundary_xy, width, height, mismatch = rectangle_boundary(blen[loop], corner_positions(loop, corners, len(V)))
     try:
-        X = flat_layout(newton.cot, loop, boundary_xy, newton.assembler, newton.solver)
+        if free:
+            boundary_xy, mismatch = free_boundary(blen[loop], angle_sums(tri.F, newton.alpha, len(V))[loop])
+            X = dirichlet_layout(tri.F, newton.cot, loop, boundary_xy, newton.assembler)
+            X -= X.min(axis=0)
+            width, height = (float(x) for x in X.max(axis=0))
+        else:
+            boundary_xy, width, height, mismatch = rectangle_boundary(
+                blen[loop], corner_positions(loop, corners, len(V))
+            )
+            X = flat_layout(newton.cot, loop, boundary_xy, newton.assembler, newton.solver)
     except WorkbenchError as exc:
         raise WorkbenchError(f"{name}: {exc}") from None
     timings["layout"] = time.perf_counter() - t0
@@ -401,7 +438,9 @@ def flatten(
     sigma = np.full((len(F_out), 2), np.nan)
     ok = ~collapsed
     sigma[ok] = flat_to_surface_singular_values(V_out, F_out[ok], uv)
-    s = scale_factor(options.scale, sigma[ok], area_3d[ok], width, height)
+    rim_3d = np.linalg.norm(V[np.roll(loop, -1)] - V[loop], axis=1).sum()
+    rim_flat = np.linalg.norm(X[np.roll(loop, -1)] - X[loop], axis=1).sum()
+    s = scale_factor(options.scale, sigma[ok], area_3d[ok], width, height, rim_3d / rim_flat)
     uv = uv * s
     sigma /= s
     # crowded: printed smaller than the print can carry, and shrunk at least CROWDING
@@ -453,8 +492,9 @@ def _crowding_error(name, F_in, F_out, parent, crowded, area_3d, corners, share,
     verts = np.unique(F_in[parent[region]])
     region_share = float(area_3d[region].sum() / area_3d.sum())
     shown = ", ".join(map(str, verts[:6].tolist())) + (", ..." if len(verts) > 6 else "")
+    what = f"the rectangle with corners {','.join(map(str, corners.tolist()))}" if len(corners) else "the free outline"
     return CrowdingError(
-        f"{name}: the rectangle with corners {','.join(map(str, corners.tolist()))} shrinks {100 * share:.2g} % of "
+        f"{name}: {what} shrinks {100 * share:.2g} % of "
         f"the surface below {min_print_mm:.3g} mm in the print (largest region: {100 * region_share:.2g} % of the "
         f"surface, {len(verts)} input vertices: {shown})",
         corners,
@@ -471,8 +511,13 @@ MAX_SPLIT_ROUNDS = 4
 def _solve(V, F, lam, loop, corners, options, say, edges):
     """Conformal scale factors on the input triangulation, else with Ptolemy flips."""
     theta = np.full(len(V), 2.0 * np.pi)
-    theta[loop] = np.pi
-    theta[corners] = 0.5 * np.pi
+    if options.outline == "free":
+        theta[loop] = np.nan  # free boundary angles, boundary scale factors 0
+        fixed = loop
+    else:
+        theta[loop] = np.pi
+        theta[corners] = 0.5 * np.pi
+        fixed = int(corners[0])
     # The input triangulation first: on a clean mesh it carries the solution and the
     # map stays linear on every input triangle (no subdivision). When it does not
     # (a triangle would degenerate), Ptolemy flips keep the triangulation Delaunay.
@@ -482,7 +527,7 @@ def _solve(V, F, lam, loop, corners, options, say, edges):
             newton = conformal_scale_factors(
                 tri,
                 theta,
-                fixed=int(corners[0]),
+                fixed=fixed,
                 options=options.newton,
                 progress=lambda it, res: say(f"Newton step {it}: max angle residual {res:.2e} rad"),
                 flip=flip,

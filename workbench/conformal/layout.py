@@ -137,3 +137,75 @@ def signed_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Signed area of every triangle in the plane; (#F,) float, positive when CCW."""
     a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
     return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+def free_boundary(loop_lengths: np.ndarray, angle_sums: np.ndarray) -> tuple[np.ndarray, float]:
+    """Positions of the boundary of a flat metric whose boundary angles are free.
+
+    Walking the loop counter-clockwise, the boundary turns left at each vertex by
+    ``π - (angle sum there)``; with the edge lengths that draws the outline. For a
+    flat disc the turns add up to 2π and the outline closes; the round-off gap is
+    spread along the loop by arc length.
+
+    Parameters
+    ----------
+    loop_lengths : (#B,) float
+        Length of boundary edge ``loop[i] -> loop[i + 1]`` in the flat metric.
+    angle_sums : (#B,) float
+        Angle sum of the flat metric at each boundary vertex, radians.
+
+    Returns
+    -------
+    xy : (#B, 2) float
+        Boundary positions, ``loop[0]`` at the origin, its edge along +x.
+    gap : float
+        The closing gap before it was spread, relative to the perimeter.
+    """
+    turn = np.pi - angle_sums
+    # edge i leaves vertex i: its direction has turned at vertices 1..i
+    heading = np.concatenate([[0.0], np.cumsum(turn[1:])])
+    steps = loop_lengths[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
+    xy = np.concatenate([[[0.0, 0.0]], np.cumsum(steps, axis=0)])
+    gap = xy[-1].copy()
+    arc = np.concatenate([[0.0], np.cumsum(loop_lengths)])
+    xy -= (arc / arc[-1])[:, None] * gap
+    return xy[:-1], float(np.linalg.norm(gap) / arc[-1])
+
+
+def dirichlet_layout(
+    F: np.ndarray, cot: np.ndarray, loop: np.ndarray, boundary_xy: np.ndarray, assembler: CotanAssembler
+) -> np.ndarray:
+    """Interior positions of a flat metric from its boundary positions: one harmonic solve.
+
+    A planar triangulation is harmonic at its interior vertices for its own
+    cotangent weights, so ``L_II X_I = -L_IB X_B`` reproduces the metric.
+
+    Parameters
+    ----------
+    F : (#F, 3) int
+        Triangles of the flat metric.
+    cot : (#F, 3) float
+        Cotangents of its corner angles.
+    loop : (#B,) int
+        Boundary loop.
+    boundary_xy : (#B, 2) float
+        Boundary positions.
+    assembler : CotanAssembler
+        The triangulation's Laplacian without the boundary vertices (``L_II``).
+
+    Returns
+    -------
+    xy : (#V, 2) float
+        All positions.
+    """
+    from workbench.conformal.cetm import cotan_laplacian
+
+    n = len(assembler.free) + len(loop)
+    L = cotan_laplacian(F, cot, n).tocsr()
+    xy = np.zeros((n, 2))
+    xy[loop] = boundary_xy
+    rhs = -(L[assembler.free][:, loop] @ boundary_xy)
+    xy[assembler.free] = SPDSolver(assembler.upper(cot)).solve(rhs)
+    if not np.isfinite(xy).all():
+        raise WorkbenchError("layout failed: the harmonic solve gave non-finite positions")
+    return xy

@@ -80,3 +80,62 @@ def test_corners_with_a_free_outline_are_a_usage_error(capsys, tmp_path):
     part = FIXTURES / "default" / "part.obj"
     assert main(["flatten", str(part), "--outline", "free", "--corners", "0,1,2,3", "--out", str(tmp_path / "o")]) == 2
     assert "free outline has no corners" in capsys.readouterr().err
+
+
+def face_mask_job(tmp_path, outline="rectangle"):
+    import shutil
+
+    shutil.copy(SHARED / "face.obj", tmp_path / "face.obj")
+    shutil.copy(FIXTURES / "default" / "front.png", tmp_path / "front.png")
+    job = tmp_path / "job.toml"
+    job.write_text(
+        f"""
+[object]
+mesh = "face.obj"
+units = "cm"
+material = {{ name = "PET-G", max_stretch = 1.3 }}
+
+[print]
+dpi = 20
+outline = "{outline}"
+
+[[views]]
+name = "front"
+image = "front.png"
+position = [0, 3200, 300]
+look_at = [0, 1648, -19]
+up = [0, 0, 1]
+fov_deg = 20
+"""
+    )
+    return job
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="the shared meshes are not beside this checkout")
+def test_a_print_that_does_not_fit_warns_and_strict_refuses(tmp_path, capsys):
+    # the scanned face on a rectangle: a print ten times its developed area, almost all
+    # background, and a film stretch far outside [0.8, 1.3]
+    import json
+
+    job = face_mask_job(tmp_path)
+    assert main(["design", str(job), "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    info = json.loads((tmp_path / "o" / "design.json").read_text())
+    assert len(info["warnings"]) == 3
+    for fragment in ("the film stretch leaves [0.8, 1.3]", "background is 99", "times the part's developed area"):
+        assert sum(fragment in w for w in info["warnings"]) == 1, fragment
+        assert sum(line.startswith("warning: ") and fragment in line for line in err.splitlines()) == 1
+    # --strict: the same warnings are one error line, exit 1, nothing written
+    out = tmp_path / "strict"
+    assert main(["design", str(job), "--out", str(out), "--strict", "-q"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "does not fit the part (--strict)" in err[0]
+    assert not out.exists()
+
+
+def test_bundled_jobs_fit_their_parts():
+    # no fit warning on the default lid (stretch 0.97 to 1.09 of a 1.10 film, no background)
+    job = load_job(FIXTURES / "default" / "job.toml")
+    from workbench.design import fit_warnings
+
+    assert fit_warnings(design(job), job.object.material.max_stretch) == []

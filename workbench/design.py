@@ -234,3 +234,53 @@ def view_statistics(result: DesignResult, names: list[str]) -> list[dict]:
             }
         )
     return stats
+
+
+# The film fits the part when its stretch stays within [MIN_STRETCH, material limit]
+# almost everywhere (film stretches; it barely shrinks), the print is mostly part, and
+# the print is not much larger than the part's developed area.
+MIN_STRETCH = 0.8
+MAX_OFF_STRETCH_SHARE = 0.01
+MAX_BACKGROUND_SHARE = 0.5
+MAX_PRINT_TO_SURFACE = 2.0
+
+
+def fit_warnings(result: DesignResult, max_stretch: float | None) -> list[str]:
+    """Why this print will not make a good part, one sentence each; empty when it will.
+
+    Parameters
+    ----------
+    result : DesignResult
+        A computed design.
+    max_stretch : float or None
+        The material's stretch limit (3D length / print length); None: no upper check.
+
+    Returns
+    -------
+    list of str
+        Warnings: stretch outside [0.8, limit] on more than 1 % of the surface,
+        background over half the print, a print more than twice the developed area.
+    """
+    flat = result.flat
+    ok = ~flat.collapsed
+    area, stretch = flat.area_3d[ok], flat.stretch[ok]
+    surface = float(flat.area_3d.sum())
+    hi = np.inf if max_stretch is None else max_stretch
+    off = float(area[(stretch < MIN_STRETCH) | (stretch > hi)].sum() + flat.area_3d[flat.collapsed].sum())
+    out = []
+    if off > MAX_OFF_STRETCH_SHARE * surface:
+        band = f"[{MIN_STRETCH:g}, {'∞' if max_stretch is None else f'{max_stretch:g}'}]"
+        out.append(
+            f"the film stretch leaves {band} on {100 * off / surface:.1f} % of the surface "
+            f"(from {np.nanmin(stretch):.3g} to {np.nanmax(stretch):.3g}): the film would tear or wrinkle there"
+        )
+    background = float((result.owner < 0).mean())
+    if background > MAX_BACKGROUND_SHARE:
+        out.append(f"background is {100 * background:.1f} % of the print: the outline does not fit the part")
+    print_area = flat.width_mm * flat.height_mm
+    if print_area > MAX_PRINT_TO_SURFACE * surface:
+        out.append(
+            f"the print ({flat.width_mm:.0f} x {flat.height_mm:.0f} mm) is {print_area / surface:.1f} times the "
+            "part's developed area"
+        )
+    return out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -12,7 +13,8 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import write_files
 from workbench.commands.flatten import summary
-from workbench.design import design, read_image, view_statistics
+from workbench.design import design, fit_warnings, read_image, view_statistics
+from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
 from workbench.job import load_job
@@ -32,6 +34,12 @@ def add_parser(sub) -> None:
     )
     p.add_argument("job", metavar="JOB.toml", help="job file (see README: Job file)")
     p.add_argument("--out", metavar="DIR", help="output directory (default: design-<job name>)")
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="treat a print that does not fit the part (stretch, background, size warnings) as an error: "
+        "exit 1, nothing written",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
 
@@ -41,6 +49,9 @@ def run(args) -> int:
     job = load_job(args.job)
     out = Path(args.out) if args.out else Path(f"design-{job.name}")
     result = design(job, log)
+    warnings = fit_warnings(result, job.object.material.max_stretch)
+    if warnings and args.strict:
+        raise WorkbenchError(f"{job.path}: the print does not fit the part (--strict): " + "; ".join(warnings))
 
     t0 = time.perf_counter()
     names = [v.name for v in job.views]
@@ -84,6 +95,7 @@ def run(args) -> int:
                 "intrinsic_flips",
             )
         },
+        "warnings": warnings,
         "views": stats,
         "mesh": flat_summary["mesh"],
     }
@@ -114,7 +126,8 @@ def run(args) -> int:
             flat.corners,
             flat.width_mm,
             flat.height_mm,
-            title=f"{job.name}: film stretch, {job.object.material.name}",
+            title=f"{job.name}: film stretch, {job.object.material.name}"
+            + "".join("\n" + "\n".join(textwrap.wrap(f"warning: {w}", 95)) for w in warnings),
             limit=limit,
         ),
     }
@@ -139,6 +152,8 @@ def run(args) -> int:
     )
     if over:
         log(f"warning: {over:.1f} mm² of the surface stretch beyond the material's limit {limit:g}")
+    for w in warnings:
+        log(f"warning: {w}")
     log(
         f"wrote {out}/: print.png, decorated.obj/.mtl/.glb, flat.obj, design.json, views.png, stretch.png, fixture.json"
     )

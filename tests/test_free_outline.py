@@ -139,3 +139,52 @@ def test_bundled_jobs_fit_their_parts():
     from workbench.design import fit_warnings
 
     assert fit_warnings(design(job), job.object.material.max_stretch) == []
+
+
+def test_cut_line_follows_the_free_outline_in_the_pdf(tmp_path):
+    # the cut line is the film's outline in the spot colour CutContour, at true scale:
+    # measured in a 600 dpi raster of the PDF (the difference with --no-cut), every
+    # stroked pixel lies within 0.1 mm of the outline flat.obj gives, and the whole
+    # outline is stroked
+    import json
+
+    import pypdfium2 as pdfium
+
+    from workbench.mesh.topology import boundary_loops
+    from workbench.printing.pdf import layout_sheet
+
+    d = tmp_path / "free"
+    jt = tmp_path / "job.toml"
+    text = (FIXTURES / "default" / "job.toml").read_text()
+    text = text.replace('scale = "isometric"', 'scale = "isometric"\noutline = "free"')
+    text = text.replace("dpi = 300", "dpi = 100")
+    for name in ("part.obj", "logo.png", "front.png"):
+        (tmp_path / name).write_bytes((FIXTURES / "default" / name).read_bytes())
+    jt.write_text(text)
+    assert main(["design", str(jt), "--out", str(d), "-q"]) == 0
+    info = json.loads((d / "design.json").read_text())
+    info_w, info_h = info["print"]["width_mm"], info["print"]["height_mm"]
+    pages = {}
+    for flag in ([], ["--no-cut"]):
+        pdf = tmp_path / f"p{len(flag)}.pdf"
+        assert main(["pdf", str(d), "-o", str(pdf), "--paper", "A4", "-q", *flag]) == 0
+        pages[len(flag)] = np.asarray(pdfium.PdfDocument(str(pdf))[0].render(scale=600 / 72).to_pil(), dtype=int)
+        if not flag:
+            assert b"/CutContour" in pdf.read_bytes()
+    changed = np.argwhere(np.abs(pages[0] - pages[1]).sum(axis=2) > 60)
+    px_per_mm = 600 / 25.4
+    sheet = layout_sheet(info_w, info_h, 3.0, 10.0, "A4")
+    x0, y0 = sheet.trim[0], sheet.trim[1]
+    V, F = read_mesh(d / "flat.obj")
+    P = V[boundary_loops(F)[0], :2]
+    # outline in raster mm: x from the page's left, y down from its top
+    Q = np.stack([x0 + P[:, 0], sheet.page_h - (y0 + P[:, 1])], axis=1)
+    pix = (changed[:, ::-1] + 0.5) / px_per_mm
+    A, B = Q, np.roll(Q, -1, axis=0)
+    AB = B - A
+    t = np.clip(((pix[:, None, :] - A[None]) * AB[None]).sum(2) / (AB * AB).sum(1)[None], 0, 1)
+    d_seg = np.linalg.norm(pix[:, None, :] - (A[None] + t[..., None] * AB[None]), axis=2).min(axis=1)
+    assert len(pix) > 1000 and d_seg.max() <= 0.1
+    # every outline vertex is stroked
+    near = np.array([np.linalg.norm(pix - q, axis=1).min() for q in Q])
+    assert near.max() <= 0.1

@@ -11,6 +11,8 @@ import numpy as np
 
 from workbench.atomic import write_files
 from workbench.errors import WorkbenchError
+from workbench.mesh.io import read_mesh
+from workbench.mesh.topology import boundary_loops
 from workbench.printing.paper import parse_paper
 from workbench.printing.pdf import PrinterProfile, load_printer_profile, print_pdf
 
@@ -34,6 +36,11 @@ def add_parser(sub) -> None:
     p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile (workbench calibrate printer)")
     p.add_argument("--bleed-mm", type=float, help="texture beyond the trim (default: the job's, 3 mm)")
     p.add_argument("--margin-mm", type=float, help="free border to the sheet's edge (default: the job's, 10 mm)")
+    p.add_argument(
+        "--no-cut",
+        action="store_true",
+        help="leave out the cut line (the film's outline in the spot colour CutContour)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
 
@@ -62,6 +69,15 @@ def load_design(directory: Path) -> tuple[dict, np.ndarray]:
     return info, cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
+def film_outline(directory: Path) -> np.ndarray | None:
+    """The boundary of the design's flat.obj (mm, y up), or None when the directory has none."""
+    path = directory / "flat.obj"
+    if not path.is_file():
+        return None
+    V, F = read_mesh(path)
+    return V[boundary_loops(F)[0], :2]
+
+
 def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     paper = parse_paper(args.paper)
@@ -76,6 +92,7 @@ def run(args) -> int:
         if not (np.isfinite(v) and 0 <= v <= 50):
             raise WorkbenchError(f"{key} {v}: must be between 0 and 50 mm")
     out = Path(args.output) if args.output else Path("prints") / f"{name}.pdf"
+    outline = None if args.no_cut else film_outline(Path(args.design))
     pdf, sheet = print_pdf(
         rgb,
         pr["dpi"],
@@ -87,6 +104,8 @@ def run(args) -> int:
         bleed,
         margin,
         profile,
+        outline_mm=outline,
+        cut=not args.no_cut,
     )
     write_files({out: pdf})
     log(

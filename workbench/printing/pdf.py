@@ -230,6 +230,31 @@ def check_square(page: _Page, x: float, y: float) -> None:
     page.text(x + CHECK_MM / 2, y - 3.0, "10 mm", size=1.8, anchor="centre")
 
 
+# The spot colour print-and-cut workflows cut along (its on-screen stand-in: magenta).
+CUT_SPOT = "CutContour"
+CUT_LINE_MM = 0.1
+
+
+def cut_line(page: _Page, trim, outline_mm: np.ndarray | None) -> None:
+    """The cut line: the outline (or the trim) stroked in the spot colour ``CutContour``."""
+    from reportlab.lib.colors import CMYKColorSep
+
+    x0, y0, x1, y1 = trim
+    pts = np.array([[0, 0], [x1 - x0, 0], [x1 - x0, y1 - y0], [0, y1 - y0]]) if outline_mm is None else outline_mm
+    c = page.c
+    c.saveState()
+    c.setStrokeColor(CMYKColorSep(0, 1, 0, 0, spotName=CUT_SPOT, density=1))
+    c.setLineWidth(CUT_LINE_MM)
+    c.setLineJoin(1)
+    path = c.beginPath()
+    path.moveTo(x0 + pts[0, 0], y0 + pts[0, 1])
+    for x, y in pts[1:]:
+        path.lineTo(x0 + x, y0 + y)
+    path.close()
+    c.drawPath(path, stroke=1, fill=0)
+    c.restoreState()
+
+
 def print_pdf(
     rgb: np.ndarray,
     dpi: float,
@@ -241,6 +266,8 @@ def print_pdf(
     bleed_mm: float = 3.0,
     margin_mm: float = 10.0,
     profile: PrinterProfile = PrinterProfile(),
+    outline_mm: np.ndarray | None = None,
+    cut: bool = True,
 ) -> tuple[bytes, PrintSheet]:
     """The print PDF of a design.
 
@@ -261,6 +288,12 @@ def print_pdf(
         Texture beyond the trim; free border to the sheet's edge.
     profile : PrinterProfile
         Printer scale to pre-compensate.
+    outline_mm : (k, 2) float, optional
+        The film's outline in the design's flat coordinates (mm, x right, y up, the
+        trim's bottom-left corner at the origin), a closed polygon; None: the trim.
+    cut : bool
+        Draw the outline as the cut line: a hairline stroked in the spot colour
+        ``CutContour`` (the name print-and-cut workflows look for), at true scale.
 
     Returns
     -------
@@ -309,6 +342,8 @@ def print_pdf(
     )
     c.restoreState()
 
+    if cut:
+        cut_line(page, sheet.trim, outline_mm)
     crop_marks(page, sheet.trim, b)
     registration_marks(page, sheet.trim, b)
     scale_bar(page, *sheet.bar_x, vertical=False)

@@ -24,6 +24,7 @@ def _cos2(F, lam, u, f, k):
 
 @numba.njit(inline="always", **_JIT)
 def _arc(lam, f, k):
+    # horocyclic arc of corner (f, k): l_opposite / (l_adjacent1 l_adjacent2), Penner's h-length
     return np.exp(0.5 * (lam[f, k] - lam[f, (k + 1) % 3] - lam[f, (k + 2) % 3]))
 
 

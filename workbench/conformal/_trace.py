@@ -5,13 +5,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-_JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
-
-
-@numba.njit(inline="always", **_JIT)
-def _arc(lam, f, k):
-    # horocyclic arc of corner (f, k): l_opposite / (l_adjacent1 l_adjacent2)
-    return np.exp(0.5 * (lam[f, k] - lam[f, (k + 1) % 3] - lam[f, (k + 2) % 3]))
+from workbench.conformal._flips import _JIT, _arc
 
 
 @numba.njit(inline="always", **_JIT)

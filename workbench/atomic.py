@@ -8,6 +8,24 @@ from pathlib import Path
 from workbench.errors import WorkbenchError
 
 
+def check_outputs(*paths: Path) -> None:
+    """Refuse, before any work, output paths that name an existing directory.
+
+    Parameters
+    ----------
+    *paths : Path
+        Files a command is about to write.
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the first path that is a directory.
+    """
+    for path in paths:
+        if Path(path).is_dir():
+            raise WorkbenchError(f"{path}: is a directory; give a file name for this output")
+
+
 def write_files(files: dict[Path, bytes]) -> None:
     """Write several files so that either all appear complete or none changes.
 
@@ -25,6 +43,9 @@ def write_files(files: dict[Path, bytes]) -> None:
     WorkbenchError
         A file cannot be written; names it.
     """
+    # a target that is a directory would fail only at the rename, after others were
+    # replaced: refuse it before anything is written
+    check_outputs(*files)
     temps: list[tuple[Path, Path]] = []
     try:
         for path, data in files.items():
@@ -40,7 +61,10 @@ def write_files(files: dict[Path, bytes]) -> None:
             except OSError as exc:
                 raise WorkbenchError(f"{path}: cannot write: {exc.strerror or exc}") from None
         for tmp, path in temps:
-            os.replace(tmp, path)
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise WorkbenchError(f"{path}: cannot write: {exc.strerror or exc}") from None
         temps.clear()
     finally:
         for tmp, _ in temps:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from workbench import __version__
@@ -34,6 +35,15 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0, 1 for bad input, 2 for bad usage)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    if epoch is not None and not epoch.strip().isdigit():
+        # read by ReportLab when it loads, and by every PDF's date line: say so before either fails
+        print(
+            f"workbench: error: SOURCE_DATE_EPOCH={epoch!r}: must be whole seconds since 1970-01-01 UTC "
+            "(reproducible builds), or unset",
+            file=sys.stderr,
+        )
+        return 1
     args_in = sys.argv[1:] if argv is None else argv
     first = next((a for a in args_in if not a.startswith("-")), None)
     parser = build_parser(first if first in COMMANDS else None)

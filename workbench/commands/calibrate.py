@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from workbench import __version__
-from workbench.atomic import write_files
+from workbench.atomic import check_outputs, write_files
 from workbench.calibration import calibrate_camera, detect_corners, measure_printer
 from workbench.errors import WorkbenchError
 from workbench.export import png_dpi
@@ -115,9 +115,10 @@ def run_camera(args) -> int:
     log = _log(args)
     board_path = Path(args.board)
     board = load_board(board_path)
+    out = Path(args.output)
+    check_outputs(out, out.with_suffix(".png"))  # before the calibration, not after it
     images = [(str(p), _gray(Path(p))) for p in args.photos]
     cal = calibrate_camera(images, board)
-    out = Path(args.output)
     profile = {
         "kind": "camera-profile",
         "K": cal.K.tolist(),
@@ -158,8 +159,9 @@ def run_printer(args) -> int:
     board_path, scan_path = Path(args.board), Path(args.scan)
     board = load_board(board_path)
     _check_dpi(scan_path, args.dpi)
-    m = measure_printer(_gray(scan_path), board, args.dpi)
     out = Path(args.output)
+    check_outputs(out)
+    m = measure_printer(_gray(scan_path), board, args.dpi)
     profile = {
         "kind": "printer-profile",
         "name": args.name or out.stem,

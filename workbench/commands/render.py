@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from workbench import __version__
-from workbench.atomic import write_files
+from workbench.atomic import check_outputs, write_files
 from workbench.camera import Camera, load_camera, load_camera_profile
 from workbench.design_dir import Design
 from workbench.errors import UsageError
@@ -183,6 +183,7 @@ def run(args) -> int:
             imp = Imperfections(**{**imp.to_dict(), "distortion": tuple(intr.dist)})
         source = f"orbit {args.orbit}"
     out = Path(args.output or "photo.png")
+    check_outputs(out, out.with_suffix(".json"))  # before the rendering, not after it
     rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
     write_files(
         {

@@ -47,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     args_in = sys.argv[1:] if argv is None else argv
     first = next((a for a in args_in if not a.startswith("-")), None)
     parser = build_parser(first if first in COMMANDS else None)
-    prog = "workbench"
+    # name the subcommand in usage errors too, which argparse reports before `args` exists
+    prog = f"workbench {first}" if first in COMMANDS else "workbench"
     try:
         args = parser.parse_args(argv)
         if args.command is None:

@@ -152,11 +152,14 @@ def run(args) -> int:
     else:
         if args.job is not None:
             raise UsageError(f"board {args.kind} takes options, not a job file")
+        for flag, v in (("--square-mm", args.square_mm), ("--marker-mm", args.marker_mm)):
+            if v is not None and not (np.isfinite(v) and 0 < v <= 1000):
+                raise UsageError(f"{flag} {v:g}: must be a positive size in mm (at most 1000)")
         if args.kind == "charuco":
-            square = args.square_mm or 30.0
+            square = 30.0 if args.square_mm is None else args.square_mm
             squares = _squares(args.squares, (7, 5))
         else:  # a printer target fills the sheet, to measure scale over the longest lengths
-            square = args.square_mm or 15.0
+            square = 15.0 if args.square_mm is None else args.square_mm
             sheet_w, sheet_h = (210.0, 297.0) if paper == "auto" else choose_sheet(paper, 1, 1)[1:]
             default = (
                 int((sheet_w - 2 * BOARD_MARGIN_MM) // square),

@@ -83,6 +83,13 @@ def _floats(text: str | None, n: int, flag: str) -> tuple | None:
     return vals
 
 
+def _direction(text: str | None, flag: str) -> tuple | None:
+    vals = _floats(text, 3, flag)
+    if vals is not None and not np.linalg.norm(vals) > 0:
+        raise UsageError(f"{flag} {text!r}: a direction cannot be zero")
+    return vals
+
+
 def imperfections_from(args) -> Imperfections:
     """The imperfections the command line asks for (preset first, then explicit flags)."""
     kw: dict = dict(REALISTIC) if args.realistic else {}
@@ -97,7 +104,7 @@ def imperfections_from(args) -> Imperfections:
         "exposure": args.exposure,
         "gamma": args.gamma,
         "shading": args.shading,
-        "light": _floats(args.light, 3, "--light"),
+        "light": _direction(args.light, "--light"),
         "ambient": args.ambient,
         "vignetting": args.vignetting,
         "jpeg_quality": args.jpeg_quality,
@@ -147,6 +154,8 @@ def truth(camera: Camera, imp: Imperfections, design: Design, source: str) -> di
 
 
 def encode(rgb: np.ndarray, path: Path, imp: Imperfections) -> bytes:
+    if path.suffix.lower() not in (".jpg", ".jpeg", ".png"):
+        raise UsageError(f"{path}: photos are written as .png or .jpg")
     if path.suffix.lower() in (".jpg", ".jpeg"):
         q = imp.jpeg_quality or 95
         ok, buf = cv2.imencode(".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, int(q)])
@@ -184,6 +193,8 @@ def run(args) -> int:
         source = f"orbit {args.orbit}"
     out = Path(args.output or "photo.png")
     check_outputs(out, out.with_suffix(".json"))  # before the rendering, not after it
+    if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
+        raise UsageError(f"-o {out}: photos are written as .png or .jpg")
     rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
     write_files(
         {

@@ -21,6 +21,10 @@ PAPERS = {
 AUTO_ORDER = ("A4", "letter", "A3", "A2", "A1", "A0")
 
 
+# No printer or plotter takes a sheet longer than this (mm): a larger one is a typo.
+MAX_SHEET_MM = 5000.0
+
+
 def parse_paper(text: str) -> str | tuple[float, float]:
     """``A4``, ``letter``, ``auto`` or ``WxH`` (mm) → a paper name or (w, h) in mm."""
     if text == "auto" or text in PAPERS:
@@ -31,8 +35,9 @@ def parse_paper(text: str) -> str | tuple[float, float]:
     m = re.fullmatch(r"\s*([0-9.]+)\s*[xX]\s*([0-9.]+)\s*(mm)?\s*", text)
     if m:
         w, h = float(m.group(1)), float(m.group(2))
-        if w > 0 and h > 0:
+        if 0 < w <= MAX_SHEET_MM and 0 < h <= MAX_SHEET_MM:
             return (w, h)
+        raise UsageError(f"--paper {text!r}: each side between 0 and {MAX_SHEET_MM:g} mm")
     raise UsageError(f"--paper {text!r}: use {', '.join(PAPERS)}, auto, or WxH in mm (e.g. 300x400)")
 
 

@@ -150,7 +150,7 @@ def run(args) -> int:
     options = FlattenOptions(
         corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline
     )
-    if args.corners == "auto" and args.outline == "rectangle":
+    if args.corners == "auto":
         result, compared = flatten_auto_corners(V, F, options, name=str(mesh_path), log=log)
     else:
         try:

@@ -636,6 +636,7 @@ def flatten_auto_corners(
     name: str = "mesh",
     log: Callable[[str], None] | None = None,
     rotations: int = 8,
+    skip: tuple[np.ndarray, ...] = (),
 ) -> tuple[FlattenResult, list[dict]]:
     """Flatten with the corners that print every face with the least area distortion.
 
@@ -658,6 +659,8 @@ def flatten_auto_corners(
         Receives one line per candidate.
     rotations : int
         Starting points of :func:`candidate_corners`.
+    skip : tuple of (4,) int
+        Corner sets already known to fail (a refusal being explained): not solved again.
 
     Returns
     -------
@@ -677,8 +680,13 @@ def flatten_auto_corners(
     F = np.asarray(F, dtype=np.int64)
     loop, _, _ = check_disc(V, F, name)
     first, _ = choose_corners(V, F, loop)
-    candidates = [first] + [c for c in candidate_corners(V, loop, rotations) if not np.array_equal(c, first)]
-    seen = {frozenset(c.tolist()) for c in candidates}
+    skipped = {frozenset(np.asarray(c).tolist()) for c in skip}
+    candidates = [
+        c
+        for c in [first] + [c for c in candidate_corners(V, loop, rotations) if not np.array_equal(c, first)]
+        if frozenset(c.tolist()) not in skipped
+    ]
+    seen = {frozenset(c.tolist()) for c in candidates} | skipped
     best, best_score, compared, guided = None, np.inf, [], 0
     i = 0
     while i < len(candidates):
@@ -746,10 +754,13 @@ def crowding_advice(
         One line: the refusal, then either the corners to use instead or the
         statement that no rectangle prints this part.
     """
+    if options.outline == "free":
+        # no corners to move: a free outline that crowds needs the part split into films
+        return WorkbenchError(f"{exc}; this part needs several films")
     say = log or (lambda _m: None)
     say("searching for corners that print every face")
     try:
-        best, compared = flatten_auto_corners(V, F, options, name, log, rotations=4)
+        best, compared = flatten_auto_corners(V, F, options, name, log, rotations=4, skip=(exc.corners,))
     except WorkbenchError:
         return WorkbenchError(
             f"{exc}; none of the corner choices --corners auto compares prints every face: this part needs "

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.conformal.intrinsic import IntrinsicTriangulation, corner_twins
+from workbench.conformal.intrinsic import IntrinsicTriangulation, corner_twins, reference_corners
 from workbench.errors import WorkbenchError
 from workbench.mesh.topology import unique_edges
 
@@ -58,7 +58,6 @@ def trace_input_edges(
         (from ``F[f, k+1]`` to ``F[f, k+2]``), in the flat (scaled) triangle.
     """
     from workbench.conformal._trace import trace  # numba: loaded only when a mesh needs flips
-    from workbench.conformal.intrinsic import reference_corners
 
     T_in = corner_twins(F_in)
     in_ref_face, in_ref_corner = reference_corners(F_in, T_in, n_vertices)

@@ -105,7 +105,7 @@ def test_mesh_that_is_not_a_disc(capsys, job_dir):
         ('name = "right"', 'name = "left"', "views[1].name: view name 'left' is used twice"),
         ("[[views]]", "[[viewz]]", "job: unknown key 'viewz'"),
         ("fov_deg = 40", "fov_deg = 40\nfx = 100", "views[0]: give the camera as"),
-        ("dpi = 300", 'dpi = 300\nscale = "huge"', "print.scale: 'huge': use isometric, no-shrink"),
+        ("dpi = 300", 'dpi = 300\nscale = "huge"', "print.scale: 'huge': use isometric, area, no-shrink"),
     ],
 )
 def test_job_file_errors_name_the_key(capsys, job_dir, old, new, fragment):

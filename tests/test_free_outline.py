@@ -82,39 +82,25 @@ def test_corners_with_a_free_outline_are_a_usage_error(capsys, tmp_path):
     assert "free outline has no corners" in capsys.readouterr().err
 
 
-def face_mask_job(tmp_path, outline="rectangle"):
+def face_mask_job(tmp_path, outline="rectangle", views=("front",), dpi=20):
+    """The bundled face mask job with some of its views, another outline and dpi, in tmp_path."""
     import shutil
 
-    shutil.copy(SHARED / "face.obj", tmp_path / "face.obj")
-    shutil.copy(FIXTURES / "default" / "front.png", tmp_path / "front.png")
+    src = FIXTURES / "face-mask"
+    for name in ("part.obj", *(f"{v}.png" for v in views)):
+        shutil.copy(src / name, tmp_path / name)
+    text = (src / "job.toml").read_text()
+    head, *tables = text.split("[[views]]")
+    head = head.replace('outline = "free"', f'outline = "{outline}"').replace("dpi = 100", f"dpi = {dpi}")
+    kept = [t for t in tables if any(f'name = "{v}"' in t for v in views)]
     job = tmp_path / "job.toml"
-    job.write_text(
-        f"""
-[object]
-mesh = "face.obj"
-units = "cm"
-material = {{ name = "PET-G", max_stretch = 1.3 }}
-
-[print]
-dpi = 20
-outline = "{outline}"
-
-[[views]]
-name = "front"
-image = "front.png"
-position = [0, 3200, 300]
-look_at = [0, 1648, -19]
-up = [0, 0, 1]
-fov_deg = 20
-"""
-    )
+    job.write_text("[[views]]".join([head, *kept]))
     return job
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="the shared meshes are not beside this checkout")
 def test_a_print_that_does_not_fit_warns_and_strict_refuses(tmp_path, capsys):
-    # the scanned face on a rectangle: a print ten times its developed area, almost all
-    # background, and a film stretch far outside [0.8, 1.3]
+    # the scanned face with its front view on a rectangle: a print ten times its
+    # developed area, almost all background, and a film stretch far outside [0.8, 1.3]
     import json
 
     job = face_mask_job(tmp_path)
@@ -131,6 +117,34 @@ def test_a_print_that_does_not_fit_warns_and_strict_refuses(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "does not fit the part (--strict)" in err[0]
     assert not out.exists()
+
+
+def test_face_mask_fixture_free_outline_fits_where_the_rectangle_does_not(tmp_path):
+    # the bundled face mask (three views): its free outline holds the surface's area
+    # (the default scale of a free outline), 0.5 to 1.5 times it, without a background
+    # warning; print.png is transparent outside the outline, which holds the film's
+    # area to 1 %; the same job on a rectangle is 10 times the developed area
+    import json
+
+    import cv2
+
+    job = face_mask_job(tmp_path, "free", ("front", "left", "right"), dpi=40)
+    assert main(["design", str(job), "--out", str(tmp_path / "free"), "-q"]) == 0
+    info = json.loads((tmp_path / "free" / "design.json").read_text())
+    surface = info["mesh"]["surface_area_mm2"]
+    assert 0.5 <= info["print"]["film_area_mm2"] / surface <= 1.5
+    assert info["scale_mode"] == "area" and info["print"]["outline"] == "free"
+    assert not any("background" in w for w in info["warnings"])
+    rgba = cv2.imread(str(tmp_path / "free" / "print.png"), cv2.IMREAD_UNCHANGED)
+    assert rgba.shape[2] == 4 and set(np.unique(rgba[:, :, 3])) == {0, 255}
+    film_mm2 = (rgba[:, :, 3] == 255).sum() * (25.4 / 40) ** 2
+    assert film_mm2 == pytest.approx(info["print"]["film_area_mm2"], rel=0.01)
+    (tmp_path / "r").mkdir()
+    rect = face_mask_job(tmp_path / "r", "rectangle", ("front",), 40)
+    assert main(["design", str(rect), "--out", str(tmp_path / "rect"), "-q"]) == 0
+    info = json.loads((tmp_path / "rect" / "design.json").read_text())
+    assert info["print"]["film_area_mm2"] / surface > 10
+    assert cv2.imread(str(tmp_path / "rect" / "print.png"), cv2.IMREAD_UNCHANGED).shape[2] == 3
 
 
 def test_bundled_jobs_fit_their_parts():
@@ -188,3 +202,65 @@ def test_cut_line_follows_the_free_outline_in_the_pdf(tmp_path):
     # every outline vertex is stroked
     near = np.array([np.linalg.norm(pix - q, axis=1).min() for q in Q])
     assert near.max() <= 0.1
+
+
+def test_bleed_follows_a_free_outline_and_the_cut_line_has_its_own_layer():
+    # an elliptical film (60 x 40 mm) of one ink colour at 300 dpi: in a 600 dpi raster
+    # of the PDF, the ink covers the ellipse grown by the 3 mm bleed, to 0.15 mm, and
+    # nothing beyond; the cut line is on an optional content group named CutContour
+    import io
+
+    import pypdf
+    import pypdfium2 as pdfium
+
+    from workbench.printing.pdf import layout_sheet, print_pdf
+
+    dpi, w_mm, h_mm, bleed = 300.0, 60.0, 40.0, 3.0
+    rows, cols = round(h_mm * dpi / 25.4), round(w_mm * dpi / 25.4)
+    w_mm, h_mm = cols * 25.4 / dpi, rows * 25.4 / dpi
+    yy, xx = (np.mgrid[:rows, :cols] + 0.5) * 25.4 / dpi
+    a, b = w_mm / 2, h_mm / 2
+    film = ((xx - a) / a) ** 2 + ((yy - b) / b) ** 2 <= 1
+    rgb = np.zeros((rows, cols, 3), np.uint8)
+    rgb[:] = (20, 60, 200)
+    rgb[~film] = 255  # what lies outside the outline must not show
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    outline = np.stack([a + a * np.cos(t), b + b * np.sin(t)], axis=1)
+    pdf, sheet = print_pdf(rgb, dpi, w_mm, h_mm, "ellipse", "0" * 64, "A4", bleed, outline_mm=outline, film=film)
+    bare, _ = print_pdf(rgb, dpi, w_mm, h_mm, "ellipse", "0" * 64, "A4", bleed, outline_mm=outline, film=film, cut=0)
+    px_per_mm = 600 / 25.4
+    img = np.asarray(pdfium.PdfDocument(bare)[0].render(scale=600 / 72).to_pil(), dtype=int)
+    blue = (img[:, :, 2] > 150) & (img[:, :, 0] < 120)
+    sheet = layout_sheet(w_mm, h_mm, bleed, 10.0, "A4")
+    cx = sheet.trim[0] + a
+    cy = sheet.page_h - (sheet.trim[1] + b)
+    # the texture's neighbourhood only (the marks are black, not blue)
+    i0, j0 = int((cy - b - 8) * px_per_mm), int((cx - a - 8) * px_per_mm)
+    i1, j1 = int((cy + b + 8) * px_per_mm), int((cx + a + 8) * px_per_mm)
+    assert blue.sum() == blue[i0:i1, j0:j1].sum()
+    blue = blue[i0:i1:2, j0:j1:2]  # every other pixel is plenty
+    yy, xx = (np.mgrid[i0:i1:2, j0:j1:2] + 0.5) / px_per_mm
+    # signed distance beyond the ellipse: to a dense polygon of it, negative inside
+    from scipy.spatial import cKDTree
+
+    s = np.linspace(0, 2 * np.pi, 20000, endpoint=False)
+    dist, _ = cKDTree(np.stack([cx + a * np.cos(s), cy + b * np.sin(s)], axis=1)).query(
+        np.stack([xx.ravel(), yy.ravel()], axis=1), distance_upper_bound=8.0
+    )
+    inside = ((xx - cx) / a) ** 2 + ((yy - cy) / b) ** 2 <= 1
+    beyond = np.where(inside, -1.0, 1.0) * np.minimum(dist, 8.0).reshape(xx.shape)
+    beyond[inside & (dist.reshape(xx.shape) >= 8.0)] = -8.0
+    assert blue[np.abs(beyond - 1.5) < 1.4].mean() > 0.999  # film and bleed: inked
+    assert (beyond[blue] <= bleed + 0.15).all()  # nothing beyond the bleed
+    assert blue[(beyond > bleed + 0.15) & (beyond < bleed + 3)].sum() == 0
+    reader = pypdf.PdfReader(io.BytesIO(pdf))
+    assert reader.pdf_header == "%PDF-1.5"
+    ocgs = [o.get_object()["/Name"] for o in reader.trailer["/Root"]["/OCProperties"]["/OCGs"]]
+    assert ocgs == ["CutContour"]
+    page = reader.pages[0]
+    layer = page["/Resources"]["/Properties"]
+    name = next(k for k, v in layer.items() if v.get_object()["/Name"] == "CutContour")
+    content = page.get_contents().get_data()
+    start = content.index(f"{name} BDC".encode())
+    assert b"/CutContour CS" in content[start : content.index(b"EMC", start)]
+    assert "/OCProperties" not in pypdf.PdfReader(io.BytesIO(bare)).trailer["/Root"]

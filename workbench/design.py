@@ -19,16 +19,18 @@ from workbench.conformal.flatten import (
     flatten,
     flatten_auto_corners,
 )
+from workbench.conformal.layout import signed_areas
 from workbench.errors import WorkbenchError
 from workbench.job import Job
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import unique_edges
 from workbench.mesh.validate import face_areas
+from workbench.texture.outline import film_mask
 from workbench.texture.synthesis import PrintGrid, synthesize_print
 from workbench.views.visibility import ViewVisibility, assign_views, face_adjacency, view_visibility
 
-# bytes per print pixel at the peak: RGB + owner map + the PNG encoder's copy and output
-BYTES_PER_PRINT_PIXEL = 10
+# bytes per print pixel at the peak: RGB + owner map + film mask + the PNG encoder's copy and output
+BYTES_PER_PRINT_PIXEL = 12
 
 
 @dataclass
@@ -48,7 +50,9 @@ class DesignResult:
     rgb : (rows, cols, 3) uint8
         The print.
     owner : (rows, cols) int8
-        Owning view per print pixel, -1 for background.
+        Owning view per print pixel, -1 for background (and outside the film).
+    film : (rows, cols) bool
+        Pixels on the film: inside its outline (all of them for a rectangle).
     cameras : list of Camera
         Designed views' cameras, in priority order.
     status : (#F, #views) int8
@@ -67,6 +71,7 @@ class DesignResult:
     grid: PrintGrid
     rgb: np.ndarray
     owner: np.ndarray
+    film: np.ndarray
     cameras: list[Camera]
     status: np.ndarray
     visibilities: list[ViewVisibility]
@@ -181,6 +186,10 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     rows, cols = grid.shape
     say(f"synthesising {cols} x {rows} px print at {job.print.dpi:g} dpi ({rows * cols / 1e6:.1f} Mpx)")
     rgb, owner, scales = synthesize_print(grid, flat.uv, V, F, status, visibilities, images, job.print.background)
+    if job.print.outline == "rectangle":
+        film = np.ones((rows, cols), dtype=bool)
+    else:
+        film = film_mask(grid.to_pixels(flat.uv), F, rows, cols)
     t["synthesis"] = time.perf_counter() - t0
     return DesignResult(
         V=V,
@@ -189,6 +198,7 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         grid=grid,
         rgb=rgb,
         owner=owner,
+        film=film,
         cameras=cameras,
         status=status,
         visibilities=visibilities,
@@ -227,7 +237,8 @@ def view_statistics(result: DesignResult, names: list[str]) -> list[dict]:
                 "name": name,
                 "faces_owned": int(mine.sum()),
                 "surface_owned_mm2": float(area[mine].sum()),
-                "print_share": float((result.owner == v).sum() / (rows * cols)),
+                # of the film: pixels outside a free outline are not printed
+                "print_share": float((result.owner == v).sum() / max(int(result.film.sum()), 1)),
                 "image_share_used": float(used.mean()),
                 "view_px_per_print_px": result.view_px_per_print_px[v],
                 "camera": result.cameras[v].to_dict(),
@@ -243,6 +254,16 @@ MIN_STRETCH = 0.8
 MAX_OFF_STRETCH_SHARE = 0.01
 MAX_BACKGROUND_SHARE = 0.5
 MAX_PRINT_TO_SURFACE = 2.0
+
+
+def background_share(result: DesignResult) -> float:
+    """Share of the film's pixels that no view owns (pixels outside a free outline are not film)."""
+    return float((result.owner[result.film] < 0).mean()) if result.film.any() else 1.0
+
+
+def film_area_mm2(flat: FlattenResult) -> float:
+    """Area of the film inside its outline, mm² (the rectangle's, or the free outline's)."""
+    return float(np.abs(signed_areas(flat.uv, flat.F)).sum())
 
 
 def fit_warnings(result: DesignResult, max_stretch: float | None) -> list[str]:
@@ -274,13 +295,13 @@ def fit_warnings(result: DesignResult, max_stretch: float | None) -> list[str]:
             f"the film stretch leaves {band} on {100 * off / surface:.1f} % of the surface "
             f"(from {np.nanmin(stretch):.3g} to {np.nanmax(stretch):.3g}): the film would tear or wrinkle there"
         )
-    background = float((result.owner < 0).mean())
+    background = background_share(result)
     if background > MAX_BACKGROUND_SHARE:
         out.append(f"background is {100 * background:.1f} % of the print: the outline does not fit the part")
-    print_area = flat.width_mm * flat.height_mm
-    if print_area > MAX_PRINT_TO_SURFACE * surface:
+    film_area = film_area_mm2(flat)
+    if film_area > MAX_PRINT_TO_SURFACE * surface:
         out.append(
-            f"the print ({flat.width_mm:.0f} x {flat.height_mm:.0f} mm) is {print_area / surface:.1f} times the "
-            "part's developed area"
+            f"the print ({flat.width_mm:.0f} x {flat.height_mm:.0f} mm, {film_area / 100:.0f} cm² of film) is "
+            f"{film_area / surface:.1f} times the part's developed area"
         )
     return out

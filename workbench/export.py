@@ -19,8 +19,8 @@ def png_bytes(rgb: np.ndarray, dpi: float | None = None, compression: int = 3) -
 
     Parameters
     ----------
-    rgb : (H, W, 3) or (H, W) uint8
-        Image, RGB order.
+    rgb : (H, W, 3), (H, W, 4) or (H, W) uint8
+        Image, RGB (or RGBA) order.
     dpi : float, optional
         Resolution to record.
     compression : int
@@ -30,7 +30,10 @@ def png_bytes(rgb: np.ndarray, dpi: float | None = None, compression: int = 3) -
     -------
     bytes
     """
-    img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR) if rgb.ndim == 3 else rgb
+    if rgb.ndim == 2:
+        img = rgb
+    else:
+        img = cv2.cvtColor(rgb, cv2.COLOR_RGBA2BGRA if rgb.shape[2] == 4 else cv2.COLOR_RGB2BGR)
     ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, compression])
     if not ok:
         raise RuntimeError("PNG encoding failed")

@@ -163,6 +163,7 @@ def views_figure(
     height_mm: float,
     title: str,
     max_px: int = 1000,
+    film: np.ndarray | None = None,
 ) -> bytes:
     """PNG of which view owns each print pixel, with a legend.
 
@@ -180,6 +181,9 @@ def views_figure(
         Figure title.
     max_px : int
         Longer side of the picture's raster.
+    film : (rows, cols) bool, optional
+        Pixels inside the film's outline; the rest is drawn white, outside the
+        shares. None: the whole rectangle is film.
 
     Returns
     -------
@@ -196,13 +200,16 @@ def views_figure(
     palette = np.array(VIEW_COLOURS * (len(names) // len(VIEW_COLOURS) + 1), dtype=np.uint8)
     img = np.full(small.shape + (3,), 235, dtype=np.uint8)
     img[small >= 0] = palette[small[small >= 0]]
+    if film is not None:
+        small_film = cv2.resize(film.astype(np.uint8), small.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
+        img[~small_film] = 255
     fig, ax = plt.subplots(figsize=(8, max(8 * height_mm / width_mm, 3) + 1.2), dpi=110)
     ax.imshow(img, extent=(0, width_mm, 0, height_mm), origin="upper", interpolation="nearest", aspect="equal")
     handles = [
         Patch(color=palette[i] / 255, label=f"{n} ({100 * sh:.1f} %)")
         for i, (n, sh) in enumerate(zip(names, shares, strict=True))
     ]
-    unowned = float((owner < 0).mean())
+    unowned = float((owner < 0).mean() if film is None else (owner[film] < 0).mean())
     handles.append(Patch(color=(235 / 255,) * 3, label=f"no view, background ({100 * unowned:.1f} %)"))
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=min(len(handles), 3), fontsize=9)
     ax.set_xlabel("x (mm)")

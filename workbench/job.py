@@ -276,14 +276,15 @@ def load_job(path: str | Path) -> Job:
     )
 
     p = _Reader(path, "print", top.get("print", {}), {"dpi", "scale", "outline", "background", "margin_mm", "bleed_mm"})
+    outline = p.string("outline", "rectangle", choices=("rectangle", "free"))
     try:
-        scale = ScaleMode.parse(p.string("scale", "isometric"))
+        scale = ScaleMode.parse(p.string("scale", str(ScaleMode.default(outline))))
     except UsageError as exc:
         p.fail(str(exc).replace("--scale ", ""), "scale")
     spec = PrintSpec(
         dpi=p.number("dpi", 300.0, lo=0),
         scale=scale,
-        outline=p.string("outline", "rectangle", choices=("rectangle", "free")),
+        outline=outline,
         background=_colour(p, "background", "#ffffff"),
         margin_mm=p.number("margin_mm", 10.0, lo=-1e-300),
         bleed_mm=p.number("bleed_mm", 3.0, lo=-1e-300),

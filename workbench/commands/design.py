@@ -13,7 +13,7 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import write_files
 from workbench.commands.flatten import summary
-from workbench.design import design, fit_warnings, read_image, view_statistics
+from workbench.design import background_share, design, film_area_mm2, fit_warnings, read_image, view_statistics
 from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
@@ -42,6 +42,11 @@ def add_parser(sub) -> None:
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
+
+
+def print_with_alpha(rgb: np.ndarray, film: np.ndarray) -> np.ndarray:
+    """The print as RGB when the film is the whole rectangle, else RGBA, transparent outside the film."""
+    return rgb if film.all() else np.dstack([rgb, np.where(film, 255, 0).astype(np.uint8)])
 
 
 def run(args) -> int:
@@ -77,7 +82,10 @@ def run(args) -> int:
             "bleed_mm": job.print.bleed_mm,
             "margin_mm": job.print.margin_mm,
             "image_height_mm": image_h_mm,
-            "background_share": float((result.owner < 0).mean()),
+            "background_share": background_share(result),
+            "outline": job.print.outline,
+            "film_area_mm2": film_area_mm2(flat),
+            "film_share": float(result.film.mean()),
         },
         "corners": flat_summary["corners"],
         "corner_rule": flat_summary["corner_rule"],
@@ -97,10 +105,11 @@ def run(args) -> int:
         },
         "warnings": warnings,
         "views": stats,
-        "mesh": flat_summary["mesh"],
+        "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
     files = {
-        out / "print.png": png_bytes(result.rgb, grid.dpi),
+        # outside a free outline there is no film: transparent, in the background colour
+        out / "print.png": png_bytes(print_with_alpha(result.rgb, result.film), grid.dpi),
         # owning view + 1 per print pixel (0: none), read by validate
         out / "owner.png": png_bytes((result.owner.astype(np.int16) + 1).astype(np.uint8), grid.dpi),
         out / "decorated.obj": obj,
@@ -118,6 +127,7 @@ def run(args) -> int:
             flat.width_mm,
             flat.height_mm,
             f"{job.name}: which view owns each print pixel",
+            film=None if result.film.all() else result.film,
         ),
         out / "stretch.png": stretch_figure(
             flat.uv,

@@ -53,9 +53,10 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--scale",
-        default="isometric",
+        default=None,
         metavar="MODE",
-        help="isometric (default), no-shrink, width=MM, height=MM, or rim (free outline: keep the rim's lengths)",
+        help="isometric (default for a rectangle), area (the film's area equals the surface's; default for a free "
+        "outline), no-shrink, width=MM, height=MM, or rim (free outline: keep the rim's lengths)",
     )
     p.add_argument(
         "--outline",
@@ -134,7 +135,7 @@ def summary(result: FlattenResult) -> dict:
 def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     corners = parse_corners(args.corners)
-    scale = ScaleMode.parse(args.scale)
+    scale = ScaleMode.parse(args.scale) if args.scale is not None else ScaleMode.default(args.outline)
     mesh_path = Path(args.mesh)
     out = Path(args.out) if args.out else Path(f"flatten-{mesh_path.stem}")
 

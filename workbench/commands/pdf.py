@@ -45,8 +45,13 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def load_design(directory: Path) -> tuple[dict, np.ndarray]:
-    """design.json and print.png of a design directory, or an error naming what is missing."""
+def load_design(directory: Path) -> tuple[dict, np.ndarray, np.ndarray | None]:
+    """design.json and print.png of a design directory, or an error naming what is missing.
+
+    Returns the design's information, the print (rows, cols, 3) uint8 RGB and the
+    film mask (rows, cols) bool from the print's alpha channel (None: no alpha, the
+    film is the whole rectangle).
+    """
     if not directory.is_dir():
         raise WorkbenchError(f"{directory}: no such design directory (run workbench design first)")
     info_path, png_path = directory / "design.json", directory / "print.png"
@@ -58,7 +63,7 @@ def load_design(directory: Path) -> tuple[dict, np.ndarray]:
         info["print"]["width_mm"], info["print"]["height_mm"], info["print"]["dpi"]  # noqa: B018
     except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError) as exc:
         raise WorkbenchError(f"{info_path}: not a design.json of workbench design ({exc})") from None
-    img = cv2.imread(str(png_path), cv2.IMREAD_COLOR)
+    img = cv2.imread(str(png_path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise WorkbenchError(f"{png_path}: cannot read the print image")
     expected = (info["print"].get("height_px"), info["print"].get("width_px"))
@@ -66,7 +71,12 @@ def load_design(directory: Path) -> tuple[dict, np.ndarray]:
         raise WorkbenchError(
             f"{png_path}: {img.shape[1]} x {img.shape[0]} px, design.json says {expected[1]} x {expected[0]}"
         )
-    return info, cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    if img.ndim != 3 or img.shape[2] not in (3, 4) or img.dtype != np.uint8:
+        raise WorkbenchError(f"{png_path}: not an 8-bit RGB or RGBA print")
+    film = None if img.shape[2] == 3 else img[:, :, 3] > 127
+    if film is not None and not film.any():
+        raise WorkbenchError(f"{png_path}: the alpha channel leaves no film")
+    return info, cv2.cvtColor(img[:, :, :3], cv2.COLOR_BGR2RGB), film
 
 
 def film_outline(directory: Path) -> np.ndarray | None:
@@ -82,7 +92,7 @@ def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     paper = parse_paper(args.paper)
     profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
-    info, rgb = load_design(Path(args.design))
+    info, rgb, film = load_design(Path(args.design))
     pr = info["print"]
     job = info.get("job", {})
     name = job.get("name", Path(args.design).name)
@@ -106,6 +116,7 @@ def run(args) -> int:
         profile,
         outline_mm=outline,
         cut=not args.no_cut,
+        film=film,
     )
     write_files({out: pdf})
     log(

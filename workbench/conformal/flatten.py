@@ -62,9 +62,12 @@ class ScaleMode:
 
     Attributes
     ----------
-    kind : {'isometric', 'no-shrink', 'width', 'height', 'rim'}
+    kind : {'isometric', 'area', 'no-shrink', 'width', 'height', 'rim'}
         ``isometric``: area-weighted mean of log(3D length / flat length) is 0,
-        exact for developable surfaces. ``rim`` (free outline only): the film
+        exact for developable surfaces. ``area``: the film's area equals the
+        surface's (also exact for developable surfaces; on deep parts, where the
+        log stretch is skewed, it keeps the print near the part's developed size
+        while ``isometric`` can make it many times larger). ``rim`` (free outline only): the film
         keeps the part's rim lengths, as the free outline is solved. ``no-shrink``: the flat print is nowhere
         larger than the surface in any direction (film only stretches).
         ``width``/``height``: the rectangle's width or height is ``value_mm``.
@@ -77,8 +80,8 @@ class ScaleMode:
 
     @classmethod
     def parse(cls, text: str) -> ScaleMode:
-        """Read ``isometric``, ``no-shrink``, ``rim``, ``width=MM`` or ``height=MM``."""
-        if text in ("isometric", "no-shrink", "rim"):
+        """Read ``isometric``, ``area``, ``no-shrink``, ``rim``, ``width=MM`` or ``height=MM``."""
+        if text in ("isometric", "area", "no-shrink", "rim"):
             return cls(text)
         key, sep, value = text.partition("=")
         if sep and key in ("width", "height"):
@@ -89,7 +92,18 @@ class ScaleMode:
             if not (np.isfinite(mm) and mm > 0):
                 raise UsageError(f"--scale {text}: {key} must be a positive number of mm")
             return cls(key, mm)
-        raise UsageError(f"--scale {text!r}: use isometric, no-shrink, rim, width=MM or height=MM")
+        raise UsageError(f"--scale {text!r}: use isometric, area, no-shrink, rim, width=MM or height=MM")
+
+    @classmethod
+    def default(cls, outline: str) -> ScaleMode:
+        """``isometric`` for a rectangle, ``area`` for a free outline.
+
+        A free outline of a deep part at isometric scale can be many times the part
+        (the scanned face: 9.5 times its area, because the rim keeps its length while
+        the middle shrinks, and the mean log stretch weighs that heavily); ``area``
+        keeps the film as large as the surface it covers.
+        """
+        return cls("area" if outline == "free" else "isometric")
 
     def __str__(self) -> str:
         return self.kind if self.value_mm is None else f"{self.kind}={self.value_mm:g}"
@@ -243,6 +257,10 @@ def scale_factor(
         # mean log stretch after scaling, Σ A log(√(σ₁σ₂)/s) / Σ A, is zero for this s
         log_stretch = 0.5 * np.log(sigma[:, 0] * sigma[:, 1])
         return float(np.exp(np.average(log_stretch, weights=area_3d)))
+    if mode.kind == "area":
+        # a face's flat area is A / (σ₁σ₂); after scaling by s it is s² A / (σ₁σ₂), and
+        # Σ s² A / (σ₁σ₂) = Σ A gives s
+        return float(np.sqrt(area_3d.sum() / (area_3d / (sigma[:, 0] * sigma[:, 1])).sum()))
     if mode.kind == "no-shrink":
         return float(sigma[:, 1].min())  # smallest σ₂ becomes exactly 1
     if mode.kind == "width":

@@ -15,6 +15,7 @@ from workbench import __version__
 from workbench.errors import WorkbenchError
 from workbench.jsonfile import read_json
 from workbench.printing.paper import choose_sheet
+from workbench.texture.outline import bleed_beyond_outline
 
 PT_PER_MM = 72.0 / 25.4
 LINE_PT = 0.25  # hairline marks: about 2 px wide at 600 dpi, easy to measure
@@ -235,13 +236,62 @@ CUT_SPOT = "CutContour"
 CUT_LINE_MM = 0.1
 
 
+# the cut line's optional content group (layer) and its name in the page's resources
+CUT_LAYER = "CutContour"
+_CUT_LAYER_RESOURCE = "OCCut"
+
+
+def _cut_layer(canvas) -> None:
+    """Declare the optional content group (layer) of the cut line in the document.
+
+    ReportLab (4.x) has no optional-content API, so the group is added to its object
+    tree directly: the OCG object, the catalog's ``/OCProperties`` (the layer listed
+    and on), and, after the page is finished, the page resources' ``/Properties``
+    entry that the marked content ``/OC /OCCut BDC … EMC`` refers to. PDF 1.5.
+    """
+    from reportlab.pdfbase import pdfdoc
+
+    doc = canvas._doc
+    if getattr(doc, "_workbench_cut_layer", False):
+        return  # declared once per document; every page gets the resource entry
+    doc._workbench_cut_layer = True
+    ocg = doc.Reference(
+        pdfdoc.PDFDictionary({"Type": pdfdoc.PDFName("OCG"), "Name": pdfdoc.PDFString(CUT_LAYER)}), "OCGCutContour"
+    )
+    catalog = doc.Catalog
+    # the catalog writes only the keys it lists; an instance list adds ours
+    catalog.__NoDefault__ = [*type(catalog).__NoDefault__, "OCProperties"]
+    catalog.OCProperties = pdfdoc.PDFDictionary(
+        {
+            "OCGs": pdfdoc.PDFArray([ocg]),
+            "D": pdfdoc.PDFDictionary(
+                {"Name": pdfdoc.PDFString("workbench"), "Order": pdfdoc.PDFArray([ocg]), "ON": pdfdoc.PDFArray([ocg])}
+            ),
+        }
+    )
+
+    def add_to_page(_page_number):
+        page = doc.Pages.pages[-1]
+        build = page.check_format
+
+        def check_format(document):
+            build(document)
+            page.Resources.Properties = {_CUT_LAYER_RESOURCE: ocg}
+
+        page.check_format = check_format
+
+    canvas.setPageCallBack(add_to_page)
+
+
 def cut_line(page: _Page, trim, outline_mm: np.ndarray | None) -> None:
-    """The cut line: the outline (or the trim) stroked in the spot colour ``CutContour``."""
+    """The cut line: the outline (or the trim) stroked in the spot colour ``CutContour``, on its own layer."""
     from reportlab.lib.colors import CMYKColorSep
 
     x0, y0, x1, y1 = trim
     pts = np.array([[0, 0], [x1 - x0, 0], [x1 - x0, y1 - y0], [0, y1 - y0]]) if outline_mm is None else outline_mm
     c = page.c
+    _cut_layer(c)
+    c.addLiteral(f"/OC /{_CUT_LAYER_RESOURCE} BDC")
     c.saveState()
     c.setStrokeColor(CMYKColorSep(0, 1, 0, 0, spotName=CUT_SPOT, density=1))
     c.setLineWidth(CUT_LINE_MM)
@@ -253,6 +303,7 @@ def cut_line(page: _Page, trim, outline_mm: np.ndarray | None) -> None:
     path.close()
     c.drawPath(path, stroke=1, fill=0)
     c.restoreState()
+    c.addLiteral("EMC")
 
 
 def print_pdf(
@@ -268,6 +319,7 @@ def print_pdf(
     profile: PrinterProfile = PrinterProfile(),
     outline_mm: np.ndarray | None = None,
     cut: bool = True,
+    film: np.ndarray | None = None,
 ) -> tuple[bytes, PrintSheet]:
     """The print PDF of a design.
 
@@ -293,7 +345,12 @@ def print_pdf(
         trim's bottom-left corner at the origin), a closed polygon; None: the trim.
     cut : bool
         Draw the outline as the cut line: a hairline stroked in the spot colour
-        ``CutContour`` (the name print-and-cut workflows look for), at true scale.
+        ``CutContour`` (the name print-and-cut workflows look for), at true scale,
+        on its own layer (optional content group) named ``CutContour``.
+    film : (rows, cols) bool, optional
+        The pixels inside the film's outline (a free outline); the bleed then follows
+        the outline (nearest pixel inside repeated outward) and nothing is printed
+        beyond it. None: the film is the whole rectangle.
 
     Returns
     -------
@@ -309,7 +366,11 @@ def print_pdf(
     sheet = layout_sheet(width_mm, height_mm, bleed_mm, margin_mm, paper)
     buf = io.BytesIO()
     c = rl_canvas.Canvas(
-        buf, pagesize=(sheet.page_w * PT_PER_MM, sheet.page_h * PT_PER_MM), invariant=1, pageCompression=1
+        buf,
+        pagesize=(sheet.page_w * PT_PER_MM, sheet.page_h * PT_PER_MM),
+        invariant=1,
+        pageCompression=1,
+        pdfVersion=(1, 5),  # optional content (the cut line's layer)
     )
     c.setTitle(f"workbench print: {job_name}")
     c.setAuthor(f"workbench {__version__}")
@@ -328,6 +389,10 @@ def print_pdf(
     pitch = 25.4 / dpi
     pad = int(np.ceil(b / pitch)) + 1
     padded = cv2.copyMakeBorder(rgb, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+    if film is not None:
+        inside = cv2.copyMakeBorder(film.astype(np.uint8), pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0) > 0
+        filled, alpha = bleed_beyond_outline(padded, inside, b / pitch)
+        padded = np.dstack([filled, alpha])  # an RGBA image: ReportLab writes the alpha as a soft mask
     rows, cols = padded.shape[:2]
     c.saveState()
     clip = c.beginPath()
@@ -339,6 +404,7 @@ def print_pdf(
         y1 + pad * pitch - rows * pitch,
         width=cols * pitch,
         height=rows * pitch,
+        mask="auto" if film is not None else None,
     )
     c.restoreState()
 

@@ -162,6 +162,17 @@ def real_mesh_picture(name: str = "arm-1-needles") -> None:
     print(f"wrote {IMG / 'flatten-real.png'}", file=sys.stderr)
 
 
+def face_mask_pictures() -> None:
+    """views.png and stretch.png of the bundled face mask (free outline)."""
+    wb = str(ROOT / ".venv" / "bin" / "workbench")
+    out = ROOT / "out" / "pictures" / "face-mask"
+    subprocess.run([wb, "design", "fixtures/face-mask/job.toml", "--out", str(out), "-q"], check=True, cwd=ROOT)
+    (IMG / "face-mask-views.png").write_bytes((out / "views.png").read_bytes())
+    (IMG / "face-mask-stretch.png").write_bytes((out / "stretch.png").read_bytes())
+    print(f"wrote {IMG / 'face-mask-views.png'}, face-mask-stretch.png", file=sys.stderr)
+
+
 if __name__ == "__main__":
     main()
     real_mesh_picture()
+    face_mask_pictures()

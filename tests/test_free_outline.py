@@ -264,3 +264,28 @@ def test_bleed_follows_a_free_outline_and_the_cut_line_has_its_own_layer():
     start = content.index(f"{name} BDC".encode())
     assert b"/CutContour CS" in content[start : content.index(b"EMC", start)]
     assert "/OCProperties" not in pypdf.PdfReader(io.BytesIO(bare)).trailer["/Root"]
+
+
+def test_render_and_validate_work_unchanged_on_a_free_outline(tmp_path):
+    # the default job on a free outline (RGBA print.png): a perfect photo passes at
+    # p95 below 0.05 mm, a film moved 0.8 mm in x is measured to 0.03 mm and fails
+    import json
+
+    job = tmp_path / "job.toml"
+    for name in ("part.obj", "logo.png", "front.png"):
+        (tmp_path / name).write_bytes((FIXTURES / "default" / name).read_bytes())
+    text = (FIXTURES / "default" / "job.toml").read_text().replace('scale = "isometric"', 'outline = "free"')
+    job.write_text(text.replace("dpi = 300", "dpi = 200"))
+    d = tmp_path / "d"
+    assert main(["design", str(job), "--out", str(d), "-q"]) == 0
+    photos = []
+    for k, offset in enumerate(([], ["--film-offset-mm", "0.8,0"])):
+        photos.append(tmp_path / f"p{k}.jpg")
+        args = ["render", str(d), "--orbit", "10,55,330", "--size", "2000x1500", "-o", str(photos[-1]), "-q"]
+        assert main(args + offset) == 0
+    args = ["validate", str(d), *map(str, photos), "--camera", str(tmp_path / "p0.json"), "--out", str(tmp_path / "v")]
+    assert main([*args, "-q"]) == 0
+    perfect, moved = json.loads((tmp_path / "v" / "validation.json").read_text())["photos"]
+    assert perfect["verdict"] == "PASS" and perfect["misregistration_mm"]["p95"] < 0.05
+    assert moved["verdict"] == "FAIL" and abs(moved["film_offset_mm"][0] - 0.8) < 0.03
+    assert abs(moved["film_offset_mm"][1]) < 0.03

@@ -289,3 +289,55 @@ def test_render_and_validate_work_unchanged_on_a_free_outline(tmp_path):
     assert perfect["verdict"] == "PASS" and perfect["misregistration_mm"]["p95"] < 0.05
     assert moved["verdict"] == "FAIL" and abs(moved["film_offset_mm"][0] - 0.8) < 0.03
     assert abs(moved["film_offset_mm"][1]) < 0.03
+
+
+def helical_ramp(turns: float, nr: int = 12, nphi: int = 220) -> tuple[np.ndarray, np.ndarray]:
+    """A ramp r in [40, 80] mm winding ``turns`` times, rising 10 mm per turn: nearly flat,
+    so its free outline is nearly the annular sector of ``turns`` full turns."""
+    r = np.linspace(40, 80, nr)
+    phi = np.linspace(0, 2 * np.pi * turns, nphi)
+    R, PHI = np.meshgrid(r, phi)
+    V = np.stack([(R * np.cos(PHI)).ravel(), (R * np.sin(PHI)).ravel(), (10 / (2 * np.pi) * PHI).ravel()], axis=1)
+    idx = np.arange(nr * nphi).reshape(nphi, nr)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    return V, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+def test_a_free_outline_that_overlaps_itself_is_refused_naming_where(tmp_path, capsys):
+    # 1.2 turns: the outline crosses itself where the ramp passes over its start; the
+    # refusal names two rim vertices a turn apart (same angle, heights 10 mm apart).
+    # 0.8 turns: no overlap, and the outline is simple.
+    from workbench.conformal.layout import polygon_self_intersections
+    from workbench.mesh.io import format_obj
+
+    V, F = helical_ramp(0.8)
+    r = flatten(V, F, FlattenOptions(outline="free"))
+    loop = boundary_loops(r.F)[0]
+    assert len(polygon_self_intersections(r.uv[loop])) == 0
+    V, F = helical_ramp(1.2)
+    path = tmp_path / "ramp.obj"
+    path.write_bytes(format_obj(V, F))
+    out = tmp_path / "flat"
+    assert main(["flatten", str(path), "--outline", "free", "--out", str(out), "-q"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ramp.obj" in err[0] and "the free outline overlaps itself" in err[0], err
+    import re
+
+    i, j = (int(v) for v in re.findall(r"rim at vertex (\d+)", err[0]))
+    assert abs(abs(V[i, 2] - V[j, 2]) - 10.0) < 1.0
+    assert np.linalg.norm(V[i, :2] - V[j, :2]) < 10.0
+    assert not out.exists()
+
+
+def test_polygon_self_intersections_finds_every_crossing():
+    from workbench.conformal.layout import polygon_self_intersections
+
+    t = np.linspace(0, 2 * np.pi, 5000, endpoint=False)
+    assert len(polygon_self_intersections(np.stack([np.cos(t), np.sin(t)], 1))) == 0
+    # a figure eight crosses itself once, at the origin: two edges (or four, at a vertex)
+    eight = np.stack([np.sin(t), np.sin(t) * np.cos(t)], 1)
+    pairs = polygon_self_intersections(eight + [1e-7, 0])
+    assert 1 <= len(pairs) <= 4
+    assert np.abs(eight[pairs.ravel()]).max() < 0.01
+    bow = np.array([[0, 0], [1, 1], [1, 0], [0, 1]], float)
+    assert polygon_self_intersections(bow).tolist() == [[0, 2]]

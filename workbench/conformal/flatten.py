@@ -18,7 +18,14 @@ from workbench.conformal.cetm import (
 from workbench.conformal.corners import candidate_corners, choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values, weighted_quantiles
 from workbench.conformal.intrinsic import IntrinsicTriangulation
-from workbench.conformal.layout import dirichlet_layout, flat_layout, free_boundary, rectangle_boundary, signed_areas
+from workbench.conformal.layout import (
+    dirichlet_layout,
+    flat_layout,
+    free_boundary,
+    polygon_self_intersections,
+    rectangle_boundary,
+    signed_areas,
+)
 from workbench.conformal.overlay import common_subdivision, trace_input_edges
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.topology import face_components, unique_edges
@@ -382,7 +389,8 @@ def flatten(
     n_input, F_input = len(V), F
     splits = 0
     face_origin = np.arange(len(F))  # input face of each face of the (split) mesh
-    for _round in range(MAX_SPLIT_ROUNDS + 1):
+    split_rounds = 0
+    while True:
         try:
             newton, tri = _solve(V, F, lam, loop, corners, options, say, (E, FE) if splits == 0 else None)
         except WorkbenchError as exc:
@@ -396,12 +404,13 @@ def flatten(
         # the input's.
         bad = np.flatnonzero(newton.degenerate)
         edges = _boundary_edges_near(tri, bad)
-        if _round == MAX_SPLIT_ROUNDS or len(edges) == 0:
+        if split_rounds == MAX_SPLIT_ROUNDS or len(edges) == 0:
             raise WorkbenchError(
                 f"{name}: the conformal metric degenerates in {len(bad)} triangles at the boundary even after "
                 f"{splits} boundary edge splits (near vertex {int(tri.F[bad[0], 0])}); remesh the boundary"
             )
         V, F, loop, origin = _split_boundary_edges(V, F, loop, edges)
+        split_rounds += 1
         face_origin = face_origin[origin]
         splits += len(edges)
         lam = input_log_lengths(V, F, name)
@@ -421,6 +430,7 @@ def flatten(
         if free:
             boundary_xy, mismatch = free_boundary(blen[loop], angle_sums(tri.F, newton.alpha, len(V))[loop])
             X = dirichlet_layout(tri.F, newton.cot, loop, boundary_xy, newton.assembler)
+            check_outline_simple(V, loop, X[loop])
             X -= X.min(axis=0)
             width, height = (float(x) for x in X.max(axis=0))
         else:
@@ -498,6 +508,42 @@ def flatten(
         intrinsic_flips=newton.flips,
         rectangle_mismatch=mismatch,
         timings_s=timings,
+    )
+
+
+def check_outline_simple(V: np.ndarray, loop: np.ndarray, outline: np.ndarray) -> None:
+    """Refuse a free outline that overlaps itself, naming where on the part.
+
+    A free outline is only locally injective: a part that winds around more than a
+    full turn (a spiral ramp, a deep C) lays out overlapping itself, and one film
+    cannot be printed there.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Surface positions, mm.
+    loop : (#B,) int
+        Boundary loop, vertex indices.
+    outline : (#B, 2) float
+        The loop's flat positions.
+
+    Raises
+    ------
+    WorkbenchError
+        One line (the caller adds the mesh's name): the first crossing's two rim vertices and their 3D positions.
+    """
+    pairs = polygon_self_intersections(outline)
+    if len(pairs) == 0:
+        return
+    i, j = loop[pairs[0, 0]], loop[pairs[0, 1]]
+
+    def at(v):
+        return "(" + ", ".join(f"{c:.1f}" for c in V[v]) + ") mm"
+
+    raise WorkbenchError(
+        f"the free outline overlaps itself: the rim at vertex {i} {at(i)} crosses the rim at vertex {j} "
+        f"{at(j)} in the flat layout ({len(pairs)} crossing rim edge pairs); one film cannot lie there: "
+        "use several films or a rectangle"
     )
 
 

@@ -209,3 +209,67 @@ def dirichlet_layout(
     if not np.isfinite(xy).all():
         raise WorkbenchError("layout failed: the harmonic solve gave non-finite positions")
     return xy
+
+
+def polygon_self_intersections(xy: np.ndarray) -> np.ndarray:
+    """Pairs of edges of a closed polygon that cross or touch, other than neighbours.
+
+    Edges are binned on a uniform grid by their bounding boxes (about one edge per
+    cell), and only edges sharing a cell are tested, so the cost stays near linear in
+    the number of edges for an outline that does not cross itself.
+
+    Parameters
+    ----------
+    xy : (#B, 2) float
+        Polygon vertices in order; edge i joins vertex i to vertex i + 1 (mod #B).
+
+    Returns
+    -------
+    pairs : (#pairs, 2) int
+        Edge indices (i < j) of every crossing pair, sorted; empty when the polygon
+        is simple.
+    """
+    n = len(xy)
+    if n < 4:
+        return np.zeros((0, 2), dtype=np.int64)
+    a, b = xy, np.roll(xy, -1, axis=0)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    span = np.maximum(xy.max(axis=0) - xy.min(axis=0), 1e-300)
+    cells = max(1, int(np.sqrt(n)))
+    size = span / cells
+    c0 = np.floor((lo - xy.min(axis=0)) / size).astype(np.int64).clip(0, cells - 1)
+    c1 = np.floor((hi - xy.min(axis=0)) / size).astype(np.int64).clip(0, cells - 1)
+    # one (edge, cell) row per cell an edge's box covers
+    counts = (c1[:, 0] - c0[:, 0] + 1) * (c1[:, 1] - c0[:, 1] + 1)
+    edge = np.repeat(np.arange(n), counts)
+    k = np.arange(len(edge)) - np.repeat(np.cumsum(counts) - counts, counts)
+    w = np.repeat(c1[:, 0] - c0[:, 0] + 1, counts)
+    cx, cy = c0[edge, 0] + k % w, c0[edge, 1] + k // w
+    cell = cx * cells + cy
+    order = np.lexsort((edge, cell))
+    edge, cell = edge[order], cell[order]
+    starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])
+    ends = np.r_[starts[1:], len(cell)]
+    pairs = []
+    for s, e in zip(starts, ends, strict=True):
+        if e - s < 2:
+            continue
+        ids = edge[s:e]
+        i, j = np.triu_indices(len(ids), 1)
+        pairs.append(np.stack([ids[i], ids[j]], axis=1))
+    if not pairs:
+        return np.zeros((0, 2), dtype=np.int64)
+    P = np.unique(np.sort(np.concatenate(pairs), axis=1), axis=0)
+    # neighbours share a vertex; they touch by construction
+    P = P[((P[:, 1] - P[:, 0]) % n != 1) & ((P[:, 0] - P[:, 1]) % n != 1)]
+    P = P[np.all(lo[P[:, 0]] <= hi[P[:, 1]], axis=1) & np.all(lo[P[:, 1]] <= hi[P[:, 0]], axis=1)]
+
+    # segments p→q and r→s cross when r, s lie on opposite sides (or on) the line p q,
+    # and p, q on opposite sides of r s: the signs of the cross products differ
+    def orient(p, q, r):
+        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+
+    p, q, r, s = a[P[:, 0]], b[P[:, 0]], a[P[:, 1]], b[P[:, 1]]
+    d1, d2, d3, d4 = orient(p, q, r), orient(p, q, s), orient(r, s, p), orient(r, s, q)
+    cross = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    return P[cross]

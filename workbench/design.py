@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -15,13 +15,15 @@ from workbench.conformal.flatten import (
     CrowdingError,
     FlattenOptions,
     FlattenResult,
+    ScaleMode,
     crowding_advice,
     flatten,
     flatten_auto_corners,
 )
 from workbench.conformal.layout import signed_areas
 from workbench.errors import WorkbenchError
-from workbench.job import Job
+from workbench.films import disc_region, face_graph, pack_films, seams, split_films, submesh
+from workbench.job import Job, Material
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import unique_edges
 from workbench.mesh.validate import face_areas
@@ -63,6 +65,16 @@ class DesignResult:
         Per view, view pixels per print pixel (linear).
     timings_s : dict
         Seconds per stage.
+    view_status : (#Fv, #views) int8
+        Ownership on the mesh the views' depth buffers were made of (the input mesh
+        with several films, else ``status``).
+    films : list of Film
+        With several films, each film; then ``rgb``, ``owner``, ``film``, ``grid``,
+        ``V``, ``F`` and ``flat`` are their atlas: the films side by side on one
+        sheet, each film's own mesh (seam vertices repeated), what render and
+        validate read.
+    seams : dict or None
+        With several films, :func:`workbench.films.seams` on the input mesh.
     """
 
     V: np.ndarray
@@ -77,6 +89,225 @@ class DesignResult:
     visibilities: list[ViewVisibility]
     view_px_per_print_px: list[float]
     timings_s: dict = field(default_factory=dict)
+    view_status: np.ndarray | None = None
+    films: list[Film] = field(default_factory=list)
+    seams: dict | None = None
+
+
+@dataclass
+class Film:
+    """One film of a design with several.
+
+    Attributes
+    ----------
+    name : str
+    faces : (k,) int
+        Input faces it covers.
+    flat : FlattenResult
+        Its map (of its submesh, in the submesh's numbering).
+    grid : PrintGrid
+        Its print's pixels.
+    rgb : (rows, cols, 3) uint8
+        Its print.
+    owner : (rows, cols) int8
+        Owning view per pixel, -1 none.
+    film : (rows, cols) bool
+        Inside its outline.
+    material : Material
+    outline : str
+    atlas_px : (row, col)
+        Its print's top-left pixel in the atlas.
+    atlas_faces : (start, stop)
+        Its faces in the atlas mesh.
+    within : float
+        Share of its surface within [0.8, max_stretch].
+    """
+
+    name: str
+    faces: np.ndarray
+    flat: FlattenResult
+    grid: PrintGrid
+    rgb: np.ndarray
+    owner: np.ndarray
+    film: np.ndarray
+    material: Material
+    outline: str
+    atlas_px: tuple[int, int] = (0, 0)
+    atlas_faces: tuple[int, int] = (0, 0)
+    within: float = float("nan")
+
+
+# free pixels between films on the atlas, mm
+ATLAS_GAP_MM = 5.0
+
+
+def _film_regions(job: Job, V, F, status, say) -> list[tuple[str, np.ndarray, FlattenResult, Material, str]]:
+    """Faces and map of each film: split automatically, or as the job gives them."""
+    area = face_areas(V, F)
+    owned = status != 0
+    owner_view = np.where(owned.any(axis=1), np.argmax(owned, axis=1), -1)
+    min_print = 0.5 * 25.4 / job.print.dpi
+    if job.films == "auto":
+        limit = job.object.material.max_stretch
+        fits = split_films(V, F, owner_view >= 0, owner_view, limit, FlattenOptions(min_print_mm=min_print), log=say)
+        return [(f"film-{k + 1}", f.faces, f.flat, job.object.material, "free") for k, f in enumerate(fits)]
+    graph = face_graph(F)
+    claimed = np.zeros(len(F), bool)
+    out = []
+    names = [v.name for v in job.views]
+    for i, spec in enumerate(job.films):
+        where = f"{job.path}: films[{i}] ({spec.name!r})"
+        if spec.views is not None:
+            wanted = np.isin(owner_view, [names.index(v) for v in spec.views])
+        else:
+            wanted = np.zeros(len(F), bool)
+            wanted[_read_faces(spec.faces, len(F), where)] = True
+        wanted &= ~claimed
+        if not wanted.any():
+            raise WorkbenchError(f"{where}: covers no face (earlier films took them, or its views own none)")
+        try:
+            region = disc_region(F, wanted, area, allowed=~claimed, graph=graph)
+        except WorkbenchError as exc:
+            raise WorkbenchError(f"{where}: {exc}") from None
+        faces = np.flatnonzero(region)
+        Vs, Fs, vertices = submesh(V, F, faces)
+        corners = None
+        if spec.corners is not None:
+            local = np.searchsorted(vertices, spec.corners)
+            if (local >= len(vertices)).any() or (vertices[np.minimum(local, len(vertices) - 1)] != spec.corners).any():
+                raise WorkbenchError(f"{where}: corners: a corner vertex is not on this film's surface")
+            corners = tuple(int(c) for c in local)
+        scale = job.print.scale if spec.outline == job.print.outline else ScaleMode.default(spec.outline)
+        options = FlattenOptions(corners=corners, scale=scale, min_print_mm=min_print, outline=spec.outline)
+        try:
+            flat = flatten(Vs, Fs, options, where, log=say)
+        except CrowdingError as exc:
+            raise crowding_advice(exc, Vs, Fs, options, where, say) from None
+        claimed |= region
+        out.append((spec.name, faces, flat, spec.material, spec.outline))
+    left = (owner_view >= 0) & ~claimed
+    if left.any():
+        say(f"warning: {int(left.sum())} decorated faces ({area[left].sum():.0f} mm²) are on no film")
+    return out
+
+
+def _read_faces(path, n_faces: int, where: str) -> np.ndarray:
+    """0-based face indices from a text file, checked against the mesh."""
+    text = path.read_text(encoding="utf-8", errors="replace").replace(",", " ")
+    try:
+        idx = np.array([int(tok) for tok in text.split()], dtype=np.int64)
+    except ValueError as exc:
+        raise WorkbenchError(f"{where}: faces: {path}: not a list of face indices ({exc})") from None
+    if len(idx) == 0 or idx.min() < 0 or idx.max() >= n_faces:
+        raise WorkbenchError(f"{where}: faces: {path}: indices must lie in 0..{n_faces - 1}")
+    return idx
+
+
+def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
+    """The design with several films: views on the whole part, one map and print per film, their atlas."""
+    t0 = time.perf_counter()
+    cameras, visibilities, status = assign_job_views(job, V, F, images)
+    t["views"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    regions = _film_regions(job, V, F, status, say)
+    t["flatten"] = time.perf_counter() - t0
+    owned = status != 0
+    film_of_face = np.full(len(F), -1)
+    for k, (_, faces, _, _, _) in enumerate(regions):
+        film_of_face[faces] = k
+    seam = seams(F, V, film_of_face, np.where(owned.any(axis=1), np.argmax(owned, axis=1), -1))
+    say(f"{len(regions)} films; seams {seam['length_mm']:.0f} mm, {seam['in_view_mm']:.0f} mm of them inside a view")
+
+    t0 = time.perf_counter()
+    films: list[Film] = []
+    scales = np.zeros(len(job.views))
+    for name, faces, flat, material, outline in regions:
+        grid = PrintGrid(flat.width_mm, flat.height_mm, job.print.dpi)
+        check_print_fits(grid, f"{job.path}: [print].dpi (film {name})")
+        sub_status = status[faces][flat.parent]
+        rgb, owner, s = synthesize_print(
+            grid, flat.uv, flat.V, flat.F, sub_status, visibilities, images, job.print.background
+        )
+        rows, cols = grid.shape
+        if outline == "rectangle":
+            inside = np.ones((rows, cols), bool)
+        else:
+            inside = film_mask(grid.to_pixels(flat.uv), flat.F, rows, cols)
+        ok = ~flat.collapsed
+        hi = material.max_stretch or np.inf
+        within = float(flat.area_3d[ok & (flat.stretch >= 0.8) & (flat.stretch <= hi)].sum() / flat.area_3d.sum())
+        films.append(Film(name, faces, flat, grid, rgb, owner, inside, material, outline, within=within))
+        scales = np.maximum(scales, s)
+
+    # the atlas: every film's print on one sheet, every film's mesh (seams repeated)
+    ppm = job.print.dpi / 25.4
+    offsets, (rows, cols) = pack_films([f.grid.shape for f in films], int(np.ceil(ATLAS_GAP_MM * ppm)))
+    check_print_fits(PrintGrid(cols / ppm, rows / ppm, job.print.dpi), f"{job.path}: [print].dpi (all films)")
+    rgb = np.empty((rows, cols, 3), np.uint8)
+    rgb[:] = job.print.background
+    owner = np.full((rows, cols), -1, np.int8)
+    inside = np.zeros((rows, cols), bool)
+    height_mm = rows / ppm
+    Vs, Fs, uvs, parents, sig, areas, coll, crowd, st = [], [], [], [], [], [], [], [], []
+    nv = nf = 0
+    for f, (r0, c0) in zip(films, offsets, strict=True):
+        fr, fc = f.grid.shape
+        rgb[r0 : r0 + fr, c0 : c0 + fc][f.film] = f.rgb[f.film]
+        owner[r0 : r0 + fr, c0 : c0 + fc][f.film] = f.owner[f.film]
+        inside[r0 : r0 + fr, c0 : c0 + fc] |= f.film
+        # pixel (i, j) of the film is atlas pixel (r0 + i, c0 + j): x + c0 / ppm, and y up
+        # measured from the atlas's bottom edge instead of the film's
+        shift = np.array([c0 / ppm, height_mm - r0 / ppm - f.flat.height_mm])
+        Vs.append(f.flat.V)
+        Fs.append(f.flat.F + nv)
+        uvs.append(f.flat.uv + shift)
+        parents.append(f.faces[f.flat.parent])
+        sig.append(f.flat.sigma)
+        areas.append(f.flat.area_3d)
+        coll.append(f.flat.collapsed)
+        crowd.append(f.flat.crowded)
+        st.append(status[f.faces][f.flat.parent])
+        f.atlas_px, f.atlas_faces = (r0, c0), (nf, nf + len(f.flat.F))
+        nv, nf = nv + len(f.flat.V), nf + len(f.flat.F)
+    worst = max(films, key=lambda f: f.flat.newton.residual_rad)
+    atlas = replace(
+        films[0].flat,
+        V=np.concatenate(Vs),
+        F=np.concatenate(Fs),
+        parent=np.concatenate(parents),
+        n_input_vertices=len(V),
+        uv=np.concatenate(uvs),
+        corners=np.zeros(0, np.int64),
+        corner_rule=f"{len(films)} films",
+        width_mm=cols / ppm,
+        height_mm=height_mm,
+        newton=worst.flat.newton,
+        sigma=np.concatenate(sig),
+        area_3d=np.concatenate(areas),
+        flipped_faces=sum(f.flat.flipped_faces for f in films),
+        collapsed=np.concatenate(coll),
+        crowded=np.concatenate(crowd),
+        intrinsic_flips=sum(f.flat.intrinsic_flips for f in films),
+    )
+    t["synthesis"] = time.perf_counter() - t0
+    say(f"atlas of {len(films)} films: {cols} x {rows} px")
+    return DesignResult(
+        V=atlas.V,
+        F=atlas.F,
+        flat=atlas,
+        grid=PrintGrid(cols / ppm, height_mm, job.print.dpi),
+        rgb=rgb,
+        owner=owner,
+        film=inside,
+        cameras=cameras,
+        status=np.concatenate(st),
+        visibilities=visibilities,
+        view_px_per_print_px=scales.tolist(),
+        timings_s=t,
+        view_status=status,
+        films=films,
+        seams=seam,
+    )
 
 
 def read_image(path, what: str) -> np.ndarray:
@@ -132,6 +363,9 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     t["read"] = time.perf_counter() - t0
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")
 
+    if job.films is not None:
+        return _design_films(job, V, F, images, say, t)
+
     t0 = time.perf_counter()
     auto = job.object.corners == "auto"
     options = FlattenOptions(
@@ -155,30 +389,7 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     check_print_fits(grid, f"{job.path}: [print].dpi")
 
     t0 = time.perf_counter()
-    cameras, visibilities = [], []
-    for i, (spec, img) in enumerate(zip(job.views, images, strict=True)):
-        cam = spec.make_camera(img.shape[1], img.shape[0])
-        xy, z = cam.project(V)
-        behind = np.flatnonzero(z <= 1e-6 * np.abs(z).max())
-        if len(behind):
-            where = (np.round(cam.center, 2) + 0.0).tolist()  # + 0.0: print -0.0 as 0.0
-            raise WorkbenchError(
-                f"{job.path}: views[{i}] ({spec.name!r}): the camera at {where} mm has part "
-                f"of the object level with or behind it (vertex {int(behind[0])}); a view camera must see the whole "
-                "object in front of it, not from inside or among it"
-            )
-        cameras.append(cam)
-        visibilities.append(view_visibility(V, F, cam))
-    E, FE, _ = unique_edges(F)
-    area = face_areas(V, F)
-    status = assign_views(visibilities, [v.region for v in job.views], face_adjacency(FE), area)
-    for i, spec in enumerate(job.views):
-        if not status[:, i].any():
-            seen = int((visibilities[i].full | visibilities[i].partial).sum())
-            why = "it sees no front face of the object" if seen == 0 else "earlier views own everything it sees"
-            raise WorkbenchError(
-                f"{job.path}: views[{i}] ({spec.name!r}) sees nothing of the object to decorate: {why}"
-            )
+    cameras, visibilities, status = assign_job_views(job, V, F, images)
     t["views"] = time.perf_counter() - t0
     say("views: " + ", ".join(f"{s.name} {int((status[:, i] != 0).sum())} faces" for i, s in enumerate(job.views)))
 
@@ -204,7 +415,50 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         visibilities=visibilities,
         view_px_per_print_px=scales,
         timings_s=t,
+        view_status=status,
     )
+
+
+def assign_job_views(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.ndarray]):
+    """Cameras, depth buffers and face ownership of the job's views on a mesh.
+
+    Returns
+    -------
+    cameras : list of Camera
+    visibilities : list of ViewVisibility
+    status : (#F, #views) int8
+        See :func:`workbench.views.visibility.assign_views`.
+
+    Raises
+    ------
+    WorkbenchError
+        A camera with part of the object behind it, or a view that sees nothing.
+    """
+    cameras, visibilities = [], []
+    for i, (spec, img) in enumerate(zip(job.views, images, strict=True)):
+        cam = spec.make_camera(img.shape[1], img.shape[0])
+        xy, z = cam.project(V)
+        behind = np.flatnonzero(z <= 1e-6 * np.abs(z).max())
+        if len(behind):
+            where = (np.round(cam.center, 2) + 0.0).tolist()  # + 0.0: print -0.0 as 0.0
+            raise WorkbenchError(
+                f"{job.path}: views[{i}] ({spec.name!r}): the camera at {where} mm has part "
+                f"of the object level with or behind it (vertex {int(behind[0])}); a view camera must see the whole "
+                "object in front of it, not from inside or among it"
+            )
+        cameras.append(cam)
+        visibilities.append(view_visibility(V, F, cam))
+    E, FE, _ = unique_edges(F)
+    area = face_areas(V, F)
+    status = assign_views(visibilities, [v.region for v in job.views], face_adjacency(FE), area)
+    for i, spec in enumerate(job.views):
+        if not status[:, i].any():
+            seen = int((visibilities[i].full | visibilities[i].partial).sum())
+            why = "it sees no front face of the object" if seen == 0 else "earlier views own everything it sees"
+            raise WorkbenchError(
+                f"{job.path}: views[{i}] ({spec.name!r}) sees nothing of the object to decorate: {why}"
+            )
+    return cameras, visibilities, status
 
 
 def view_statistics(result: DesignResult, names: list[str]) -> list[dict]:
@@ -231,7 +485,8 @@ def view_statistics(result: DesignResult, names: list[str]) -> list[dict]:
         fb = result.visibilities[v].face_buffer
         seen = fb >= 0
         used = np.zeros_like(seen)
-        used[seen] = result.status[fb[seen], v] != 0
+        vs = result.status if result.view_status is None else result.view_status
+        used[seen] = vs[fb[seen], v] != 0
         stats.append(
             {
                 "name": name,

@@ -83,7 +83,14 @@ def texture_uv(uv_mm: np.ndarray, image_width_mm: float, image_height_mm: float,
     return np.stack([u, v], axis=1)
 
 
-def decorated_obj(V: np.ndarray, F: np.ndarray, vt: np.ndarray, name: str, texture: str) -> tuple[bytes, bytes]:
+def decorated_obj(
+    V: np.ndarray,
+    F: np.ndarray,
+    vt: np.ndarray,
+    name: str,
+    texture: str,
+    groups: list[tuple[str, str, int, int]] | None = None,
+) -> tuple[bytes, bytes]:
     """OBJ and MTL of the decorated part: vertices in input order, one vt per vertex.
 
     Parameters
@@ -98,18 +105,25 @@ def decorated_obj(V: np.ndarray, F: np.ndarray, vt: np.ndarray, name: str, textu
         Base name of the MTL file.
     texture : str
         Texture file name as the MTL refers to it.
+    groups : list of (material, texture, first face, end face), optional
+        Several films: faces [first, end) use their own material and texture (``vt``
+        then points into that texture); default one material ``print`` for all.
 
     Returns
     -------
     obj, mtl : bytes
     """
-    lines = ["# workbench decorated part", f"mtllib {name}.mtl", "usemtl print"]
+    groups = groups or [("print", texture, 0, len(F))]
+    lines = ["# workbench decorated part", f"mtllib {name}.mtl"]
     lines += [f"v {x:.12g} {y:.12g} {z:.12g}" for x, y, z in V.tolist()]
     lines += [f"vt {u:.10f} {v:.10f}" for u, v in vt.tolist()]
-    # f v/vt with the same index: the texture coordinates follow the vertex numbering
-    lines += list(map("f {0}/{0} {1}/{1} {2}/{2}".format, *(F + 1).T.tolist()))
-    mtl = f"# workbench decorated part\nnewmtl print\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {texture}\n"
-    return ("\n".join(lines) + "\n").encode(), mtl.encode()
+    mtl = ["# workbench decorated part"]
+    for material, image, lo, hi in groups:
+        lines.append(f"usemtl {material}")
+        # f v/vt with the same index: the texture coordinates follow the vertex numbering
+        lines += list(map("f {0}/{0} {1}/{1} {2}/{2}".format, *(F[lo:hi] + 1).T.tolist()))
+        mtl.append(f"newmtl {material}\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {image}")
+    return ("\n".join(lines) + "\n").encode(), ("\n".join(mtl) + "\n").encode()
 
 
 def decorated_glb(V: np.ndarray, F: np.ndarray, vt: np.ndarray, rgb: np.ndarray, max_texture_px: int = 4096) -> bytes:

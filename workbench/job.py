@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -66,8 +67,40 @@ class ViewSpec:
 
 
 @dataclass(frozen=True)
+class FilmSpec:
+    """``[[films]]``: one film, the surface it covers and how it is cut.
+
+    Attributes
+    ----------
+    name : str
+        Shown in outputs ("film k of n").
+    views : tuple of str, or None
+        The film covers the surface these views own.
+    faces : Path or None
+        Or a text file of 0-based face indices (whitespace or comma separated).
+    outline : {'rectangle', 'free'}
+        Its outline (default: ``[print] outline``).
+    corners : tuple of 4 int, or None
+        Corner vertices of a rectangle (vertex indices of the part's mesh).
+    material : Material
+        Its material (default: ``[object] material``).
+    """
+
+    name: str
+    views: tuple[str, ...] | None = None
+    faces: Path | None = None
+    outline: str = "rectangle"
+    corners: tuple[int, int, int, int] | None = None
+    material: Material = Material()
+
+
+@dataclass(frozen=True)
 class Job:
-    """A parsed job file; paths are absolute."""
+    """A parsed job file; paths are absolute.
+
+    ``films``: None (one film over the whole part), ``"auto"`` (split so that every
+    film stays within the material's ``max_stretch``), or the films given by hand.
+    """
 
     path: Path
     sha256: str
@@ -75,6 +108,7 @@ class Job:
     print: PrintSpec
     views: tuple[ViewSpec, ...]
     fixture: dict | None
+    films: tuple[FilmSpec, ...] | str | None = None
 
     @property
     def name(self) -> str:
@@ -257,7 +291,7 @@ def load_job(path: str | Path) -> Job:
         doc = tomllib.loads(data.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise WorkbenchError(f"{path}: not valid TOML: {exc}") from None
-    top = _Reader(path, "job", doc, {"object", "print", "views", "fixture"})
+    top = _Reader(path, "job", doc, {"object", "print", "views", "fixture", "films"})
 
     o = _Reader(path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material"})
     corners = o.get("corners")
@@ -300,6 +334,7 @@ def load_job(path: str | Path) -> Job:
     fixture = top.get("fixture")
     if fixture is not None and not isinstance(fixture, dict):
         top.fail("must be a table", "fixture")
+    films = _films(path, top, obj, spec, {v.name for v in views})
     return Job(
         path=path,
         sha256=hashlib.sha256(data).hexdigest(),
@@ -307,4 +342,61 @@ def load_job(path: str | Path) -> Job:
         print=spec,
         views=tuple(views),
         fixture=fixture,
+        films=films,
     )
+
+
+def _films(path: Path, top: _Reader, obj: ObjectSpec, spec: PrintSpec, view_names: set[str]):
+    """``films = "auto"`` or ``[[films]]`` tables; None without either."""
+    raw = top.get("films")
+    if raw is None:
+        return None
+    if raw == "auto":
+        if obj.material.max_stretch is None:
+            top.fail('"auto" splits the part so that each film stays within the material: set '
+                     "[object].material.max_stretch", "films")
+        if obj.corners is not None:
+            top.fail('"auto" films have free outlines: leave out [object].corners', "films")
+        return "auto"
+    if not isinstance(raw, list) or not raw or not all(isinstance(t, dict) for t in raw):
+        top.fail('must be "auto" or one or more [[films]] tables', "films")
+    films: list[FilmSpec] = []
+    for i, table in enumerate(raw):
+        r = _Reader(path, f"films[{i}]", table, {"name", "views", "faces", "outline", "corners", "material"})
+        name = r.string("name", f"film-{i + 1}")
+        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}", name) or any(f.name == name for f in films):
+            r.fail(
+                f"film name {name!r}: use letters, digits, '_', '-' and '.' (not first), once per job; it names files",
+                "name",
+            )
+        views = r.get("views")
+        if views is not None:
+            if not isinstance(views, list) or not views or not all(isinstance(v, str) for v in views):
+                r.fail("must be a list of view names", "views")
+            unknown = [v for v in views if v not in view_names]
+            if unknown:
+                r.fail(f"no view named {unknown[0]!r} (views: {', '.join(sorted(view_names))})", "views")
+            views = tuple(views)
+        faces = r.file("faces", required=False)
+        if (views is None) == (faces is None):
+            r.fail("give the surface as views = [...] or as faces = \"file.txt\" (one of them)")
+        outline = r.string("outline", spec.outline, choices=("rectangle", "free"))
+        corners = r.get("corners")
+        if corners is not None:
+            if outline != "rectangle":
+                r.fail("corners belong to a rectangle; a free outline has none", "corners")
+            if not (
+                isinstance(corners, list)
+                and len(corners) == 4
+                and all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in corners)
+            ):
+                r.fail(f"must be a list of 4 vertex indices, got {corners!r}", "corners")
+            corners = tuple(corners)
+        material = obj.material
+        if r.has("material"):
+            m = _Reader(path, f"films[{i}].material", r.get("material"), {"name", "max_stretch"})
+            material = Material(
+                name=m.string("name", obj.material.name), max_stretch=m.number("max_stretch", None, lo=0)
+            )
+        films.append(FilmSpec(name, views, faces, outline, corners, material))
+    return tuple(films)

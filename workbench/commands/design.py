@@ -13,6 +13,7 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import write_files
 from workbench.commands.flatten import summary
+from workbench.conformal.distortion import weighted_quantiles
 from workbench.design import background_share, design, film_area_mm2, fit_warnings, read_image, view_statistics
 from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
@@ -44,6 +45,40 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def film_records(result) -> list[dict]:
+    """design.json's ``films`` (one record per film) followed by the seams' record."""
+    seam = result.seams
+    records = []
+    for k, f in enumerate(result.films):
+        ok = ~f.flat.collapsed
+        q = weighted_quantiles(f.flat.stretch[ok], f.flat.area_3d[ok], [0.0, 0.5, 1.0])
+        records.append(
+            {
+                "name": f.name,
+                "film": f"{k + 1} of {len(result.films)}",
+                "print": f"print-{f.name}.png",
+                "flat": f"flat-{f.name}.obj",
+                "outline": f.outline,
+                "faces": int(len(f.faces)),
+                "surface_mm2": float(f.flat.area_3d.sum()),
+                "width_mm": f.flat.width_mm,
+                "height_mm": f.flat.height_mm,
+                "width_px": f.grid.shape[1],
+                "height_px": f.grid.shape[0],
+                "film_area_mm2": film_area_mm2(f.flat),
+                "material": {"name": f.material.name, "max_stretch": f.material.max_stretch},
+                "stretch": {"min": float(q[0]), "p50": float(q[1]), "max": float(q[2])},
+                "within_material_share": f.within,
+                "seam_mm": seam["per_film_mm"][k],
+                "atlas_px": [int(f.atlas_px[0]), int(f.atlas_px[1])],
+                "atlas_faces": [int(f.atlas_faces[0]), int(f.atlas_faces[1])],
+                "scale_mode": str(f.flat.scale),
+            }
+        )
+    records.append({"length_mm": seam["length_mm"], "inside_a_view_mm": seam["in_view_mm"]})
+    return records
+
+
 def print_with_alpha(rgb: np.ndarray, film: np.ndarray) -> np.ndarray:
     """The print as RGB when the film is the whole rectangle, else RGBA, transparent outside the film."""
     return rgb if film.all() else np.dstack([rgb, np.where(film, 255, 0).astype(np.uint8)])
@@ -64,7 +99,20 @@ def run(args) -> int:
     rows, cols = grid.shape
     image_w_mm, image_h_mm = cols / grid.px_per_mm, rows / grid.px_per_mm
     vt = texture_uv(flat.uv, image_w_mm, image_h_mm, flat.height_mm)
-    obj, mtl = decorated_obj(result.V, result.F, vt, "decorated", "print.png")
+    if result.films:
+        # viewers: each film's faces use that film's own print (vt into it)
+        vt_films, groups = vt.copy(), []
+        for k, f in enumerate(result.films):
+            lo, hi = f.atlas_faces
+            verts = np.unique(result.F[lo:hi])
+            fr, fc = f.grid.shape
+            ppm = grid.px_per_mm
+            local = flat.uv[verts] - [f.atlas_px[1] / ppm, flat.height_mm - f.atlas_px[0] / ppm - f.flat.height_mm]
+            vt_films[verts] = texture_uv(local, fc / grid.px_per_mm, fr / grid.px_per_mm, f.flat.height_mm)
+            groups.append((f"film-{k + 1}", f"print-{f.name}.png", lo, hi))
+        obj, mtl = decorated_obj(result.V, result.F, vt_films, "decorated", "print.png", groups)
+    else:
+        obj, mtl = decorated_obj(result.V, result.F, vt, "decorated", "print.png")
     stats = view_statistics(result, names)
     flat_summary = summary(flat)
     limit = job.object.material.max_stretch
@@ -141,6 +189,16 @@ def run(args) -> int:
             limit=limit,
         ),
     }
+    if result.films:
+        info["films"] = film_records(result)
+        info["seams"] = info["films"].pop()
+        for f in result.films:
+            files[out / f"print-{f.name}.png"] = png_bytes(print_with_alpha(f.rgb, f.film), grid.dpi)
+            files[out / f"flat-{f.name}.obj"] = format_obj(
+                np.column_stack([f.flat.uv, np.zeros(len(f.flat.uv))]),
+                f.flat.F,
+                header=f"workbench {__version__} flat layout of film {f.name} of {job.object.mesh.name}, mm",
+            )
     # the view images, so that the design directory alone is enough to validate photos
     for v in job.views:
         files[out / f"view-{v.name}.png"] = (

@@ -141,6 +141,9 @@ class FlattenOptions:
         print can carry; a face that prints smaller, and ``CROWDING`` times smaller
         than the map's typical scale would print it, is crowded. Default half a
         pixel at 300 dpi.
+    check_overlap : bool
+        Refuse a free outline that overlaps itself (the automatic film split turns
+        it off to cut the layout instead).
     """
 
     corners: tuple[int, int, int, int] | None = None
@@ -149,6 +152,7 @@ class FlattenOptions:
     flips: bool | None = None
     min_print_mm: float = DEFAULT_MIN_PRINT_MM
     outline: str = "rectangle"
+    check_overlap: bool = True
 
 
 @dataclass
@@ -430,7 +434,8 @@ def flatten(
         if free:
             boundary_xy, mismatch = free_boundary(blen[loop], angle_sums(tri.F, newton.alpha, len(V))[loop])
             X = dirichlet_layout(tri.F, newton.cot, loop, boundary_xy, newton.assembler)
-            check_outline_simple(V, loop, X[loop])
+            if options.check_overlap:
+                check_outline_simple(V, loop, X[loop])
             X -= X.min(axis=0)
             width, height = (float(x) for x in X.max(axis=0))
         else:

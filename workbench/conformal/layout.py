@@ -204,8 +204,13 @@ def dirichlet_layout(
     L = cotan_laplacian(F, cot, n).tocsr()
     xy = np.zeros((n, 2))
     xy[loop] = boundary_xy
+    if len(assembler.free) == 0:
+        return xy  # every vertex on the boundary: the outline is the layout
     rhs = -(L[assembler.free][:, loop] @ boundary_xy)
-    xy[assembler.free] = SPDSolver(assembler.upper(cot)).solve(rhs)
+    try:
+        xy[assembler.free] = SPDSolver(assembler.upper(cot)).solve(rhs)
+    except Exception as exc:  # noqa: BLE001 - any backend's failure is one refusal
+        raise WorkbenchError(f"layout failed: the harmonic solve broke down ({type(exc).__name__})") from None
     if not np.isfinite(xy).all():
         raise WorkbenchError("layout failed: the harmonic solve gave non-finite positions")
     return xy

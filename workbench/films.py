@@ -1,0 +1,545 @@
+"""Several films on one part: disc-shaped regions of the surface, chosen by hand or split automatically."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from workbench.conformal.flatten import CrowdingError, FlattenOptions, FlattenResult, ScaleMode, flatten
+from workbench.conformal.layout import polygon_self_intersections
+from workbench.errors import WorkbenchError
+from workbench.mesh.topology import boundary_loops, unique_edges
+
+# A film is within its material when the stretch (3D length / print length) stays in
+# [MIN_STRETCH, max_stretch] on all but this share of its surface (design's warning rule).
+MIN_STRETCH = 0.8
+MAX_OFF_SHARE = 0.01
+# Smallest film the automatic split makes, in faces: below it a region is not split again.
+MIN_FILM_FACES = 24
+
+
+def face_graph(F: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
+    """Faces sharing an edge, and the edges.
+
+    Parameters
+    ----------
+    F : (#F, 3) int
+        Triangles.
+
+    Returns
+    -------
+    adjacency : (#F, #F) sparse bool
+        True where two faces share an edge.
+    E : (#E, 2) int
+        Undirected edges (see :func:`workbench.mesh.topology.unique_edges`).
+    edge_faces : (#E, 2) int
+        The two faces of each edge, -1 for the missing one on the boundary.
+    """
+    E, FE, _ = unique_edges(F)
+    edge_faces = np.full((len(E), 2), -1, dtype=np.int64)
+    f = np.repeat(np.arange(len(F)), 3)
+    e = FE.ravel()
+    order = np.argsort(e, kind="stable")
+    e, f = e[order], f[order]
+    first = np.r_[True, e[1:] != e[:-1]]
+    edge_faces[e[first], 0] = f[first]
+    edge_faces[e[~first], 1] = f[~first]
+    inner = edge_faces[:, 1] >= 0
+    a, b = edge_faces[inner, 0], edge_faces[inner, 1]
+    n = len(F)
+    adjacency = sp.csr_matrix((np.ones(2 * len(a), bool), (np.r_[a, b], np.r_[b, a])), shape=(n, n))
+    return adjacency, E, edge_faces
+
+
+def _components(adjacency: sp.csr_matrix, mask: np.ndarray) -> np.ndarray:
+    """Connected component label of every face in ``mask`` (-1 elsewhere)."""
+    idx = np.flatnonzero(mask)
+    labels = np.full(len(mask), -1, dtype=np.int64)
+    if len(idx):
+        _, lab = connected_components(adjacency[idx][:, idx], directed=False)
+        labels[idx] = lab
+    return labels
+
+
+def disc_region(
+    F: np.ndarray, wanted: np.ndarray, area: np.ndarray, allowed: np.ndarray | None = None, graph=None
+) -> np.ndarray:
+    """The largest disc-shaped region made from a set of faces.
+
+    Keeps the largest connected part (by area), fills its holes with allowed faces,
+    and opens pinches (two fans of faces meeting at one vertex) by adding the faces
+    around the vertex, so that the region is a topological disc: one boundary loop,
+    Euler characteristic 1.
+
+    Parameters
+    ----------
+    F : (#F, 3) int
+        Triangles of the part (a disc).
+    wanted : (#F,) bool
+        The faces asked for.
+    area : (#F,) float
+        Face areas, mm².
+    allowed : (#F,) bool, optional
+        Faces the region may take to fill holes and pinches (default: all).
+    graph : tuple, optional
+        :func:`face_graph` of ``F``, when the caller has it.
+
+    Returns
+    -------
+    region : (#F,) bool
+
+    Raises
+    ------
+    WorkbenchError
+        No face wanted, or a hole or pinch that only faces not allowed could close.
+    """
+    adjacency, E, edge_faces = graph if graph is not None else face_graph(F)
+    allowed = np.ones(len(F), bool) if allowed is None else allowed
+    on_rim = np.zeros(len(F), bool)
+    on_rim[edge_faces[edge_faces[:, 1] < 0, 0]] = True
+    region = wanted.copy()
+    for _ in range(8):
+        labels = _components(adjacency, region)
+        if labels.max() < 0:
+            raise WorkbenchError("the region holds no face")
+        sizes = np.bincount(labels[region], weights=area[region])
+        region = labels == int(np.argmax(sizes))
+        # holes: parts of the rest that do not reach the part's rim are enclosed
+        rest = _components(adjacency, ~region)
+        open_parts = np.unique(rest[on_rim & ~region])
+        hole = (~region) & ~np.isin(rest, open_parts)
+        if (hole & ~allowed).any():
+            raise WorkbenchError(f"the region encloses {int((hole & ~allowed).sum())} faces of another film")
+        region |= hole
+        pinched = _pinched_vertices(F, region, E, edge_faces)
+        if len(pinched) == 0:
+            return region
+        around = np.isin(F, pinched).any(axis=1) & ~region
+        if (around & ~allowed).all() and around.any():
+            raise WorkbenchError(f"the region is pinched at vertex {int(pinched[0])} between other films")
+        region |= around & allowed
+    raise WorkbenchError("the region does not become a disc")
+
+
+def _pinched_vertices(F: np.ndarray, region: np.ndarray, E: np.ndarray, edge_faces: np.ndarray) -> np.ndarray:
+    """Vertices with more than two region-boundary edges (two fans meeting at a point)."""
+    inside = np.where(edge_faces >= 0, region[np.maximum(edge_faces, 0)], False)
+    rim = inside.sum(axis=1) == 1
+    count = np.bincount(E[rim].ravel(), minlength=int(F.max()) + 1)
+    return np.flatnonzero(count > 2)
+
+
+def submesh(V: np.ndarray, F: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mesh of some faces, its vertices renumbered in their original order.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+    F : (#F, 3) int
+    faces : (k,) int
+        Faces to keep, in this order.
+
+    Returns
+    -------
+    Vs : (#Vs, 3) float
+    Fs : (k, 3) int
+    vertices : (#Vs,) int
+        Original index of each kept vertex (increasing).
+    """
+    vertices, Fs = np.unique(F[faces], return_inverse=True)
+    return V[vertices], Fs.reshape(-1, 3).astype(np.int64), vertices
+
+
+def is_disc(F: np.ndarray) -> bool:
+    """One boundary loop and Euler characteristic 1."""
+    E, _, _ = unique_edges(F)
+    n_v = len(np.unique(F))
+    try:
+        loops = boundary_loops(F)
+    except WorkbenchError:
+        return False
+    return len(loops) == 1 and n_v - len(E) + len(F) == 1
+
+
+def stretch_window(stretch: np.ndarray, area: np.ndarray, max_stretch: float) -> tuple[float, float]:
+    """The scale that keeps the most surface within the material, and that share.
+
+    Scaling a print by ``s`` divides every stretch by ``s``; the band
+    [MIN_STRETCH, max_stretch] is a window of fixed width in log stretch, slid over
+    the area-weighted distribution of log stretch to cover the most area.
+
+    Parameters
+    ----------
+    stretch : (#F,) float
+        Stretch per face at the current scale (3D length / print length).
+    area : (#F,) float
+        Face areas, weights.
+    max_stretch : float
+        The material's limit.
+
+    Returns
+    -------
+    s : float
+        Factor to multiply the print's size by.
+    share : float
+        Share of the area within the band after scaling.
+    """
+    ok = np.isfinite(stretch) & (stretch > 0)
+    x = np.log(stretch[ok])
+    w = area[ok]
+    order = np.argsort(x)
+    x, w = x[order], w[order]
+    cw = np.r_[0.0, np.cumsum(w)]
+    width = np.log(max_stretch / MIN_STRETCH)
+    # window [x_i, x_i + width] starting at each face's log stretch
+    end = np.searchsorted(x, x + width, side="right")
+    covered = cw[end] - cw[np.arange(len(x))]
+    i = int(np.argmax(covered))
+    # put the window's lower edge, x_i, on log MIN_STRETCH: s = stretch_i / MIN_STRETCH
+    return float(np.exp(x[i]) / MIN_STRETCH), float(covered[i] / area.sum())
+
+
+@dataclass
+class FilmFit:
+    """One automatic film: its faces and its map at the chosen scale."""
+
+    faces: np.ndarray
+    flat: FlattenResult
+    scale: ScaleMode
+    within: float
+
+
+def fit_film(
+    V: np.ndarray, F: np.ndarray, faces: np.ndarray, max_stretch: float, options: FlattenOptions
+) -> tuple[FilmFit | None, str, FlattenResult | None]:
+    """Flatten a region onto a free outline at the scale that suits its material best.
+
+    Returns
+    -------
+    fit : FilmFit or None
+        The film, when it fits.
+    reason : str
+        Why it does not fit (out of the stretch band, outline over itself, crowded).
+    layout : FlattenResult or None
+        The region's free layout (area scale), for the cut that splits it.
+    """
+    Vs, Fs, _ = submesh(V, F, faces)
+    probe = replace(options, outline="free", scale=ScaleMode("area"), min_print_mm=0.0, check_overlap=False)
+    try:
+        flat = flatten(Vs, Fs, probe)
+    except WorkbenchError as exc:
+        return None, str(exc).split(": ", 1)[-1], None
+    s, within = stretch_window(flat.stretch, flat.area_3d, max_stretch)
+    if within < 1 - MAX_OFF_SHARE:
+        return None, f"{1 - within:.1%} of it leaves the stretch band", flat
+    loop = boundary_loops(flat.F)[0]
+    if len(polygon_self_intersections(flat.uv[loop])):
+        return None, "its outline overlaps itself", flat
+    scale = ScaleMode("width", flat.width_mm * s)
+    try:
+        final = flatten(Vs, Fs, replace(options, outline="free", scale=scale))
+    except CrowdingError as exc:
+        return None, f"{exc.share:.1%} of it is crowded", flat
+    except WorkbenchError as exc:
+        return None, str(exc).split(": ", 1)[-1], flat
+    return FilmFit(faces=faces, flat=final, scale=scale, within=within), "", flat
+
+
+def split_in_two(
+    faces: np.ndarray, layout: FlattenResult | None, points: np.ndarray, normals: np.ndarray, area: np.ndarray
+):
+    """Two halves of a region, cut by a straight line across its flat layout.
+
+    A straight cut across a planar embedding leaves simply connected pieces, so both
+    halves stay discs (up to pinches that :func:`disc_region` opens). Among lines in
+    12 directions at the 30, 50 and 70 % area quantiles, the one whose halves are
+    each closest to flat is kept: least area-weighted normal dispersion,
+    Σ_half (A_half - |Σ A n|), the area a half would lose if its normals all lined
+    up; a film's stretch spread grows with it. Without a layout (the solve failed),
+    the same over the face centroids projected on the surface's two longest
+    principal axes.
+
+    Parameters
+    ----------
+    faces : (k,) int
+        The region's faces.
+    layout : FlattenResult or None
+        Its free layout (faces in the order of ``faces``, possibly subdivided).
+    points : (k, 3) float
+        Face centroids in 3D, for the fallback.
+    normals : (k, 3) float
+        Unit face normals.
+    area : (k,) float
+        Face areas.
+
+    Returns
+    -------
+    (a, b) : two non-empty (k_a,), (k_b,) int arrays of faces, or None.
+    """
+    if layout is not None:
+        c2 = layout.uv[layout.F].mean(axis=1)
+        w = layout.area_3d
+        weight = np.bincount(layout.parent, weights=w, minlength=len(faces))
+        pts = np.stack(
+            [np.bincount(layout.parent, weights=w * c2[:, k], minlength=len(faces)) for k in range(2)], axis=1
+        ) / np.maximum(weight, 1e-300)[:, None]
+    else:
+        d3 = points - np.average(points, axis=0, weights=area)
+        axes = np.linalg.eigh((d3 * area[:, None]).T @ d3)[1][:, -2:]
+        pts = d3 @ axes
+    An = normals * area[:, None]
+    best, best_score = None, np.inf
+    for theta in np.linspace(0.0, np.pi, 12, endpoint=False):
+        t = pts @ np.array([np.cos(theta), np.sin(theta)])
+        order = np.argsort(t, kind="stable")
+        cw = np.cumsum(area[order])
+        for q in (0.3, 0.5, 0.7):
+            k = min(int(np.searchsorted(cw, q * cw[-1])), len(t) - 2)
+            side = np.zeros(len(t), bool)
+            side[order[: k + 1]] = True
+            score = (
+                area[side].sum()
+                - np.linalg.norm(An[side].sum(axis=0))
+                + area[~side].sum()
+                - np.linalg.norm(An[~side].sum(axis=0))
+            )
+            if score < best_score - 1e-12:
+                best, best_score = side, score
+    if best is None or best.all() or not best.any():
+        return None
+    return faces[best], faces[~best]
+
+
+def _with_neighbour(leftover: np.ndarray, queue: list, adjacency: sp.csr_matrix) -> tuple[np.ndarray, bool]:
+    """A small leftover joins a queued region it touches (taken out of the queue); a large one stands alone."""
+    faces = np.flatnonzero(leftover)
+    if len(faces) < MIN_FILM_FACES:
+        touching = np.zeros(len(leftover), bool)
+        touching[adjacency[faces].indices] = True
+        for k, (other, _) in enumerate(queue):
+            if touching[other].any():
+                queue.pop(k)
+                return np.union1d(other, faces), False
+    return faces, False
+
+
+def split_films(
+    V: np.ndarray,
+    F: np.ndarray,
+    decorated: np.ndarray,
+    owner_view: np.ndarray,
+    max_stretch: float,
+    options: FlattenOptions,
+    max_films: int = 48,
+    log: Callable[[str], None] | None = None,
+) -> list[FilmFit]:
+    """Partition the decorated surface into disc-shaped films that each stay within the material.
+
+    Greedy recursive bisection: a region that does not fit (stretch out of
+    [MIN_STRETCH, max_stretch] on more than 1 % of it at its best scale, an outline
+    over itself, or crowded) is split: first along the borders between views (a seam
+    there crosses no view's image), then by straight cuts across its flat layout.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        The part, mm.
+    F : (#F, 3) int
+        Its triangles (a disc).
+    decorated : (#F,) bool
+        Faces to cover (those some view owns).
+    owner_view : (#F,) int
+        First owning view per face, -1 for none.
+    max_stretch : float
+        The material's limit.
+    options : FlattenOptions
+        Solver settings (outline and scale are chosen here).
+    max_films : int
+        Give up beyond this many films.
+    log : callable, optional
+        Progress lines.
+
+    Returns
+    -------
+    list of FilmFit
+        Ordered by their first face.
+
+    Raises
+    ------
+    WorkbenchError
+        A region too small to split that does not fit, or too many films.
+    """
+    say = log or (lambda _m: None)
+    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    normals = cross / np.maximum(2 * area, 1e-300)[:, None]
+    centroids = V[F].mean(axis=1)
+    graph = face_graph(F)
+    done: list[FilmFit] = []
+    claimed = np.zeros(len(F), bool)
+    queue = [(np.flatnonzero(disc_region(F, decorated, area, graph=graph)), True)]
+    attempts = 0
+    while queue:
+        attempts += 1
+        if attempts > 4 * max_films:
+            raise WorkbenchError(f"no split into at most {max_films} films keeps max_stretch {max_stretch:g}")
+        faces, by_views = queue.pop(0)
+        mask = np.zeros(len(F), bool)
+        mask[faces] = True
+        mask &= ~claimed
+        if not mask.any():
+            continue
+        try:
+            region = disc_region(F, mask, area, allowed=~claimed, graph=graph)
+        except WorkbenchError as exc:
+            # a ring around a finished film (or pinched between films): cut it across
+            faces = np.flatnonzero(mask)
+            halves = (
+                None
+                if len(faces) < MIN_FILM_FACES
+                else split_in_two(faces, None, centroids[faces], normals[faces], area[faces])
+            )
+            if halves is None:
+                raise WorkbenchError(f"{len(faces)} faces near vertex {int(F[faces[0], 0])}: {exc}") from None
+            say(f"{len(faces)} faces are no disc ({exc}): split in two")
+            queue.extend((h, False) for h in halves)
+            continue
+        faces = np.flatnonzero(region)
+        leftover = mask & ~region  # parts the disc repair dropped: queued again
+        if leftover.any():
+            queue.append(_with_neighbour(leftover, queue, graph[0]))
+        fit, why, layout = fit_film(V, F, faces, max_stretch, options)
+        if fit is not None:
+            claimed[faces] = True
+            done.append(fit)
+            say(f"film {len(done)}: {len(faces)} faces, {100 * fit.within:.1f} % of it within the stretch band")
+            continue
+        if len(done) + len(queue) + 2 > max_films:
+            raise WorkbenchError(f"more than {max_films} films would be needed to keep max_stretch {max_stretch:g}")
+        views = np.unique(owner_view[faces])
+        views = views[views >= 0]
+        if by_views and len(views) > 1:
+            say(f"{len(faces)} faces do not fit one film ({why}): split along the views' borders")
+            for v in views:
+                queue.append((faces[owner_view[faces] == v], False))
+            if (owner_view[faces] < 0).any():
+                queue.append((faces[owner_view[faces] < 0], False))
+            continue
+        halves = (
+            None
+            if len(faces) < MIN_FILM_FACES
+            else split_in_two(faces, layout, centroids[faces], normals[faces], area[faces])
+        )
+        if halves is None:
+            raise WorkbenchError(
+                f"a region of {len(faces)} faces near vertex {int(F[faces[0], 0])} does not fit one film ({why}) "
+                "and cannot be split further"
+            )
+        say(f"{len(faces)} faces do not fit one film ({why}): split in two")
+        queue.extend((h, False) for h in halves)
+    done = _absorb_small_films(V, F, done, graph, area, max_stretch, options, say)
+    done.sort(key=lambda f: int(f.faces[0]))
+    return done
+
+
+def _absorb_small_films(V, F, done, graph, area, max_stretch, options, say) -> list[FilmFit]:
+    """Films of fewer than MIN_FILM_FACES faces (what pinch repairs cut off) join a neighbour that still fits."""
+    adjacency = graph[0]
+    film_of = np.full(len(F), -1)
+    for k, f in enumerate(done):
+        film_of[f.faces] = k
+    gone = set()
+    for k in sorted(range(len(done)), key=lambda k: len(done[k].faces)):
+        small = done[k]
+        if len(small.faces) >= MIN_FILM_FACES:
+            break
+        near = film_of[adjacency[small.faces].indices]
+        near = [j for j in np.unique(near[(near >= 0) & (near != k)]) if j not in gone]
+        for j in sorted(near, key=lambda j: -len(done[j].faces)):
+            faces = np.union1d(done[j].faces, small.faces)
+            region = disc_region(F, np.isin(np.arange(len(F)), faces), area, allowed=film_of < 0, graph=graph)
+            if region.sum() != len(faces):
+                continue
+            fit, _, _ = fit_film(V, F, faces, max_stretch, options)
+            if fit is not None:
+                done[j] = fit
+                film_of[faces] = j
+                gone.add(k)
+                say(f"a film of {len(small.faces)} faces joins its neighbour ({len(faces)} faces)")
+                break
+    return [f for k, f in enumerate(done) if k not in gone]
+
+
+def seams(F: np.ndarray, V: np.ndarray, film_of_face: np.ndarray, owner_view: np.ndarray) -> dict:
+    """Seams between films: total length and the part inside one view's region.
+
+    Parameters
+    ----------
+    F : (#F, 3) int
+    V : (#V, 3) float
+    film_of_face : (#F,) int
+        Film per face, -1 for none.
+    owner_view : (#F,) int
+        First owning view per face, -1 for none.
+
+    Returns
+    -------
+    dict
+        ``length_mm`` (all seams), ``in_view_mm`` (seams with the same view on both
+        sides: visible in that view's image), ``per_film_mm`` (seam length around
+        each film).
+    """
+    _, E, edge_faces = face_graph(F)
+    inner = edge_faces[:, 1] >= 0
+    a, b = edge_faces[inner, 0], edge_faces[inner, 1]
+    fa, fb = film_of_face[a], film_of_face[b]
+    seam = (fa != fb) & (fa >= 0) & (fb >= 0)
+    length = np.linalg.norm(V[E[inner, 0]] - V[E[inner, 1]], axis=1)
+    in_view = seam & (owner_view[a] == owner_view[b]) & (owner_view[a] >= 0)
+    n = int(film_of_face.max()) + 1
+    per = np.bincount(fa[seam], weights=length[seam], minlength=n) + np.bincount(
+        fb[seam], weights=length[seam], minlength=n
+    )
+    return {
+        "length_mm": float(length[seam].sum()),
+        "in_view_mm": float(length[in_view].sum()),
+        "per_film_mm": per.tolist(),
+    }
+
+
+def pack_films(sizes_px: list[tuple[int, int]], gap_px: int) -> tuple[list[tuple[int, int]], tuple[int, int]]:
+    """Places for film prints on one sheet of pixels (shelf packing, tallest first).
+
+    Parameters
+    ----------
+    sizes_px : list of (rows, cols)
+        Print size of each film, pixels.
+    gap_px : int
+        Free pixels between films.
+
+    Returns
+    -------
+    offsets : list of (row, col)
+        Top-left pixel of each film, in the input order.
+    shape : (rows, cols)
+        The sheet.
+    """
+    total = sum((r + gap_px) * (c + gap_px) for r, c in sizes_px)
+    width = max(max(c for _, c in sizes_px), int(np.sqrt(total) * 1.2))
+    order = sorted(range(len(sizes_px)), key=lambda k: (-sizes_px[k][0], k))
+    offsets: list[tuple[int, int]] = [(0, 0)] * len(sizes_px)
+    row = col = shelf = 0
+    for k in order:
+        r, c = sizes_px[k]
+        if col > 0 and col + c > width:
+            row, col, shelf = row + shelf + gap_px, 0, 0
+        offsets[k] = (row, col)
+        col += c + gap_px
+        shelf = max(shelf, r)
+    rows = max(o[0] + s[0] for o, s in zip(offsets, sizes_px, strict=True))
+    cols = max(o[1] + s[1] for o, s in zip(offsets, sizes_px, strict=True))
+    return offsets, (rows, cols)

@@ -41,10 +41,11 @@ def view_check(job, r, vt, v, shift_vt=(0.0, 0.0)):
     own = hit & (r.owner[pi, pj] == v)
     # faces that are this view's alone (no earlier view claims any part of them),
     # seen through the independent ray cast: the print must give them to this view
-    fb = r.visibilities[v].face_buffer
+    # (with several films the depth buffers are of the input mesh, the design's mesh is the atlas)
+    fb, status = r.visibilities[v].face_buffer, r.view_status
     alone = np.zeros(hit.shape, bool)
-    earlier = (r.status[:, :v] != 0).any(axis=1)
-    alone[fb >= 0] = (r.status[fb[fb >= 0], v] != 0) & ~earlier[fb[fb >= 0]]
+    earlier = (status[:, :v] != 0).any(axis=1)
+    alone[fb >= 0] = (status[fb[fb >= 0], v] != 0) & ~earlier[fb[fb >= 0]]
     coverage = (own & alone).sum() / max(alone.sum(), 1)
     mask = cv2.erode(own.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     shifts = tile_misregistration(ref, img, mask)

@@ -22,7 +22,7 @@ from workbench.conformal.flatten import (
 )
 from workbench.conformal.layout import signed_areas
 from workbench.errors import WorkbenchError
-from workbench.films import disc_region, face_graph, pack_films, seams, split_films, submesh
+from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, seams, split_films, submesh
 from workbench.job import Job, Material
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import unique_edges
@@ -166,17 +166,22 @@ def _film_regions(job: Job, V, F, status, say) -> list[tuple[str, np.ndarray, Fl
         if not wanted.any():
             raise WorkbenchError(f"{where}: covers no face (earlier films took them, or its views own none)")
         try:
-            region = disc_region(F, wanted, area, allowed=~claimed, graph=graph)
+            region = disc_region(F, wanted, area, allowed=~claimed, graph=graph, keep_holes=True)
+            faces = np.flatnonzero(region)
+            Vs, Fs, vertices = submesh(V, F, faces)
+            if not is_disc(Fs):
+                # a ring around an earlier film: cut open along the shortest path between its rims
+                Vs, Fs, source = cut_to_disc(Vs, Fs)
+                vertices = vertices[source]
+                say(f"film {spec.name}: a ring around another film, cut open to a disc")
         except WorkbenchError as exc:
             raise WorkbenchError(f"{where}: {exc}") from None
-        faces = np.flatnonzero(region)
-        Vs, Fs, vertices = submesh(V, F, faces)
         corners = None
         if spec.corners is not None:
-            local = np.searchsorted(vertices, spec.corners)
-            if (local >= len(vertices)).any() or (vertices[np.minimum(local, len(vertices) - 1)] != spec.corners).any():
-                raise WorkbenchError(f"{where}: corners: a corner vertex is not on this film's surface")
-            corners = tuple(int(c) for c in local)
+            local = [np.flatnonzero(vertices == c) for c in spec.corners]
+            if any(len(x) != 1 for x in local):
+                raise WorkbenchError(f"{where}: corners: a corner vertex is not on this film's surface once")
+            corners = tuple(int(x[0]) for x in local)
         scale = job.print.scale if spec.outline == job.print.outline else ScaleMode.default(spec.outline)
         options = FlattenOptions(corners=corners, scale=scale, min_print_mm=min_print, outline=spec.outline)
         try:

@@ -66,7 +66,12 @@ def _components(adjacency: sp.csr_matrix, mask: np.ndarray) -> np.ndarray:
 
 
 def disc_region(
-    F: np.ndarray, wanted: np.ndarray, area: np.ndarray, allowed: np.ndarray | None = None, graph=None
+    F: np.ndarray,
+    wanted: np.ndarray,
+    area: np.ndarray,
+    allowed: np.ndarray | None = None,
+    graph=None,
+    keep_holes: bool = False,
 ) -> np.ndarray:
     """The largest disc-shaped region made from a set of faces.
 
@@ -87,6 +92,9 @@ def disc_region(
         Faces the region may take to fill holes and pinches (default: all).
     graph : tuple, optional
         :func:`face_graph` of ``F``, when the caller has it.
+    keep_holes : bool
+        Leave holes that hold faces not allowed (another film inside this one) open
+        instead of refusing; :func:`cut_to_disc` then opens the ring.
 
     Returns
     -------
@@ -113,7 +121,11 @@ def disc_region(
         open_parts = np.unique(rest[on_rim & ~region])
         hole = (~region) & ~np.isin(rest, open_parts)
         if (hole & ~allowed).any():
-            raise WorkbenchError(f"the region encloses {int((hole & ~allowed).sum())} faces of another film")
+            if not keep_holes:
+                raise WorkbenchError(f"the region encloses {int((hole & ~allowed).sum())} faces of another film")
+            # fill only the holes that hold no other film
+            blocked = np.unique(rest[hole & ~allowed])
+            hole &= ~np.isin(rest, blocked)
         region |= hole
         pinched = _pinched_vertices(F, region, E, edge_faces)
         if len(pinched) == 0:
@@ -152,6 +164,110 @@ def submesh(V: np.ndarray, F: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
     """
     vertices, Fs = np.unique(F[faces], return_inverse=True)
     return V[vertices], Fs.reshape(-1, 3).astype(np.int64), vertices
+
+
+def cut_to_disc(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Open a mesh with several boundary loops (a ring around another film) into a disc.
+
+    Each extra loop is joined to the first by the shortest path along edges through
+    the inside, and the mesh is cut along it: the path's vertices are repeated for
+    the faces on one side, so the ring becomes a disc whose outline runs along both
+    sides of the cut (a seam of this film with itself).
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+    F : (#F, 3) int
+        A connected manifold mesh of genus 0 with one or more boundary loops.
+
+    Returns
+    -------
+    Vc : (#Vc, 3) float
+        Vertices, the repeated ones after the input's.
+    Fc : (#F, 3) int
+        The same faces, renumbered along the cuts.
+    source : (#Vc,) int
+        Input vertex of each vertex.
+    """
+    from scipy.sparse.csgraph import dijkstra
+
+    source = np.arange(len(V))
+    for _ in range(64):
+        loops = boundary_loops(F)
+        if len(loops) <= 1:
+            return V[source], F, source
+        E, _, count = unique_edges(F)
+        on_loop = np.zeros(len(source), bool)
+        for loop in loops[1:]:
+            on_loop[loop] = True
+        first = np.zeros(len(source), bool)
+        first[loops[0]] = True
+        # the path may touch boundary vertices only at its two ends: edges between two
+        # boundary vertices, and edges into boundary vertices other than the ends, are out
+        rim = first | on_loop
+        ok = ~(rim[E[:, 0]] & rim[E[:, 1]])
+        P = V[source]
+        w = np.linalg.norm(P[E[ok, 0]] - P[E[ok, 1]], axis=1)
+        n = len(source)
+        G = sp.csr_matrix((np.r_[w, w], (np.r_[E[ok, 0], E[ok, 1]], np.r_[E[ok, 1], E[ok, 0]])), shape=(n, n))
+        target = loops[1]
+        dist, pred, start = dijkstra(G, indices=loops[0], return_predecessors=True, min_only=True)
+        end = target[np.argmin(dist[target])]
+        if not np.isfinite(dist[end]):
+            raise WorkbenchError("a ring-shaped film cannot be cut open (no path joins its two rims)")
+        path = [int(end)]
+        while pred[path[-1]] >= 0:
+            path.append(int(pred[path[-1]]))
+        path = path[::-1]  # from the first loop to the other
+        F, new = _cut_along(F, path)
+        source = np.r_[source, source[new]]
+    raise WorkbenchError("a film with too many holes")
+
+
+def _cut_along(F: np.ndarray, path: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Repeat the vertices of an edge path for the faces on its left; returns new F and the repeated vertices."""
+    n = int(F.max()) + 1
+    on_path = {(a, b) for a, b in zip(path[:-1], path[1:], strict=True)}
+    on_path |= {(b, a) for a, b in on_path}
+    forward = set(zip(path[:-1], path[1:], strict=True))
+    left = set()
+    # the face holding directed edge a→b lies on its left (counter-clockwise faces)
+    for k in range(3):
+        a, b = F[:, k], F[:, (k + 1) % 3]
+        for f in np.flatnonzero(np.isin(a, path) & np.isin(b, path)):
+            if (int(a[f]), int(b[f])) in forward:
+                left.add(int(f))
+    # around each path vertex, spread the left side through faces that share a non-path edge
+    side = set(left)
+    vf: dict[int, list[int]] = {v: [] for v in path}
+    for f in np.flatnonzero(np.isin(F, path).any(axis=1)):
+        for v in F[f]:
+            if int(v) in vf:
+                vf[int(v)].append(int(f))
+    for v in path:
+        fan = vf[v]
+        grow = True
+        while grow:
+            grow = False
+            for f in fan:
+                if f in side:
+                    continue
+                for g in fan:
+                    if g in side:
+                        shared = set(map(int, F[f])) & set(map(int, F[g]))
+                        if len(shared) == 2 and tuple(shared) not in on_path and tuple(shared)[::-1] not in on_path:
+                            side.add(f)
+                            grow = True
+                            break
+    Fc = F.copy()
+    new = np.array(path, dtype=np.int64)
+    remap = {v: n + i for i, v in enumerate(path)}
+    for f in side:
+        for k in range(3):
+            v = int(Fc[f, k])
+            if v in remap:
+                Fc[f, k] = remap[v]
+    return Fc, new
 
 
 def is_disc(F: np.ndarray) -> bool:

@@ -1,0 +1,214 @@
+"""Several films on one part: films by hand and split automatically, closed loop across seams."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from test_design import FIXTURES, view_check
+
+from workbench.cli import main
+from workbench.design import design
+from workbench.export import texture_uv
+from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, split_films
+from workbench.job import load_job
+from workbench.mesh.io import format_obj
+from workbench.mesh.validate import face_areas
+
+
+def atlas_vt(r):
+    rows, cols = r.grid.shape
+    return texture_uv(r.flat.uv, cols / r.grid.px_per_mm, rows / r.grid.px_per_mm, r.flat.height_mm)
+
+
+def default_job_with(tmp_path, extra: str, dpi: int = 300, material: str | None = None):
+    """The default job in tmp_path with extra TOML appended (films)."""
+    for name in ("part.obj", "logo.png", "front.png"):
+        (tmp_path / name).write_bytes((FIXTURES / "default" / name).read_bytes())
+    text = (FIXTURES / "default" / "job.toml").read_text().replace("dpi = 300", f"dpi = {dpi}")
+    if material:
+        text = text.replace('material = { name = "PET-G film 0.3 mm", max_stretch = 1.10 }', material)
+    path = tmp_path / "job.toml"
+    path.write_text(extra + "\n" + text if extra.startswith("films") else text + "\n" + extra)
+    return path
+
+
+HAND = """
+[[films]]
+name = "logo"
+views = ["logo"]
+outline = "free"
+
+[[films]]
+name = "front"
+views = ["front"]
+outline = "free"
+"""
+
+
+def test_two_films_by_hand_keep_every_view_exact_across_the_seam(tmp_path):
+    # the default lid with one film per view: the logo's film is the dome, the front's a
+    # ring around it, cut open to a disc; rendered through the atlas, each view shows its
+    # image as the single-film design does (median 0.1, p95 0.3 view px), seam included
+    job = load_job(default_job_with(tmp_path, HAND, dpi=600))
+    r = design(job)
+    assert [f.name for f in r.films] == ["logo", "front"]
+    owned = r.view_status != 0
+    first = np.where(owned.any(axis=1), np.argmax(owned, axis=1), -1)
+    for k, f in enumerate(r.films):
+        # each film is a disc made of the faces its view owns (plus holes filled)
+        assert is_disc(f.flat.F[:, :]) and (first[f.faces] == k).mean() > 0.97
+    assert r.seams["length_mm"] > 100 and r.seams["in_view_mm"] == 0.0
+    vt = atlas_vt(r)
+    for v in range(len(job.views)):
+        mis, coverage = view_check(job, r, vt, v)
+        assert len(mis) >= 8
+        assert np.median(mis) <= 0.1 and np.percentile(mis, 95) <= 0.3, (v, np.median(mis), np.percentile(mis, 95))
+        assert coverage >= 0.99, (v, coverage)
+
+
+def test_films_write_a_print_and_layout_each_and_one_material_each(tmp_path):
+    import cv2
+
+    path = default_job_with(tmp_path, HAND, dpi=100)
+    out = tmp_path / "d"
+    assert main(["design", str(path), "--out", str(out), "-q"]) == 0
+    info = json.loads((out / "design.json").read_text())
+    assert [f["film"] for f in info["films"]] == ["1 of 2", "2 of 2"]
+    for f in info["films"]:
+        img = cv2.imread(str(out / f["print"]), cv2.IMREAD_UNCHANGED)
+        assert img.shape[:2] == (f["height_px"], f["width_px"]) and img.shape[2] == 4
+        assert (out / f["flat"]).is_file() and f["within_material_share"] > 0.99
+    obj = (out / "decorated.obj").read_text()
+    assert obj.count("usemtl film-") == 2
+    mtl = (out / "decorated.mtl").read_text()
+    assert "map_Kd print-logo.png" in mtl and "map_Kd print-front.png" in mtl
+    assert info["seams"]["length_mm"] > 100
+
+
+def hemisphere(radius=40.0, n=48):
+    """A hemisphere of radius 40 mm (a deep dome no 1.3 film covers), z up, rim at z = 0."""
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    keep = m.triangles_center[:, 2] > 0.0
+    sub = m.submesh([np.flatnonzero(keep)], append=True)
+    return np.asarray(sub.vertices), np.asarray(sub.faces, dtype=np.int64)
+
+
+def test_auto_split_keeps_every_film_within_the_material(tmp_path):
+    # a hemisphere under one view from above: one free film squeezes its rim (stretch far
+    # outside [0.8, 1.3]); films = "auto" splits it, every film within the band on
+    # 99 % of its surface, every decorated face on exactly one film, and the closed loop
+    # through the atlas stays exact across the seams
+    V, F = hemisphere()
+    (tmp_path / "part.obj").write_bytes(format_obj(V, F))
+    (tmp_path / "top.png").write_bytes((FIXTURES / "deformed-grid" / "top.png").read_bytes())
+    path = tmp_path / "job.toml"
+    path.write_text(
+        """films = "auto"
+[object]
+mesh = "part.obj"
+material = { name = "PET-G", max_stretch = 1.3 }
+[print]
+dpi = 400
+outline = "free"
+[[views]]
+name = "top"
+image = "top.png"
+position = [0, 0, 300]
+look_at = [0, 0, 0]
+up = [0, 1, 0]
+fov_deg = 24
+"""
+    )
+    job = load_job(path)
+    r = design(job)
+    assert len(r.films) >= 2
+    for f in r.films:
+        assert f.within >= 0.99, (f.name, f.within)
+    covered = np.concatenate([f.faces for f in r.films])
+    decorated = np.flatnonzero((r.view_status != 0).any(axis=1))
+    assert len(np.unique(covered)) == len(covered) and set(decorated) <= set(covered)
+    assert r.seams["length_mm"] > 0
+    mis, coverage = view_check(job, r, atlas_vt(r), 0)
+    assert np.median(mis) <= 0.1 and np.percentile(mis, 95) <= 0.3 and coverage >= 0.99
+
+
+def test_a_ring_is_cut_open_to_a_disc():
+    # an annulus (12 x 40 grid wrapped round) becomes a disc: one boundary loop, Euler
+    # characteristic 1, the cut's vertices repeated after the input's
+    n_r, n_t = 6, 40
+    r = np.linspace(1, 2, n_r)
+    t = np.linspace(0, 2 * np.pi, n_t, endpoint=False)
+    R, T = np.meshgrid(r, t)
+    V = np.stack([(R * np.cos(T)).ravel(), (R * np.sin(T)).ravel(), np.zeros(R.size)], 1)
+    idx = np.arange(n_r * n_t).reshape(n_t, n_r)
+    nxt = np.roll(idx, -1, axis=0)
+    a, b, c, d = idx[:, :-1].ravel(), idx[:, 1:].ravel(), nxt[:, 1:].ravel(), nxt[:, :-1].ravel()
+    F = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    assert not is_disc(F)
+    Vc, Fc, source = cut_to_disc(V, F)
+    assert is_disc(Fc) and len(Vc) > len(V) and (source[: len(V)] == np.arange(len(V))).all()
+    assert np.allclose(Vc, V[source]) and np.allclose(face_areas(Vc, Fc), face_areas(V, F))
+
+
+def test_disc_region_fills_holes_and_opens_pinches():
+    # a grid with a region of two squares touching at one corner (a pinch) and a hole
+    from fixtures.make_fixtures import grid_mesh
+
+    P, F = grid_mesh(12, 12, np.random.default_rng(0), jitter=0.0)
+    V = np.column_stack([P, np.zeros(len(P))])
+    c = V[F].mean(axis=1)
+    area = face_areas(V, F)
+    ring = (np.abs(c[:, 0] - 0.5) < 0.35) & (np.abs(c[:, 1] - 0.5) < 0.35)
+    ring &= ~((np.abs(c[:, 0] - 0.5) < 0.1) & (np.abs(c[:, 1] - 0.5) < 0.1))
+    region = disc_region(F, ring, area, graph=face_graph(F))
+    assert is_disc(F[region]) and region.sum() > ring.sum()  # the hole is filled
+    blocked = np.zeros(len(F), bool)
+    blocked[(np.abs(c[:, 0] - 0.5) < 0.1) & (np.abs(c[:, 1] - 0.5) < 0.1)] = True
+    with pytest.raises(Exception, match="encloses"):
+        disc_region(F, ring, area, allowed=~blocked)
+    kept = disc_region(F, ring, area, allowed=~blocked, keep_holes=True)
+    assert not is_disc(F[kept]) and is_disc(cut_to_disc(V, F[kept])[1])
+
+
+def test_pack_films_places_prints_without_overlap():
+    sizes = [(50, 80), (120, 40), (30, 30), (70, 70), (10, 200)]
+    offsets, (rows, cols) = pack_films(sizes, 5)
+    boxes = [(r, c, r + h, c + w) for (r, c), (h, w) in zip(offsets, sizes, strict=True)]
+    for i, a in enumerate(boxes):
+        assert a[2] <= rows and a[3] <= cols
+        for b in boxes[i + 1 :]:
+            assert a[2] + 5 <= b[0] or b[2] + 5 <= a[0] or a[3] + 5 <= b[1] or b[3] + 5 <= a[1]
+
+
+def test_split_films_refuses_in_one_line_when_nothing_fits():
+    # max_stretch 0.81: the band [0.8, 0.81] is too narrow for any curved piece
+    from workbench.conformal.flatten import FlattenOptions
+    from workbench.errors import WorkbenchError
+
+    V, F = hemisphere(n=20)
+    owner = np.zeros(len(F), dtype=np.int64)
+    with pytest.raises(WorkbenchError, match="films|cannot be split"):
+        split_films(V, F, np.ones(len(F), bool), owner, 0.81, FlattenOptions(), max_films=6)
+
+
+@pytest.mark.parametrize(
+    ("extra", "fragment"),
+    [
+        ('films = "auto"', "set [object].material.max_stretch"),
+        ('[[films]]\nname = "a"\nviews = ["nope"]', "no view named 'nope'"),
+        ('[[films]]\nname = "../x"\nviews = ["logo"]', "film name '../x'"),
+        ('[[films]]\nname = "a"', "give the surface as views"),
+        ('[[films]]\nname = "a"\nviews = ["logo"]\noutline = "free"\ncorners = [1, 2, 3, 4]', "corners belong"),
+    ],
+)
+def test_film_job_errors_name_the_key(tmp_path, capsys, extra, fragment):
+    material = 'material = { name = "PET-G" }' if extra.startswith("films") else None
+    path = default_job_with(tmp_path, extra, material=material)
+    assert main(["design", str(path), "--out", str(tmp_path / "o"), "-q"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0] and "job.toml" in err[0], err
+    assert not (tmp_path / "o").exists()

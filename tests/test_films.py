@@ -212,3 +212,66 @@ def test_film_job_errors_name_the_key(tmp_path, capsys, extra, fragment):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and fragment in err[0] and "job.toml" in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+def test_pdf_has_one_page_per_film_with_its_trim_and_label(tmp_path):
+    import pypdf
+
+    path = default_job_with(tmp_path, HAND, dpi=100)
+    out = tmp_path / "d"
+    assert main(["design", str(path), "--out", str(out), "-q"]) == 0
+    assert main(["pdf", str(out), "-o", str(tmp_path / "p.pdf"), "--paper", "A4", "-q"]) == 0
+    info = json.loads((out / "design.json").read_text())
+    reader = pypdf.PdfReader(tmp_path / "p.pdf")
+    assert len(reader.pages) == len(info["films"]) == 2
+    for k, (page, f) in enumerate(zip(reader.pages, info["films"], strict=True)):
+        box = page.trimbox
+        w, h = (float(box.right) - float(box.left)) * 25.4 / 72, (float(box.top) - float(box.bottom)) * 25.4 / 72
+        assert abs(w - f["width_mm"]) < 0.01 and abs(h - f["height_mm"]) < 0.01
+        assert f"film {k + 1} of 2: {f['name']}" in page.extract_text()
+        assert "/OCCut" in page["/Resources"]["/Properties"]
+
+
+def test_render_moves_one_film_alone(tmp_path):
+    # --film-offset-mm 2:0.5,-0.2 moves the texture of film 2 only, by exactly that (in
+    # print px at the design's dpi); film 1 stays; a film the design lacks is refused
+    from workbench.design_dir import Design
+    from workbench.render.imperfections import Imperfections
+
+    path = default_job_with(tmp_path, HAND, dpi=100)
+    out = tmp_path / "d"
+    assert main(["design", str(path), "--out", str(out), "-q"]) == 0
+    d = Design(out)
+    film = d.vertex_film()
+    still = d.scene(Imperfections(), fixture=False)
+    moved = d.scene(Imperfections(film_offsets_mm=((2, 0.5, -0.2),)), fixture=False)
+    ppm = 100 / 25.4
+    n = len(d.V)
+    du = moved.uv[:n] - still.uv[:n]
+    assert np.abs(du[film == 0]).max() == 0
+    assert np.allclose(du[film == 1], [-0.5 * ppm, 0.2 * ppm])
+    photo = tmp_path / "p.png"
+    args = ["render", str(out), "--orbit", "0,60,300", "--size", "400x300", "-o", str(photo), "-q"]
+    assert main([*args, "--film-offset-mm", "2:0.5,0"]) == 0
+    truth = json.loads(photo.with_suffix(".json").read_text())
+    assert truth["imperfections"]["film_offsets_mm"] == [[2, 0.5, 0.0]]
+    assert main([*args, "--film-offset-mm", "3:0.5,0"]) == 1
+
+
+def test_validate_through_the_films_atlas(tmp_path):
+    # photos of the two-film lid: a perfect one passes (p95 below 0.05 mm, seam
+    # included), one with film 2 moved 0.5 mm fails at p95 0.5 mm
+    path = default_job_with(tmp_path, HAND, dpi=300)
+    out = tmp_path / "d"
+    assert main(["design", str(path), "--out", str(out), "-q"]) == 0
+    photos = []
+    for k, extra in enumerate(([], ["--film-offset-mm", "2:0.5,0"])):
+        photos.append(tmp_path / f"p{k}.jpg")
+        args = ["render", str(out), "--orbit", "10,55,330", "--size", "2000x1500", "-o", str(photos[-1]), "-q"]
+        assert main(args + extra) == 0
+    v = tmp_path / "v"
+    args = ["validate", str(out), *map(str, photos), "--camera", str(tmp_path / "p0.json"), "--out", str(v), "-q"]
+    main(args)
+    perfect, moved = json.loads((v / "validation.json").read_text())["photos"]
+    assert perfect["verdict"] == "PASS" and perfect["misregistration_mm"]["p95"] < 0.05
+    assert moved["verdict"] == "FAIL" and abs(moved["misregistration_mm"]["p95"] - 0.5) < 0.05

@@ -52,8 +52,27 @@ class Design:
     def scene(self, imp: Imperfections, fixture: bool = True):
         p = self.info["print"]
         return build_scene(
-            self.V, self.F, self.flat, p["height_mm"], self.rgb, p["dpi"], imp, self.fixture if fixture else None
+            self.V,
+            self.F,
+            self.flat,
+            p["height_mm"],
+            self.rgb,
+            p["dpi"],
+            imp,
+            self.fixture if fixture else None,
+            vertex_film=self.vertex_film(),
         )
+
+    def vertex_film(self) -> np.ndarray | None:
+        """With several films, the film (0-based) of each vertex of decorated.obj; else None."""
+        films = self.info.get("films")
+        if not films:
+            return None
+        out = np.full(len(self.V), -1)
+        for k, f in enumerate(films):
+            lo, hi = f["atlas_faces"]
+            out[self.F[lo:hi].ravel()] = k
+        return out
 
     def view_camera(self, name: str) -> Camera:
         for v in self.info["views"]:

@@ -14,7 +14,7 @@ from workbench.errors import WorkbenchError
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import boundary_loops
 from workbench.printing.paper import parse_paper
-from workbench.printing.pdf import PrinterProfile, load_printer_profile, print_pdf
+from workbench.printing.pdf import FilmPage, PrinterProfile, load_printer_profile, print_pdf, print_pdf_pages
 
 
 def add_parser(sub) -> None:
@@ -88,6 +88,34 @@ def film_outline(directory: Path) -> np.ndarray | None:
     return V[boundary_loops(F)[0], :2]
 
 
+def film_pages(directory: Path, info: dict) -> list[FilmPage]:
+    """One page per film of a design with several: its print, outline and label."""
+    pages = []
+    films = info["films"]
+    for k, f in enumerate(films):
+        try:
+            png, flat = directory / f["print"], directory / f["flat"]
+            size = (f["height_px"], f["width_px"])
+            width_mm, height_mm, name = f["width_mm"], f["height_mm"], f["name"]
+        except (KeyError, TypeError) as exc:
+            raise WorkbenchError(f"{directory / 'design.json'}: films[{k}]: missing {exc}") from None
+        img = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+        if img is None or img.ndim != 3 or img.shape[:2] != size:
+            raise WorkbenchError(f"{png}: missing, unreadable or not {size[1]} x {size[0]} px; rerun workbench design")
+        V, F = read_mesh(flat)
+        pages.append(
+            FilmPage(
+                rgb=cv2.cvtColor(img[:, :, :3], cv2.COLOR_BGR2RGB),
+                width_mm=width_mm,
+                height_mm=height_mm,
+                outline_mm=V[boundary_loops(F)[0], :2],
+                film=img[:, :, 3] > 127 if img.shape[2] == 4 else None,
+                label=f"film {k + 1} of {len(films)}: {name}",
+            )
+        )
+    return pages
+
+
 def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     paper = parse_paper(args.paper)
@@ -102,6 +130,15 @@ def run(args) -> int:
         if not (np.isfinite(v) and 0 <= v <= 50):
             raise WorkbenchError(f"{key} {v}: must be between 0 and 50 mm")
     out = Path(args.output) if args.output else Path("prints") / f"{name}.pdf"
+    if info.get("films"):
+        pages = film_pages(Path(args.design), info)
+        pdf, sheets = print_pdf_pages(
+            pages, pr["dpi"], name, job.get("sha256", "unknown"), paper, bleed, margin, profile, cut=not args.no_cut
+        )
+        write_files({out: pdf})
+        log(f"wrote {out}: {len(pages)} films, one page each ({', '.join(sorted({s.paper for s in sheets}))})")
+        log("print at 100 % (actual size, no fit-to-page) and check that both bars measure 100 mm")
+        return 0
     outline = None if args.no_cut else film_outline(Path(args.design))
     pdf, sheet = print_pdf(
         rgb,

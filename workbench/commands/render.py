@@ -51,7 +51,11 @@ def add_parser(sub) -> None:
     g = p.add_argument_group("imperfections (all off by default)")
     g.add_argument("--realistic", action="store_true", help="blur 1 px, noise 3, JPEG 90, shading, vignetting 0.15")
     g.add_argument(
-        "--film-offset-mm", metavar="DX,DY", help="film moved on the part, print coordinates (x right, y down)"
+        "--film-offset-mm",
+        metavar="[K:]DX,DY",
+        action="append",
+        help="film moved on the part, print coordinates (x right, y down); K:DX,DY moves film K (1-based) of a "
+        "design with several films alone (repeatable)",
     )
     g.add_argument("--film-rotation-deg", type=float, help="film rotated about the print's centre, counter-clockwise")
     g.add_argument("--film-scale-pct", type=float, help="film uniformly larger by this percentage")
@@ -90,11 +94,36 @@ def _direction(text: str | None, flag: str) -> tuple | None:
     return vals
 
 
+def _whole_film_offset(values: list[str] | None) -> str | None:
+    """The one --film-offset-mm without a film number, if any."""
+    whole = [v for v in values or [] if ":" not in v]
+    if len(whole) > 1:
+        raise UsageError("--film-offset-mm DX,DY: give it once (K:DX,DY moves film K alone)")
+    return whole[0] if whole else None
+
+
+def _per_film_offsets(values: list[str] | None) -> tuple | None:
+    """``K:DX,DY`` values as ((K, DX, DY), ...); None without any."""
+    out = []
+    for v in values or []:
+        if ":" not in v:
+            continue
+        k, _, rest = v.partition(":")
+        if not k.strip().isdigit() or int(k) < 1:
+            raise UsageError(f"--film-offset-mm {v!r}: K:DX,DY with K a film number from 1")
+        dx, dy = _floats(rest, 2, "--film-offset-mm")
+        if any(f == int(k) for f, _, _ in out):
+            raise UsageError(f"--film-offset-mm {v!r}: film {k} is moved twice")
+        out.append((int(k), dx, dy))
+    return tuple(out) or None
+
+
 def imperfections_from(args) -> Imperfections:
     """The imperfections the command line asks for (preset first, then explicit flags)."""
     kw: dict = dict(REALISTIC) if args.realistic else {}
     pairs = {
-        "film_offset_mm": _floats(args.film_offset_mm, 2, "--film-offset-mm"),
+        "film_offset_mm": _floats(_whole_film_offset(args.film_offset_mm), 2, "--film-offset-mm"),
+        "film_offsets_mm": _per_film_offsets(args.film_offset_mm),
         "film_rotation_deg": args.film_rotation_deg,
         "film_scale_pct": args.film_scale_pct,
         "print_scale_pct": _floats(args.print_scale_pct, 2, "--print-scale-pct"),

@@ -359,25 +359,77 @@ def print_pdf(
     sheet : PrintSheet
         Where everything went (physical mm).
     """
-    from PIL import Image
-    from reportlab.lib.utils import ImageReader
+    page = FilmPage(rgb, width_mm, height_mm, outline_mm, film)
+    pdf, sheets = print_pdf_pages([page], dpi, job_name, job_sha256, paper, bleed_mm, margin_mm, profile, cut)
+    return pdf, sheets[0]
+
+
+@dataclass(frozen=True)
+class FilmPage:
+    """One film's page of a print PDF (see :func:`print_pdf` for the fields).
+
+    ``label``: printed on the page, e.g. "film 2 of 5: cheek".
+    """
+
+    rgb: np.ndarray
+    width_mm: float
+    height_mm: float
+    outline_mm: np.ndarray | None = None
+    film: np.ndarray | None = None
+    label: str = ""
+
+
+def print_pdf_pages(
+    pages: list[FilmPage],
+    dpi: float,
+    job_name: str,
+    job_sha256: str,
+    paper,
+    bleed_mm: float = 3.0,
+    margin_mm: float = 10.0,
+    profile: PrinterProfile = PrinterProfile(),
+    cut: bool = True,
+) -> tuple[bytes, list[PrintSheet]]:
+    """The print PDF of a design with one page per film (arguments as :func:`print_pdf`).
+
+    Returns
+    -------
+    pdf : bytes
+    sheets : list of PrintSheet
+        Per page.
+    """
     from reportlab.pdfgen import canvas as rl_canvas
 
-    sheet = layout_sheet(width_mm, height_mm, bleed_mm, margin_mm, paper)
     buf = io.BytesIO()
+    sheets = [layout_sheet(p.width_mm, p.height_mm, bleed_mm, margin_mm, paper) for p in pages]
     c = rl_canvas.Canvas(
         buf,
-        pagesize=(sheet.page_w * PT_PER_MM, sheet.page_h * PT_PER_MM),
+        pagesize=(sheets[0].page_w * PT_PER_MM, sheets[0].page_h * PT_PER_MM),
         invariant=1,
         pageCompression=1,
         pdfVersion=(1, 5),  # optional content (the cut line's layer)
     )
+    sizes = "; ".join(f"{p.width_mm:.2f} x {p.height_mm:.2f} mm" for p in pages)
     c.setTitle(f"workbench print: {job_name}")
     c.setAuthor(f"workbench {__version__}")
-    c.setSubject(f"{job_name}: {width_mm:.2f} x {height_mm:.2f} mm at {dpi:g} dpi; job sha256 {job_sha256}")
+    c.setSubject(f"{job_name}: {sizes} at {dpi:g} dpi; job sha256 {job_sha256}")
     c.setKeywords(f"workbench, print, job={job_name}, sha256={job_sha256}, printer-profile={profile.name}")
     c.setCreator(f"workbench {__version__}")
     c.setViewerPreference("PrintScaling", "None")
+    for film_page, sheet in zip(pages, sheets, strict=True):
+        c.setPageSize((sheet.page_w * PT_PER_MM, sheet.page_h * PT_PER_MM))
+        _draw_page(c, film_page, sheet, dpi, job_name, job_sha256, bleed_mm, profile, cut)
+        c.showPage()
+    c.save()
+    return buf.getvalue(), sheets
+
+
+def _draw_page(c, fp: FilmPage, sheet: PrintSheet, dpi, job_name, job_sha256, bleed_mm, profile, cut) -> None:
+    """Everything on one film's page: texture with its bleed, cut line, marks, bars, the note line."""
+    from PIL import Image
+    from reportlab.lib.utils import ImageReader
+
+    rgb, film, outline_mm, width_mm, height_mm = fp.rgb, fp.film, fp.outline_mm, fp.width_mm, fp.height_mm
     page = _Page(c, sheet.page_w, sheet.page_h, profile)
     x0, y0, x1, y1 = sheet.trim
     b = bleed_mm
@@ -416,11 +468,10 @@ def print_pdf(
     scale_bar(page, *sheet.bar_y, vertical=True)
     check_square(page, *sheet.check_square)
     note = (
-        f"{job_name} | {width_mm:.2f} x {height_mm:.2f} mm | {dpi:g} dpi | {build_date()} | job {job_sha256[:12]} | "
+        (f"{fp.label} | " if fp.label else "")
+        + f"{job_name} | {width_mm:.2f} x {height_mm:.2f} mm | {dpi:g} dpi | {build_date()} | job {job_sha256[:12]} | "
         f"printer profile: {profile.name} | print at 100 % (actual size): each bar must measure 100 mm"
     )
     cx, cy = sheet.check_square
     page.text(cx, cy - 7.5, note, size=2.0)
-    c.showPage()
-    c.save()
-    return buf.getvalue(), sheet
+

@@ -18,6 +18,8 @@ class Imperfections:
     ----------
     film_offset_mm : (2,) float
         Where the film sits relative to where it should: the print moves by this on the part.
+    film_offsets_mm : tuple of (film, dx, dy)
+        With several films, each listed film (1-based) moved on its own, mm.
     film_rotation_deg : float
         Film rotated about the print's centre, counter-clockwise seen on the print.
     film_scale_pct : float
@@ -52,6 +54,7 @@ class Imperfections:
     """
 
     film_offset_mm: tuple[float, float] = (0.0, 0.0)
+    film_offsets_mm: tuple[tuple[int, float, float], ...] = ()
     film_rotation_deg: float = 0.0
     film_scale_pct: float = 0.0
     print_scale_pct: tuple[float, float] = (0.0, 0.0)

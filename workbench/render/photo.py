@@ -75,7 +75,9 @@ def board_texture(definition: dict) -> tuple[np.ndarray, float]:
     return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB), ppm
 
 
-def build_scene(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, imp: Imperfections, fixture: dict | None) -> Scene:
+def build_scene(
+    V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, imp: Imperfections, fixture: dict | None, vertex_film=None
+) -> Scene:
     """The decorated part (film imperfections applied) and its fixture plate.
 
     Parameters
@@ -96,6 +98,9 @@ def build_scene(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, imp: Imperfect
         Film and print errors to apply.
     fixture : dict or None
         Board definition (fixture.json) with ``origin_mm``; None for the part alone.
+    vertex_film : (#V,) int, optional
+        With several films, the film (0-based) of each vertex, for
+        ``imp.film_offsets_mm``.
 
     Returns
     -------
@@ -108,6 +113,11 @@ def build_scene(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, imp: Imperfect
     p = np.stack([flat_uv_mm[:, 0], rect_height_mm - flat_uv_mm[:, 1]], axis=1)
     A = film_transform(imp, (cols / ppm, rows / ppm))
     q = p @ A[:, :2].T + A[:, 2]
+    for film, dx, dy in imp.film_offsets_mm:
+        if vertex_film is None or not (vertex_film == film - 1).any():
+            raise WorkbenchError(f"--film-offset-mm {film}:{dx:g},{dy:g}: the design has no film {film}")
+        # the film shows, at print point p, what should be at p - d
+        q[vertex_film == film - 1] -= [dx, dy]
     uv = q * ppm - 0.5
     normals = vertex_normals(V, F)
     Vs, Fs, uvs, ns, tex = [V], [F], [uv], [normals], [np.zeros(len(F), np.int8)]

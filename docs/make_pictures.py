@@ -172,7 +172,27 @@ def face_mask_pictures() -> None:
     print(f"wrote {IMG / 'face-mask-views.png'}, face-mask-stretch.png", file=sys.stderr)
 
 
+def films_picture() -> None:
+    """views.png of the default lid with one film per view."""
+    import tempfile
+
+    wb = str(ROOT / ".venv" / "bin" / "workbench")
+    with tempfile.TemporaryDirectory() as tmp:
+        job = Path(tmp) / "lid-two-films.toml"
+        text = (ROOT / "fixtures/default/job.toml").read_text()
+        for name in ("part.obj", "logo.png", "front.png"):
+            text = text.replace(f'"{name}"', f'"{ROOT / "fixtures/default" / name}"')
+        films = '\n[[films]]\nname = "logo"\nviews = ["logo"]\noutline = "free"\n'
+        films += '\n[[films]]\nname = "front"\nviews = ["front"]\noutline = "free"\n'
+        job.write_text(text + films)
+        out = Path(tmp) / "out"
+        subprocess.run([wb, "design", str(job), "--out", str(out), "-q"], check=True, cwd=ROOT)
+        (IMG / "films-views.png").write_bytes((out / "views.png").read_bytes())
+    print(f"wrote {IMG / 'films-views.png'}", file=sys.stderr)
+
+
 if __name__ == "__main__":
     main()
     real_mesh_picture()
     face_mask_pictures()
+    films_picture()

@@ -275,3 +275,21 @@ def test_validate_through_the_films_atlas(tmp_path):
     perfect, moved = json.loads((v / "validation.json").read_text())["photos"]
     assert perfect["verdict"] == "PASS" and perfect["misregistration_mm"]["p95"] < 0.05
     assert moved["verdict"] == "FAIL" and abs(moved["misregistration_mm"]["p95"] - 0.5) < 0.05
+
+
+@pytest.mark.slow
+def test_face_mask_splits_into_films_within_the_material_and_stays_exact():
+    # the bundled face-mask-films job: every film within [0.8, 1.3] on 99 % of it, every
+    # decorated face on one film, and the closed loop through the atlas exact in every
+    # view across the seams (median 0.1 px, p95 0.3 px)
+    job = load_job(FIXTURES / "face-mask-films" / "job.toml")
+    r = design(job)
+    assert len(r.films) >= 2 and all(f.within >= 0.99 for f in r.films)
+    covered = np.concatenate([f.faces for f in r.films])
+    decorated = np.flatnonzero((r.view_status != 0).any(axis=1))
+    assert len(np.unique(covered)) == len(covered) and set(decorated) <= set(covered)
+    vt = atlas_vt(r)
+    for v in range(len(job.views)):
+        mis, coverage = view_check(job, r, vt, v)
+        assert np.median(mis) <= 0.1 and np.percentile(mis, 95) <= 0.3, (v, np.median(mis), np.percentile(mis, 95))
+        assert coverage >= 0.99, (v, coverage)

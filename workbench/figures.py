@@ -18,6 +18,13 @@ def _figure():
     return plt
 
 
+def _label_films(ax, labels) -> None:
+    """Write each film's name at its centre: ``labels`` is a list of (x_mm, y_mm, text)."""
+    for x, y, text in labels:
+        ax.text(x, y, text, ha="center", va="center", fontsize=8, color="black",
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7})
+
+
 def figure_png(fig) -> bytes:
     """A matplotlib figure as PNG bytes (no software stamp: reproducible), and closed."""
     buf = io.BytesIO()
@@ -61,7 +68,7 @@ def face_image(
     return img
 
 
-def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=None) -> bytes:
+def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=None, labels=()) -> bytes:
     """PNG of the film stretch over the flat print, with a colour bar and the corners.
 
     Parameters
@@ -119,6 +126,7 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
             transform=bar.ax.get_yaxis_transform(),
             clip_on=True,
         )
+    _label_films(ax, labels)
     for name, v in zip("ABCD"[: len(corners)], corners, strict=True):
         x, y = uv[v]
         ax.plot([x], [y], "o", color="red", ms=6, clip_on=False)
@@ -164,6 +172,7 @@ def views_figure(
     title: str,
     max_px: int = 1000,
     film: np.ndarray | None = None,
+    labels=(),
 ) -> bytes:
     """PNG of which view owns each print pixel, with a legend.
 
@@ -184,6 +193,8 @@ def views_figure(
     film : (rows, cols) bool, optional
         Pixels inside the film's outline; the rest is drawn white, outside the
         shares. None: the whole rectangle is film.
+    labels : list of (x_mm, y_mm, text)
+        Names written on the picture (the films of a design with several).
 
     Returns
     -------
@@ -205,6 +216,7 @@ def views_figure(
         img[~small_film] = 255
     fig, ax = plt.subplots(figsize=(8, max(8 * height_mm / width_mm, 3) + 1.2), dpi=110)
     ax.imshow(img, extent=(0, width_mm, 0, height_mm), origin="upper", interpolation="nearest", aspect="equal")
+    _label_films(ax, labels)
     handles = [
         Patch(color=palette[i] / 255, label=f"{n} ({100 * sh:.1f} %)")
         for i, (n, sh) in enumerate(zip(names, shares, strict=True))

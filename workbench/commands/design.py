@@ -155,6 +155,14 @@ def run(args) -> int:
         "views": stats,
         "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
+    # with several films, each film's name at its centre on views.png and stretch.png
+    labels = []
+    for k, f in enumerate(result.films):
+        lo, hi = f.atlas_faces
+        pts = flat.uv[np.unique(result.F[lo:hi])]
+        # the film's point nearest its centroid: on the film even for a ring
+        c = pts[np.argmin(np.linalg.norm(pts - pts.mean(axis=0), axis=1))]
+        labels.append((float(c[0]), float(c[1]), f"{k + 1}" if len(result.films) > 9 else f.name))
     files = {
         # outside a free outline there is no film: transparent, in the background colour
         out / "print.png": png_bytes(print_with_alpha(result.rgb, result.film), grid.dpi),
@@ -176,6 +184,7 @@ def run(args) -> int:
             flat.height_mm,
             f"{job.name}: which view owns each print pixel",
             film=None if result.film.all() else result.film,
+            labels=labels,
         ),
         out / "stretch.png": stretch_figure(
             flat.uv,
@@ -187,6 +196,7 @@ def run(args) -> int:
             title=f"{job.name}: film stretch, {job.object.material.name}"
             + "".join("\n" + "\n".join(textwrap.wrap(f"warning: {w}", 95)) for w in warnings),
             limit=limit,
+            labels=labels,
         ),
     }
     if result.films:

@@ -85,6 +85,15 @@ def test_films_write_a_print_and_layout_each_and_one_material_each(tmp_path):
     mtl = (out / "decorated.mtl").read_text()
     assert "map_Kd print-logo.png" in mtl and "map_Kd print-front.png" in mtl
     assert info["seams"]["length_mm"] > 100
+    # the GLB: one mesh per film, each with its film's print as texture
+    import trimesh
+
+    scene = trimesh.load(out / "decorated.glb")
+    assert sorted(scene.geometry) == ["front", "logo"]
+    for f in info["films"]:
+        material = scene.geometry[f["name"]].visual.material
+        image = getattr(material, "baseColorTexture", None) or material.image
+        assert image.size == (f["width_px"], f["height_px"])
 
 
 def hemisphere(radius=40.0, n=48):
@@ -293,3 +302,16 @@ def test_face_mask_splits_into_films_within_the_material_and_stays_exact():
         mis, coverage = view_check(job, r, vt, v)
         assert np.median(mis) <= 0.1 and np.percentile(mis, 95) <= 0.3, (v, np.median(mis), np.percentile(mis, 95))
         assert coverage >= 0.99, (v, coverage)
+
+
+def test_stretch_window_centres_the_band_on_the_most_surface():
+    from workbench.films import stretch_window
+
+    # 90 % of the area between 2.0 and 2.4 (log spread 0.18 < log(1.3 / 0.8) = 0.49), the
+    # rest far off: scaled by s, that 90 % sits inside [0.8, 1.3] with equal margins
+    stretch = np.r_[np.linspace(2.0, 2.4, 90), np.full(10, 9.0)]
+    area = np.ones(100)
+    s, share = stretch_window(stretch, area, 1.3)
+    assert share == pytest.approx(0.9)
+    lo, hi = np.log(2.0 / s / 0.8), np.log(1.3 / (2.4 / s))
+    assert lo > 0 and hi > 0 and lo == pytest.approx(hi)

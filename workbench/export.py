@@ -126,12 +126,25 @@ def decorated_obj(
     return ("\n".join(lines) + "\n").encode(), ("\n".join(mtl) + "\n").encode()
 
 
-def decorated_glb(V: np.ndarray, F: np.ndarray, vt: np.ndarray, rgb: np.ndarray, max_texture_px: int = 4096) -> bytes:
+def decorated_glb(
+    V: np.ndarray,
+    F: np.ndarray,
+    vt: np.ndarray,
+    rgb: np.ndarray,
+    max_texture_px: int = 4096,
+    parts: list[tuple[str, int, int, np.ndarray]] | None = None,
+) -> bytes:
     """Binary glTF of the decorated part with its texture embedded.
 
     glTF viewers and GPUs take textures up to 4096 to 16384 pixels, so the texture is
     reduced (area averaging) to ``max_texture_px`` on its longer side; the OBJ keeps
     the full-resolution print. trimesh converts v to glTF's top-left origin.
+
+    Parameters
+    ----------
+    parts : list of (name, first face, end face, rgb), optional
+        Several films: faces [first, end) form a mesh of their own with that film's
+        print as texture (``vt`` points into it); default one mesh with ``rgb``.
 
     Returns
     -------
@@ -140,12 +153,22 @@ def decorated_glb(V: np.ndarray, F: np.ndarray, vt: np.ndarray, rgb: np.ndarray,
     import trimesh
     from PIL import Image
 
-    h, w = rgb.shape[:2]
-    s = min(1.0, max_texture_px / max(h, w))
-    if s < 1.0:
-        rgb = cv2.resize(rgb, (max(int(w * s), 1), max(int(h * s), 1)), interpolation=cv2.INTER_AREA)
-    mesh = trimesh.Trimesh(V, F, process=False)
-    mesh.visual = trimesh.visual.TextureVisuals(uv=vt, image=Image.fromarray(rgb))
+    def textured(Fp: np.ndarray, image: np.ndarray) -> trimesh.Trimesh:
+        h, w = image.shape[:2]
+        s = min(1.0, max_texture_px / max(h, w))
+        if s < 1.0:
+            image = cv2.resize(image, (max(int(w * s), 1), max(int(h * s), 1)), interpolation=cv2.INTER_AREA)
+        used, local = np.unique(Fp, return_inverse=True)
+        mesh = trimesh.Trimesh(V[used], local.reshape(-1, 3), process=False)
+        mesh.visual = trimesh.visual.TextureVisuals(uv=vt[used], image=Image.fromarray(image))
+        return mesh
+
+    if parts is None:
+        obj = textured(F, rgb)
+    else:
+        obj = trimesh.Scene()
+        for name, lo, hi, image in parts:
+            obj.add_geometry(textured(F[lo:hi], image), geom_name=name, node_name=name)
     buf = io.BytesIO()
-    mesh.export(buf, file_type="glb")
+    obj.export(buf, file_type="glb")
     return buf.getvalue()

@@ -315,8 +315,11 @@ def stretch_window(stretch: np.ndarray, area: np.ndarray, max_stretch: float) ->
     end = np.searchsorted(x, x + width, side="right")
     covered = cw[end] - cw[np.arange(len(x))]
     i = int(np.argmax(covered))
-    # put the window's lower edge, x_i, on log MIN_STRETCH: s = stretch_i / MIN_STRETCH
-    return float(np.exp(x[i]) / MIN_STRETCH), float(covered[i] / area.sum())
+    # centre the covered faces in the band: the slack (band width minus their spread) is
+    # split evenly, so that round-off does not push the extreme faces out; the lowest,
+    # x_i, goes to log MIN_STRETCH + slack / 2, and scaling by s subtracts log s
+    slack = width - (x[end[i] - 1] - x[i])
+    return float(np.exp(x[i] - np.log(MIN_STRETCH) - 0.5 * slack)), float(covered[i] / area.sum())
 
 
 @dataclass

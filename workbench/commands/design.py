@@ -99,6 +99,7 @@ def run(args) -> int:
     rows, cols = grid.shape
     image_w_mm, image_h_mm = cols / grid.px_per_mm, rows / grid.px_per_mm
     vt = texture_uv(flat.uv, image_w_mm, image_h_mm, flat.height_mm)
+    vt_films = vt
     if result.films:
         # viewers: each film's faces use that film's own print (vt into it)
         vt_films, groups = vt.copy(), []
@@ -170,7 +171,13 @@ def run(args) -> int:
         out / "owner.png": png_bytes((result.owner.astype(np.int16) + 1).astype(np.uint8), grid.dpi),
         out / "decorated.obj": obj,
         out / "decorated.mtl": mtl,
-        out / "decorated.glb": decorated_glb(result.V, result.F, vt, result.rgb),
+        out / "decorated.glb": decorated_glb(
+            result.V,
+            result.F,
+            vt_films if result.films else vt,
+            result.rgb,
+            parts=[(f.name, *f.atlas_faces, f.rgb) for f in result.films] or None,
+        ),
         out / "flat.obj": format_obj(
             np.column_stack([flat.uv, np.zeros(len(flat.uv))]),
             result.F,

@@ -284,6 +284,17 @@ def test_validate_through_the_films_atlas(tmp_path):
     perfect, moved = json.loads((v / "validation.json").read_text())["photos"]
     assert perfect["verdict"] == "PASS" and perfect["misregistration_mm"]["p95"] < 0.05
     assert moved["verdict"] == "FAIL" and abs(moved["misregistration_mm"]["p95"] - 0.5) < 0.05
+    # placement per film: the front view's film is measured moved by (0.5, 0) to 0.05 mm;
+    # the same photo compared with the logo's view finds the logo's film in place
+    front = {f["name"]: f for f in moved["films"]}["front"]
+    assert front["tiles"] >= 8 and np.allclose(front["offset_mm"], [0.5, 0.0], atol=0.05)
+    assert np.allclose({f["name"]: f for f in perfect["films"]}["front"]["offset_mm"], [0, 0], atol=0.05)
+    v2 = tmp_path / "v2"
+    main(["validate", str(out), str(photos[1]), "--camera", str(tmp_path / "p0.json"), "--view", "logo"]
+         + ["--out", str(v2), "-q"])
+    (entry,) = json.loads((v2 / "validation.json").read_text())["photos"]
+    logo = {f["name"]: f for f in entry["films"]}["logo"]
+    assert logo["tiles"] >= 8 and np.allclose(logo["offset_mm"], [0.0, 0.0], atol=0.05)
 
 
 @pytest.mark.slow

@@ -19,6 +19,7 @@ from workbench.design_dir import Design
 from workbench.errors import WorkbenchError
 from workbench.export import png_bytes
 from workbench.raster import depth_buffer
+from workbench.validate.films import fit_per_film
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.score import score, view_surface, warp_photo
 
@@ -191,6 +192,9 @@ def validate_photo(path: Path, design: Design, profile, view_name, tolerance_mm,
             "film_fit_rms_mm": sc.film.get("rms_mm"),
         }
     )
+    if design.info.get("films"):
+        # several films: each film's placement from its own tiles
+        entry["films"] = fit_per_film(sc, surface, design.info["films"], p["dpi"] / 25.4)
     if len(sc.shift_mm) < MIN_TILES or sc.ssim < MIN_SSIM:
         entry["verdict"] = "FAIL"
         entry["reason"] = (

@@ -2,17 +2,28 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from workbench import schemas
+from workbench.atomic import safe_name
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
+from workbench.jsonfile import read_json
 from workbench.mesh.io import read_mesh
-from workbench.render.imperfections import Imperfections
-from workbench.render.photo import build_scene
+from workbench.printing.boards import load_board
+
+
+def read_design_json(path: Path, fields: dict = schemas.DESIGN) -> dict:
+    """design.json of a design folder, checked (:data:`workbench.schemas.DESIGN`); view names unique."""
+    info = read_json(path, "design.json of workbench design", fields)
+    names = [v["name"] for v in info.get("views", [])]
+    for k, name in enumerate(names):
+        if name in names[:k]:
+            raise WorkbenchError(f"{path}: views[{k}].name: {name!r} is used twice")
+    return info
 
 
 class Design:
@@ -26,8 +37,8 @@ class Design:
             if not (directory / name).is_file():
                 raise WorkbenchError(f"{directory / name}: missing; is {directory} the output of workbench design?")
         self.dir = directory
-        self.info = json.loads((directory / "design.json").read_text())
-        self.fixture = json.loads((directory / "fixture.json").read_text())
+        self.info = read_design_json(directory / "design.json")
+        self.fixture = load_board(directory / "fixture.json", "fixture definition", schemas.FIXTURE)
         # the decorated mesh: the part in mm, in the input's vertex order
         self.V, self.F = read_mesh(directory / "decorated.obj")
         flat, _ = read_mesh(directory / "flat.obj")
@@ -43,13 +54,16 @@ class Design:
     def view_image(self, index: int) -> np.ndarray:
         """The image of designed view ``index`` (RGB), as the design used it."""
         name = self.info["views"][index]["name"]
-        path = self.dir / f"view-{name}.png"
+        path = self.dir / f"view-{safe_name(name)}.png"
         img = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if img is None:
             raise WorkbenchError(f"{path}: missing; rerun workbench design")
         return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
-    def scene(self, imp: Imperfections, fixture: bool = True):
+    def scene(self, imp, fixture: bool = True):
+        """The render scene (:func:`workbench.render.photo.build_scene`) of this design with ``imp``."""
+        from workbench.render.photo import build_scene  # numba kernels: loaded by the commands that render
+
         p = self.info["print"]
         return build_scene(
             self.V, self.F, self.flat, p["height_mm"], self.rgb, p["dpi"], imp, self.fixture if fixture else None

@@ -12,6 +12,7 @@ mesh frame (mm).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -61,7 +62,13 @@ class CharucoSpec:
     @classmethod
     def from_definition(cls, d: dict) -> CharucoSpec:
         """The board of a definition file written by ``workbench board`` (or ``fixture.json``)."""
-        return cls(tuple(d["squares"]), d["square_mm"], d["marker_mm"], d["dictionary"], d.get("first_id", 0))
+        return cls(
+            tuple(int(n) for n in d["squares"]),
+            float(d["square_mm"]),
+            float(d["marker_mm"]),
+            d["dictionary"],
+            int(d.get("first_id") or 0),
+        )
 
     @property
     def size_mm(self) -> tuple[float, float]:
@@ -246,3 +253,38 @@ def fixture_from_job(fixture: dict | None, V: np.ndarray, F: np.ndarray, where: 
     loop = boundary_loops(F)[0]
     footprint = np.stack([V[loop, 0] - origin[0], origin[1] - V[loop, 1]], axis=1)
     return spec, origin, footprint
+
+
+def load_board(path: str | Path, what: str = "board definition", fields: dict | None = None) -> dict:
+    """A board definition (``workbench board``'s FILE.json) or a design's ``fixture.json``, checked.
+
+    Beyond the schema (:data:`workbench.schemas.BOARD`, or ``fields``), the board must be
+    one OpenCV can build, with as many ChArUco corners and markers as its squares give.
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the file and the key at fault.
+    """
+    from workbench import schemas
+    from workbench.jsonfile import read_json
+
+    path = Path(path)
+    d = read_json(path, what, fields or schemas.BOARD)
+    try:
+        spec = CharucoSpec.from_definition(d)
+    except WorkbenchError as exc:
+        raise WorkbenchError(f"{path}: {exc}") from None
+    nx, ny = spec.squares
+    counts = {
+        "charuco_corners.board_mm": (len(d["charuco_corners"]["board_mm"]), (nx - 1) * (ny - 1)),
+        "markers.ids": (len(d["markers"]["ids"]), (nx * ny) // 2),
+    }
+    if "mesh_mm" in d["charuco_corners"]:
+        counts["charuco_corners.mesh_mm"] = (len(d["charuco_corners"]["mesh_mm"]), (nx - 1) * (ny - 1))
+    if "corners_mesh_mm" in d["markers"]:
+        counts["markers.corners_mesh_mm"] = (len(d["markers"]["corners_mesh_mm"]), (nx * ny) // 2)
+    for key, (got, want) in counts.items():
+        if got != want:
+            raise WorkbenchError(f"{path}: {key}: {got} entries, a {nx} x {ny} board has {want}")
+    return d

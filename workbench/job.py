@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -150,6 +151,8 @@ class _Reader:
         if value is None:
             return None
         path = (self.path.parent / value).resolve()
+        if path.is_dir():
+            self.fail(f"{value!r} is a directory, not a file ({path})", key)
         if not path.is_file():
             self.fail(f"file {value!r} not found (looked for {path})", key)
         return path
@@ -187,14 +190,20 @@ def _rotation(r: _Reader) -> np.ndarray:
 
 
 VIEW_POSE_KEYS = {"position", "look_at", "up", "fov_deg"}
+VIEW_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 VIEW_K_KEYS = {"fx", "fy", "cx", "cy", "rotation", "translation"}
 
 
 def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
     r = _Reader(path, f"views[{i}]", table, {"name", "image", "region"} | VIEW_POSE_KEYS | VIEW_K_KEYS)
     name = r.string("name", required=True)
-    if not name:
-        r.fail("must not be empty", "name")
+    if not VIEW_NAME.fullmatch(name):
+        # the name becomes file names (view-NAME.png): nothing that leaves the output folder or hides a file
+        r.fail(
+            "must be 1 to 64 letters, digits, '.', '_' or '-', starting with a letter or digit, "
+            f"got {name!r}",
+            "name",
+        )
     if name in names:
         r.fail(f"view name {name!r} is used twice", "name")
     image = r.file("image")
@@ -250,6 +259,8 @@ def load_job(path: str | Path) -> Job:
         names the file and the key.
     """
     path = Path(path).resolve()
+    if path.is_dir():
+        raise WorkbenchError(f"{path}: is a directory, not a job file")
     if not path.is_file():
         raise WorkbenchError(f"{path}: no such job file")
     data = path.read_bytes()

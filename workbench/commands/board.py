@@ -12,6 +12,7 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import write_files
 from workbench.errors import UsageError
+from workbench.jsonfile import recorded_path
 from workbench.printing.boards import CharucoSpec, definition, draw_board, fixture_from_job
 from workbench.printing.paper import choose_sheet, parse_paper
 from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
@@ -176,6 +177,8 @@ def run(args) -> int:
         default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
         title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
     out = Path(args.output) if args.output else default_out
+    if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
+        extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
     pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint)
     extra["paper"] = paper_name
     extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}

@@ -38,6 +38,16 @@ BOARD = {
     "markers": Field("object", fields={"ids": Field("array", shape=(None,), integer=True, lo=0, min_len=1)}),
 }
 
+# the [fixture] table of a job file (TOML): every key optional
+JOB_FIXTURE = {
+    "square_mm": Field("number", required=False, default=20.0, lo=0.1, hi=1000),
+    "squares": Field("array", required=False, shape=(2,), integer=True, lo=3, hi=1000, hint="[nx, ny]"),
+    "marker_mm": Field("number", required=False, lo=0.01, hi=1000),
+    "dictionary": Field("string", required=False, default="DICT_5X5_250"),
+    "first_id": Field("integer", required=False, default=0, lo=0),
+    "origin_mm": Field("array", required=False, shape=(3,), hint="[x, y, z] in mm"),
+}
+
 # fixture.json of a design folder: a board definition placed in the mesh frame
 FIXTURE = {
     **BOARD,

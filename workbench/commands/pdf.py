@@ -72,7 +72,13 @@ def film_outline(directory: Path) -> np.ndarray | None:
     if not path.is_file():
         return None
     V, F = read_mesh(path)
-    return V[boundary_loops(F)[0], :2]
+    try:
+        loops = boundary_loops(F)
+    except (KeyError, IndexError, ValueError):  # a boundary that branches: not a manifold
+        loops = []
+    if len(loops) != 1 or not np.isfinite(V[loops[0]]).all():
+        raise WorkbenchError(f"{path}: not the flat layout of a disc (one boundary loop); rerun workbench design")
+    return V[loops[0], :2]
 
 
 def run(args) -> int:

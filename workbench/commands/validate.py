@@ -262,6 +262,8 @@ def run(args) -> int:
         # a profile no camera has (K zero, NaN, negative fx): every photo INVALID with the reason, the report written
         profile = str(exc)
     design = Design(Path(args.design))
+    if design.owner is None:
+        raise WorkbenchError(f"{design.dir / 'owner.png'}: missing or unreadable; rerun workbench design")
     names = [v["name"] for v in design.info["views"]]
     if args.view is not None and args.view not in names:
         raise WorkbenchError(f"no view named {args.view!r} in {design.dir / 'design.json'} (views: {', '.join(names)})")

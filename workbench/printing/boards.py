@@ -213,30 +213,27 @@ def fixture_from_job(fixture: dict | None, V: np.ndarray, F: np.ndarray, where: 
     footprint : (#B, 2) float
         The mesh boundary projected on the plate, board frame (x right, y down), mm.
     """
+    from workbench import schemas
+    from workbench.jsonfile import check
     from workbench.mesh.topology import boundary_loops
 
     fx = dict(fixture or {})
-    known = {"dictionary", "squares", "square_mm", "marker_mm", "first_id", "origin_mm"}
+    known = set(schemas.JOB_FIXTURE)
     unknown = sorted(set(fx) - known)
     if unknown:
         raise WorkbenchError(f"{where}: unknown key {unknown[0]!r} (known keys: {', '.join(sorted(known))})")
-    square = fx.get("square_mm", 20.0)
-    if isinstance(square, bool) or not isinstance(square, int | float) or not square > 0:
-        raise WorkbenchError(f"{where}.square_mm: must be a positive number, got {square!r}")
+    # the job's [fixture] table, checked like every file the workbench reads: "FILE: fixture.KEY: ..."
+    file, _, table = where.rpartition(": ")
+    check(fx, schemas.JOB_FIXTURE, file or where, table or "fixture")
+    square = fx["square_mm"]
     lo, hi = V.min(axis=0), V.max(axis=0)
-    if "squares" in fx:
-        sq = fx["squares"]
-        if not (isinstance(sq, list) and len(sq) == 2 and all(isinstance(v, int) for v in sq)):
-            raise WorkbenchError(f"{where}.squares: must be [nx, ny], got {sq!r}")
-        squares = (sq[0], sq[1])
+    if fx["squares"] is not None:
+        squares = (int(fx["squares"][0]), int(fx["squares"][1]))
     else:
         # two squares of margin on each side: the markers around the part stay visible
         squares = (int(np.ceil((hi[0] - lo[0]) / square)) + 4, int(np.ceil((hi[1] - lo[1]) / square)) + 4)
-    if "origin_mm" in fx:
-        o = fx["origin_mm"]
-        if not (isinstance(o, list) and len(o) == 3 and all(isinstance(v, int | float) for v in o)):
-            raise WorkbenchError(f"{where}.origin_mm: must be [x, y, z] in mm, got {o!r}")
-        origin = np.asarray(o, dtype=np.float64)
+    if fx["origin_mm"] is not None:
+        origin = np.asarray(fx["origin_mm"], dtype=np.float64)
     else:
         cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
         origin = np.array([cx - squares[0] * square / 2, cy + squares[1] * square / 2, lo[2]])
@@ -244,9 +241,9 @@ def fixture_from_job(fixture: dict | None, V: np.ndarray, F: np.ndarray, where: 
         spec = CharucoSpec(
             squares=squares,
             square_mm=float(square),
-            marker_mm=float(fx.get("marker_mm", 0.75 * square)),
-            dictionary=fx.get("dictionary", "DICT_5X5_250"),
-            first_id=int(fx.get("first_id", 0)),
+            marker_mm=float(fx["marker_mm"] or 0.75 * square),
+            dictionary=fx["dictionary"],
+            first_id=fx["first_id"],
         )
     except WorkbenchError as exc:
         raise WorkbenchError(f"{where}: {exc}") from None

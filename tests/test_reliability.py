@@ -519,3 +519,29 @@ def test_a_pair_of_files_is_put_back_when_the_second_rename_fails(tmp_path, monk
     with pytest.raises(WorkbenchError, match="photo.json: cannot write"):
         atomic.write_files({a: b"new png", b: b"new json"})
     assert tree(tmp_path) == {Path("photo.png"): b"old png", Path("photo.json"): b"old json"}
+
+
+def test_a_photo_with_half_the_part_painted_over_fails(design, tmp_path):
+    import cv2
+
+    from workbench.camera import Camera
+    from workbench.design_dir import Design
+
+    d = design[0]
+    ok = tmp_path / "ok.png"
+    argv = ["render", str(d), "--orbit", "10,55,330", "--size", "2000x1500", "--realistic", "-o", str(ok), "-q"]
+    assert main(argv) == 0
+    truth = json.loads(ok.with_suffix(".json").read_text())
+    cam = Camera(np.array(truth["K"]), np.array(truth["R"]), np.array(truth["t"]), 2000, 1500)
+    xy, _ = cam.project(Design(d).V)
+    (x0, y0), (x1, y1) = xy.min(axis=0).astype(int), xy.max(axis=0).astype(int)
+    img = cv2.imread(str(ok))
+    img[y0:y1, (x0 + x1) // 2 : x1] = 128  # the right half of the part painted grey
+    half = tmp_path / "half.png"
+    cv2.imwrite(str(half), img)
+    out = tmp_path / "v"
+    argv = ["validate", str(d), str(ok), str(half), "--camera", str(ok.with_suffix(".json")), "--out", str(out)]
+    assert main(argv) == 0
+    good, bad = json.loads((out / "validation.json").read_text())["photos"]
+    assert good["verdict"] == "PASS" and good["tiles"] == good["tiles_examined"]
+    assert bad["verdict"] == "FAIL" and "textured tiles match the design" in bad["reason"], bad["reason"]

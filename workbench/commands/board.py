@@ -11,7 +11,7 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import write_files
-from workbench.errors import UsageError
+from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
 from workbench.printing.boards import CharucoSpec, definition, draw_board, fixture_from_job
 from workbench.printing.paper import choose_sheet, parse_paper
@@ -167,13 +167,16 @@ def run(args) -> int:
                 int((sheet_h - 2 * BOARD_MARGIN_MM - BELOW_MM) // square),
             )
             squares = _squares(args.squares, default)
-        spec = CharucoSpec(
-            squares=squares,
-            square_mm=square,
-            marker_mm=args.marker_mm or 0.75 * square,
-            dictionary=args.dictionary or "DICT_5X5_250",
-            first_id=args.first_id or 0,
-        )
+        try:
+            spec = CharucoSpec(
+                squares=squares,
+                square_mm=square,
+                marker_mm=args.marker_mm or 0.75 * square,
+                dictionary=args.dictionary or "DICT_5X5_250",
+                first_id=args.first_id or 0,
+            )
+        except WorkbenchError as exc:  # every value came from an option: a usage error
+            raise UsageError(str(exc)) from None
         default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
         title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
     out = Path(args.output) if args.output else default_out

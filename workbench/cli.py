@@ -80,6 +80,10 @@ def main(argv: list[str] | None = None) -> int:
     except WorkbenchError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return exc.exit_status
+    except MemoryError:
+        # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
+        print(f"{prog}: error: out of memory; nothing written (lower the resolution or the size)", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; nothing written", file=sys.stderr)
         return 130

@@ -90,7 +90,15 @@ def read_image(path, what: str) -> np.ndarray:
 
 
 def physical_memory() -> int:
-    """This machine's memory in bytes (16 GiB where the system does not say)."""
+    """The memory this command can have, bytes: what Linux says is available, else the machine's (16 GiB
+    where the system does not say). Available, not installed: on a shared machine the rest is in use."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
@@ -106,7 +114,7 @@ def check_print_fits(grid: PrintGrid, where: str) -> None:
         raise WorkbenchError(
             f"{where}: a {grid.width_mm:.1f} x {grid.height_mm:.1f} mm print at {grid.dpi:g} dpi is "
             f"{cols:,} x {rows:,} px ({rows * cols / 1e6:,.0f} Mpx) and needs about {need / 2**30:,.1f} GiB; "
-            f"this machine has {have / 2**30:.1f} GiB: lower [print].dpi"
+            f"this machine has {have / 2**30:.1f} GiB available: lower [print].dpi"
         )
 
 

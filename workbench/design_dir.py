@@ -19,7 +19,7 @@ from workbench.printing.boards import load_board
 def read_design_json(path: Path, fields: dict = schemas.DESIGN) -> dict:
     """design.json of a design folder, checked (:data:`workbench.schemas.DESIGN`); view names unique."""
     info = read_json(path, "design.json of workbench design", fields)
-    names = [v["name"] for v in info.get("views", [])]
+    names = [v["name"] for v in info["views"]] if "views" in fields else []
     for k, name in enumerate(names):
         if name in names[:k]:
             raise WorkbenchError(f"{path}: views[{k}].name: {name!r} is used twice")

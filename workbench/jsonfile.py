@@ -12,6 +12,7 @@ read).
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -121,15 +122,17 @@ def _check_value(value: object, field: Field, fail) -> object:
     kind = field.kind
     if kind in ("number", "integer"):
         ok = isinstance(value, int | float) and not isinstance(value, bool)
-        if kind == "integer":
-            ok = ok and float(value).is_integer()
-        if not ok or not np.isfinite(value) or not _in_range(np.asarray(value), field):
+        try:
+            ok = ok and math.isfinite(float(value)) and (kind == "number" or float(value).is_integer())
+        except OverflowError:  # an integer beyond any float
+            ok = False
+        if not ok or not _in_range(np.asarray(float(value)), field):
             fail(f"must be {_describe(field)}, got {_short(value)}")
         return int(value) if kind == "integer" else value
     if kind == "array":
         try:
             arr = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             arr = None
         if (
             arr is None

@@ -142,9 +142,11 @@ def run(args) -> int:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
         from workbench.job import load_job
         from workbench.mesh.io import read_mesh
+        from workbench.mesh.validate import check_disc
 
         job = load_job(args.job)
         V, F = read_mesh(job.object.mesh, job.object.units)
+        check_disc(V, F, str(job.object.mesh))  # the footprint is the disc's boundary
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
         extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
         extra["footprint_board_mm"] = footprint.tolist()

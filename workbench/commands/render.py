@@ -152,7 +152,7 @@ def check_render_fits(width: int, height: int, supersample: int) -> None:
     if need > 0.7 * have:
         raise WorkbenchError(
             f"--size {width}x{height} with --supersample {supersample} needs about {need / 2**30:,.1f} GiB; "
-            f"this machine has {have / 2**30:.1f} GiB: lower --size or --supersample"
+            f"this machine has {have / 2**30:.1f} GiB available: lower --size or --supersample"
         )
 
 

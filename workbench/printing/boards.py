@@ -22,6 +22,11 @@ from workbench.errors import WorkbenchError
 DICTIONARIES = sorted(k for k in dir(cv2.aruco) if k.startswith("DICT_"))
 
 
+def dictionary_size(name: str) -> int:
+    """How many marker ids an OpenCV ArUco dictionary holds (DICT_ARUCO_ORIGINAL: 1024, no number in its name)."""
+    return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0])
+
+
 @dataclass(frozen=True)
 class CharucoSpec:
     """A ChArUco board.
@@ -53,7 +58,7 @@ class CharucoSpec:
         if self.dictionary not in DICTIONARIES:
             raise WorkbenchError(f"unknown ArUco dictionary {self.dictionary!r}; e.g. DICT_5X5_250, DICT_6X6_1000")
         n_markers = (nx * ny) // 2
-        size = int(self.dictionary.rsplit("_", 1)[1])
+        size = dictionary_size(self.dictionary)
         if self.first_id < 0 or self.first_id + n_markers > size:
             raise WorkbenchError(
                 f"{n_markers} markers from id {self.first_id} do not fit in {self.dictionary} ({size} ids)"

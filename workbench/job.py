@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -83,6 +84,14 @@ class Job:
         return self.path.parent.name if self.path.stem == "job" else self.path.stem
 
 
+def _finite(value: float) -> bool:
+    """Finite, and within a float's range (TOML integers are unbounded)."""
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
 class _Reader:
     """Typed access to one TOML table, with errors that name the file and the key."""
 
@@ -115,7 +124,7 @@ class _Reader:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float) or (integer and not isinstance(value, int)):
             self.fail(f"must be {'an integer' if integer else 'a number'}, got {value!r}", key)
-        if not np.isfinite(value) or (lo is not None and value <= lo) or (hi is not None and value >= hi):
+        if not _finite(value) or (lo is not None and value <= lo) or (hi is not None and value >= hi):
             bounds = (
                 f" between {lo} and {hi}"
                 if lo is not None and hi is not None
@@ -140,7 +149,7 @@ class _Reader:
             return None
         try:
             arr = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             self.fail(f"must be a list of {n} numbers, got {value!r}", key)
         if arr.shape != (n,) or not np.isfinite(arr).all():
             self.fail(f"must be a list of {n} numbers, got {value!r}", key)
@@ -176,7 +185,7 @@ def _rotation(r: _Reader) -> np.ndarray:
     value = r.get("rotation", required=True)
     try:
         arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         arr = np.zeros(0)
     if arr.shape == (3,) and np.isfinite(arr).all():
         import cv2  # a rotation vector (Rodrigues, radians), as OpenCV writes them

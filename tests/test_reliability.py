@@ -406,10 +406,10 @@ def test_calibrate_camera_drops_a_view_whose_corners_lie_on_one_row(tmp_path, ca
     out = tmp_path / "cam.json"
     argv = ["calibrate", "camera", *map(str, photos), "--board", str(board_path), "-o", str(out), "-q"]
     assert main(argv) == 0
-    views = {v["name"]: v for v in json.loads(out.read_text())["views"]}
-    last = views[str(photos[-1])]
+    views = {v["name"]: v for v in json.loads(out.read_text())["views"]}  # relative to the profile's folder
+    last = views[photos[-1].name]
     assert not last["used"] and "lie on one line of the board" in last["reason"], last
-    assert all(views[str(p)]["used"] for p in photos[:-1])
+    assert all(views[p.name]["used"] for p in photos[:-1])
 
 
 # --- outputs that travel ----------------------------------------------------------------------

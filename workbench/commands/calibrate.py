@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -17,7 +16,7 @@ from workbench.calibration import calibrate_camera, check_printer_scale, detect_
 from workbench.camera import intrinsics_problem
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_dpi
-from workbench.jsonfile import check, read_json, resolve_recorded
+from workbench.jsonfile import check, read_json, recorded_path, resolve_recorded
 from workbench.printing.boards import load_board
 
 
@@ -81,11 +80,6 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _relative(path: Path, to: Path) -> str:
-    """``path`` as seen from the folder of ``to`` (so a profile finds its board wherever it is run from)."""
-    return os.path.relpath(path.resolve(), to.resolve().parent)
-
-
 def residual_picture(cal, title: str) -> bytes:
     """Corner residuals over the image (arrows magnified), coloured by size."""
     from workbench.figures import _figure, figure_png
@@ -125,9 +119,10 @@ def run_camera(args) -> int:
         "corner_coverage": cal.coverage,
         "tilt_spread_deg": cal.tilt_spread_deg,
         "warnings": cal.warnings,
-        "views": cal.per_view,
-        "board": {"file": _relative(board_path, Path(args.output)), "sha256": _sha(board_path)},
-        "photos_sha256": {p: _sha(Path(p)) for p in args.photos},
+        # photos as paths relative to the profile's folder (each with its sha256): the profile travels
+        "views": [{**v, "name": recorded_path(v["name"], out.parent)} for v in cal.per_view],
+        "board": {"file": recorded_path(board_path, out.parent), "sha256": _sha(board_path)},
+        "photos_sha256": {recorded_path(p, out.parent): _sha(Path(p)) for p in args.photos},
         "software": {"name": "workbench", "version": __version__},
     }
     pic = residual_picture(
@@ -173,8 +168,8 @@ def run_printer(args) -> int:
         "fit_rms_mm": m.rms_mm,
         "corners": m.corners,
         "dpi": args.dpi,
-        "board": {"file": _relative(board_path, Path(args.output)), "sha256": _sha(board_path)},
-        "scan": {"file": _relative(scan_path, Path(args.output)), "sha256": _sha(scan_path)},
+        "board": {"file": recorded_path(board_path, out.parent), "sha256": _sha(board_path)},
+        "scan": {"file": recorded_path(scan_path, out.parent), "sha256": _sha(scan_path)},
         "software": {"name": "workbench", "version": __version__},
     }
     write_files({out: (json.dumps(profile, indent=1) + "\n").encode()})

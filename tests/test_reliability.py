@@ -572,3 +572,41 @@ sys.exit(main(["board", "charuco", "-o", {str(tmp_path / "b.pdf")!r}, "-q"]))
     # the warning outside the command shows (the check can fail); none from inside it
     assert "before the command: shown" in res.stderr
     assert "something will change" not in res.stderr and "overflow" not in res.stderr, res.stderr
+
+
+# --- the schema mechanism itself --------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"views": [{"K": np.eye(3).tolist()}, {"K": [1, 2]}]}, "f.json: views[1].K: must be a 3x3 array"),
+        ({"views": [{}]}, "f.json: views[0].K: missing (a 3x3 array of finite numbers)"),
+        ({"views": []}, "f.json: views: must be a list of at least 1 items"),
+        ({"views": [{"K": np.eye(3).tolist()}], "ids": [1, 2.5]}, "f.json: ids: must be a list of whole numbers"),
+        ({"views": [{"K": np.eye(3).tolist()}], "size": {"dpi": 10**400}}, "f.json: size.dpi: must be a number from"),
+        ({"views": [{"K": np.eye(3).tolist()}], "size": {"dpi": True}}, "f.json: size.dpi: must be a number from"),
+        ({"views": [{"K": np.eye(3).tolist()}], "name": 3}, "f.json: name: must be one of a, b"),
+    ],
+)
+def test_the_schema_names_file_and_key(data, message):
+    from workbench.errors import WorkbenchError
+    from workbench.jsonfile import Field, check
+
+    fields = {
+        "views": Field("list", min_len=1, items=Field("object", fields={"K": Field("array", shape=(3, 3))})),
+        "ids": Field("array", required=False, shape=(None,), integer=True),
+        "size": Field("object", required=False, default={"dpi": 300}, fields={"dpi": Field("number", lo=1, hi=1e4)}),
+        "name": Field("string", required=False, default="a", choices=("a", "b")),
+    }
+    with pytest.raises(WorkbenchError) as exc:
+        check(data, fields, "f.json")
+    assert str(exc.value).startswith(message), str(exc.value)
+
+
+def test_the_schema_fills_in_defaults_and_leaves_unknown_keys():
+    from workbench.jsonfile import Field, check
+
+    fields = {"dpi": Field("number", required=False, default=300), "name": Field("string")}
+    data = check({"name": "x", "newer_key": [1]}, fields, "f.json")
+    assert data == {"name": "x", "dpi": 300, "newer_key": [1]}

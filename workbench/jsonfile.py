@@ -210,11 +210,6 @@ def check(data: dict, fields: Mapping[str, Field], path: str | Path, where: str 
     return data
 
 
-def fail(path: str | Path, key: str, message: str) -> WorkbenchError:
-    """The error for a key whose value the schema allows but the file's other keys contradict."""
-    return WorkbenchError(f"{path}: {key}: {message}")
-
-
 def read_json(path: str | Path, what: str, fields: Mapping[str, Field] | None = None) -> dict:
     """A JSON object from a file, checked against its schema.
 

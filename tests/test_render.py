@@ -174,7 +174,7 @@ def test_previews(tmp_path, default_design):
     [
         (["--orbit", "0,30"], "--orbit '0,30': give 3 comma-separated numbers", 2),
         (["--view", "nope"], "no view named 'nope'", 1),
-        (["--camera", "BADCAM"], "K: must be 3x3 numbers", 1),
+        (["--camera", "BADCAM"], "K: must be a 3x3 array of finite numbers", 1),
         (["--camera", "AWAY"], "the camera sees nothing of the object", 1),
         (["--camera", "missing.json"], "no such camera file", 1),
         (["--orbit", "0,30,400", "--blur-px", "-1"], "--blur-px -1.0: must be between 0 and 50", 2),

@@ -13,6 +13,18 @@ from workbench.printing.boards import CharucoSpec
 MIN_CORNERS = 8
 MIN_VIEWS = 5
 K3_COVERAGE = 0.7  # share of a 8 x 6 grid of the image that corners must reach before k3 is fitted
+# two views whose common corners lie this close (median, px) are one pose taken twice: no new information
+DUPLICATE_PX = 2.0
+# the board's normal must turn this much between views, or the focal length is not determined
+# (fronto-parallel or same-tilt views leave it to trade off against the distance)
+MIN_TILT_SPREAD_DEG = 5.0
+WARN_TILT_SPREAD_DEG = 15.0
+# horizontal fields of view a board calibration can determine (a focal length beyond is a failed fit)
+FOV_RANGE_DEG = (2.0, 170.0)
+# what pdf accepts as a printer's scale (workbench.schemas.PRINTER_PROFILE), and a plausible skew
+PRINTER_SCALE = (0.8, 1.25)
+MAX_SKEW_DEG = 2.0
+COMMON_DPI = (72, 96, 100, 150, 200, 240, 300, 360, 400, 600, 720, 800, 1200, 1600, 2400, 4800)
 
 
 def detect_corners(gray: np.ndarray, definition: dict) -> tuple[np.ndarray, np.ndarray, str | None]:
@@ -72,6 +84,49 @@ class CameraCalibration:
     k3_fixed: bool
     coverage: float
     residuals: list = field(default_factory=list)
+    tilt_spread_deg: float = 0.0
+    warnings: list = field(default_factory=list)
+
+
+def collinear(board_points: np.ndarray) -> bool:
+    """Whether board points lie on one line (one row or column of corners): no homography, no pose."""
+    centred = board_points - board_points.mean(axis=0)
+    s = np.linalg.svd(centred, compute_uv=False)
+    return len(s) < 2 or s[1] <= 1e-6 * max(s[0], 1e-12)
+
+
+def duplicate_of(ids: np.ndarray, px: np.ndarray, earlier: list) -> str | None:
+    """The name of an earlier view with the same pose (common corners within DUPLICATE_PX), or None."""
+    for name, ids0, px0 in earlier:
+        common, a, b = np.intersect1d(ids, ids0, return_indices=True)
+        if len(common) >= 0.8 * max(len(ids), len(ids0)):
+            if float(np.median(np.linalg.norm(px[a] - px0[b], axis=1))) <= DUPLICATE_PX:
+                return name
+    return None
+
+
+def tilt_spread_deg(views: list, width: int, height: int) -> float:
+    """Largest angle between the board's normals (in the camera frame) over all pairs of views.
+
+    Each view is posed with a nominal camera (focal length the image width, principal point
+    at the centre), not the calibrated one: views too alike make the calibration itself
+    wrong (fx 82,000 px for fronto-parallel views), and their poses with it. A wrong focal
+    length bends the angles a little but keeps fronto-parallel views fronto-parallel.
+    """
+    K0 = np.array([[width, 0.0, 0.5 * (width - 1)], [0.0, width, 0.5 * (height - 1)], [0.0, 0.0, 1.0]])
+    normals = []
+    for _name, obj, px in views:
+        try:
+            ok, rvec, _ = cv2.solvePnP(obj.astype(np.float64), px.astype(np.float64), K0, None)
+        except cv2.error:
+            ok = False
+        if ok:
+            normals.append(cv2.Rodrigues(rvec)[0][:, 2])
+    if len(normals) < 2:
+        return 0.0
+    normals = np.array(normals)
+    cos = np.clip(normals @ normals.T, -1.0, 1.0)
+    return float(np.degrees(np.arccos(cos.min())))
 
 
 def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> CameraCalibration:
@@ -105,18 +160,21 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
     H, W = sizes.pop()
     board_mm = np.asarray(definition["charuco_corners"]["board_mm"], dtype=np.float64)
     views, per_view = [], []
+    seen: list = []
     for name, img in images:
         px, ids, problem = detect_corners(img, definition)
-        if problem or len(ids) < MIN_CORNERS:
-            per_view.append(
-                {
-                    "name": name,
-                    "corners": int(len(ids)),
-                    "used": False,
-                    "reason": problem or f"too few corners ({len(ids)}, need {MIN_CORNERS})",
-                }
-            )
+        if not problem and len(ids) < MIN_CORNERS:
+            problem = f"too few corners ({len(ids)}, need {MIN_CORNERS})"
+        if not problem and collinear(board_mm[ids]):
+            problem = f"its {len(ids)} corners lie on one line of the board: no pose from them"
+        if not problem:
+            twin = duplicate_of(ids, px, seen)
+            if twin is not None:
+                problem = f"near-duplicate of {twin} (the same pose: corners within {DUPLICATE_PX:g} px)"
+        if problem:
+            per_view.append({"name": name, "corners": int(len(ids)), "used": False, "reason": problem})
             continue
+        seen.append((name, ids, px))
         obj = np.column_stack([board_mm[ids], np.zeros(len(ids))]).astype(np.float32)
         views.append((name, obj, px.astype(np.float32)))
         per_view.append({"name": name, "corners": int(len(ids)), "used": True})
@@ -126,6 +184,7 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
         raise WorkbenchError(
             f"{len(usable)} usable views of the board, need at least {MIN_VIEWS}" + (f" ({reasons})" if reasons else "")
         )
+    check_views_vary(views, W, H)
     cells = np.zeros((6, 8), dtype=bool)
     for _, _, px in views:
         cells[np.clip((px[:, 1] / H * 6).astype(int), 0, 5), np.clip((px[:, 0] / W * 8).astype(int), 0, 7)] = True
@@ -134,9 +193,13 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
     for _round in range(2):
         used = [v for v in views]
-        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(
-            [v[1] for v in used], [v[2] for v in used], (W, H), None, None, flags=flags, criteria=crit
-        )
+        try:
+            rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(
+                [v[1] for v in used], [v[2] for v in used], (W, H), None, None, flags=flags, criteria=crit
+            )
+        except cv2.error as exc:
+            detail = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
+            raise WorkbenchError(f"the calibration of {len(used)} views failed ({detail})") from None
         errs = []
         for (_name, obj, px), r, t in zip(used, rvecs, tvecs, strict=True):
             proj, _ = cv2.projectPoints(obj, r, t, K, dist)
@@ -158,7 +221,102 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
         for v in per_view:
             if v["name"] == name:
                 v["rms_px"] = e
-    return CameraCalibration(K, dist.ravel()[:5], (W, H), float(rms), per_view, bool(flags), coverage, residuals)
+    cal = CameraCalibration(K, dist.ravel()[:5], (W, H), float(rms), per_view, bool(flags), coverage, residuals)
+    check_camera_calibration(cal, tilt_spread_deg(views, W, H))
+    return cal
+
+
+def check_views_vary(views: list, width: int, height: int) -> float:
+    """The views' tilt spread (degrees); refuses views too alike before any calibration.
+
+    Raises
+    ------
+    WorkbenchError
+        The board's normal turns less than MIN_TILT_SPREAD_DEG between views.
+    """
+    spread = tilt_spread_deg(views, width, height)
+    if spread < MIN_TILT_SPREAD_DEG:
+        raise WorkbenchError(
+            f"the board faces the camera the same way in every view (its normal turns {spread:.1f} degrees at "
+            f"most): the focal length is not determined; {TILT_ADVICE}"
+        )
+    return spread
+
+
+TILT_ADVICE = "tilt the board (or the camera) by 20 to 45 degrees in different directions between photos"
+
+
+def check_camera_calibration(cal: CameraCalibration, spread: float) -> None:
+    """Refuse intrinsics no camera has, or views too alike to determine them; warn when barely enough.
+
+    Raises
+    ------
+    WorkbenchError
+        Non-finite or non-positive focal lengths, a field of view outside FOV_RANGE_DEG,
+        or a principal point off the image.
+    """
+    from workbench.camera import intrinsics_problem
+
+    W, H = cal.image_size
+    problem = intrinsics_problem(cal.K, W, H)
+    if problem is None and np.isfinite(cal.K).all():
+        fov = float(np.degrees(2 * np.arctan(0.5 * W / cal.K[0, 0]))) if cal.K[0, 0] > 0 else 0.0
+        lo, hi = FOV_RANGE_DEG
+        if not lo <= fov <= hi:
+            problem = f"fx {cal.K[0, 0]:.0f} px is a field of view of {fov:.2f} degrees, outside {lo:g} to {hi:g}"
+    if problem is not None or not np.isfinite(cal.dist).all():
+        raise WorkbenchError(
+            f"the calibration gives no plausible camera: {problem or 'dist: not finite'}; {TILT_ADVICE}"
+        )
+    cal.tilt_spread_deg = spread
+    if spread < WARN_TILT_SPREAD_DEG:
+        cal.warnings.append(f"little tilt variety ({spread:.1f} degrees at most between views): {TILT_ADVICE}")
+
+
+def likely_dpi(dpi: float, scale: float) -> float:
+    """The common scanner resolution that would make a measured ``scale`` at ``dpi`` nearest 1."""
+    true_dpi = dpi * scale  # lengths in mm scale as 1 / dpi
+    return min(COMMON_DPI, key=lambda d: abs(np.log(d / true_dpi)))
+
+
+def check_printer_scale(m: PrinterScale, dpi: float, tagged: bool, scan: str) -> None:
+    """Refuse a measured printer scale that ``workbench pdf`` would refuse, with its likely cause.
+
+    Parameters
+    ----------
+    m : PrinterScale
+        The measurement.
+    dpi : float
+        The resolution it assumed.
+    tagged : bool
+        Whether the scan file records its dpi (then a wrong --dpi was already refused).
+    scan : str
+        The scan, for the message.
+
+    Raises
+    ------
+    WorkbenchError
+        Scale outside PRINTER_SCALE, or skew beyond MAX_SKEW_DEG.
+    """
+    lo, hi = PRINTER_SCALE
+    for axis, s in (("x", m.scale_x), ("y", m.scale_y)):
+        if not lo <= s <= hi:
+            guess = likely_dpi(dpi, float(np.sqrt(m.scale_x * m.scale_y)))
+            cause = (
+                f"the likely cause is the resolution: the scan records no dpi and --dpi {dpi:g} was given; "
+                f"at {guess:g} dpi the scale would be {100 * (s * dpi / guess - 1):+.2f} %"
+                if not tagged
+                else "is the scan of this board's target, printed at 100 % (no fit to page)?"
+            )
+            raise WorkbenchError(
+                f"{scan}: measured scale {axis} {100 * (s - 1):+.1f} % is not a printer's (pdf accepts "
+                f"{lo:g} to {hi:g}); {cause}"
+            )
+    if abs(m.skew_deg) > MAX_SKEW_DEG:
+        raise WorkbenchError(
+            f"{scan}: measured skew {m.skew_deg:+.2f} degrees is not a printer's (at most {MAX_SKEW_DEG:g}): "
+            "was the target flat on the scanner?"
+        )
 
 
 @dataclass

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench import schemas
 from workbench.errors import WorkbenchError
 from workbench.jsonfile import read_json
 
@@ -122,42 +123,60 @@ class Camera:
         }
 
 
+def intrinsics_problem(K: np.ndarray, width: int, height: int) -> str | None:
+    """Why ``K`` cannot be a camera's intrinsics for a ``width`` x ``height`` image, or None.
+
+    The focal lengths must be positive (a zero or negative one mirrors or collapses the
+    image), the last row (0, 0, 1), no skew beyond a pixel's worth, and the principal
+    point within the image's own size of the image (a calibration gone wrong puts it far off).
+    """
+    K = np.asarray(K, dtype=np.float64)
+    if not np.isfinite(K).all():
+        return "K: holds NaN or infinite values"
+    fx, fy = K[0, 0], K[1, 1]
+    if not (fx > 0 and fy > 0):
+        return f"K: focal lengths fx {fx:g}, fy {fy:g} must be positive"
+    if not np.allclose(K[2], [0.0, 0.0, 1.0]) or abs(K[1, 0]) > 1e-9:
+        return f"K: must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], got last rows {K[1:].tolist()}"
+    if not 0.02 < fx / fy < 50:
+        return f"K: fx {fx:g} and fy {fy:g} differ by more than any real lens does"
+    if not (-width <= K[0, 2] <= 2 * width and -height <= K[1, 2] <= 2 * height):
+        return f"K: principal point ({K[0, 2]:g}, {K[1, 2]:g}) is far outside the {width} x {height} image"
+    return None
+
+
+def _dist5(d: dict) -> np.ndarray:
+    dist = np.asarray(d["dist"], dtype=np.float64).ravel()[:5]
+    return np.concatenate([dist, np.zeros(5 - dist.size)])
+
+
 def load_camera(path: Path) -> Camera:
-    """A camera file: K (3x3), R (3x3), t (3), image_size [W, H], optional dist (5)."""
-    d = read_json(path, "camera file")
-    shapes = {"K": (3, 3), "R": (3, 3), "t": (3,), "image_size": (2,)}
-    vals = {}
-    for key, shape in shapes.items():
-        try:
-            arr = np.asarray(d[key], dtype=np.float64)
-        except KeyError:
-            raise WorkbenchError(f"{path}: {key}: missing") from None
-        except (TypeError, ValueError):
-            arr = np.zeros(0)
-        if arr.shape != shape or not np.isfinite(arr).all():
-            raise WorkbenchError(f"{path}: {key}: must be {'x'.join(map(str, shape))} numbers")
-        vals[key] = arr
-    R = vals["R"]
+    """A camera file: K (3x3), R (3x3), t (3), image_size [W, H], optional dist (up to 5)."""
+    d = read_json(path, "camera file", schemas.CAMERA_FILE)
+    R = np.asarray(d["R"], dtype=np.float64)
     if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
         raise WorkbenchError(f"{path}: R: not a rotation matrix")
-    dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()
-    if dist.size < 5:
-        dist = np.concatenate([dist, np.zeros(5 - dist.size)])
-    w, h = (int(v) for v in vals["image_size"])
-    if w < 8 or h < 8:
-        raise WorkbenchError(f"{path}: image_size: {w} x {h} is too small")
-    return Camera(K=vals["K"], R=R, t=vals["t"], width=w, height=h, dist=dist[:5])
+    w, h = (int(v) for v in d["image_size"])
+    K = np.asarray(d["K"], dtype=np.float64)
+    problem = intrinsics_problem(K, w, h)
+    if problem:
+        raise WorkbenchError(f"{path}: {problem}")
+    return Camera(K=K, R=R, t=np.asarray(d["t"], dtype=np.float64), width=w, height=h, dist=_dist5(d))
 
 
 def load_camera_profile(path: Path) -> Camera:
-    """Intrinsics only (K, dist, image_size): a calibration profile or a PHOTO.json."""
-    d = read_json(path, "camera profile")
-    try:
-        K = np.asarray(d["K"], dtype=np.float64)
-        w, h = (int(v) for v in d["image_size"])
-        dist = np.asarray(d.get("dist", [0.0] * 5), dtype=np.float64).ravel()[:5]
-    except (KeyError, TypeError, ValueError) as exc:
-        raise WorkbenchError(f"{path}: not a camera profile (K, dist, image_size): {exc}") from None
-    if K.shape != (3, 3):
-        raise WorkbenchError(f"{path}: K: must be 3x3")
-    return Camera(K, np.eye(3), np.zeros(3), w, h, np.concatenate([dist, np.zeros(5 - len(dist))]))
+    """Intrinsics only (K, dist, image_size): a calibration profile or a PHOTO.json.
+
+    Raises
+    ------
+    WorkbenchError
+        Missing, malformed, or intrinsics no camera has (see :func:`intrinsics_problem`);
+        names the file and the key.
+    """
+    d = read_json(path, "camera profile", schemas.CAMERA_PROFILE)
+    w, h = (int(v) for v in d["image_size"])
+    K = np.asarray(d["K"], dtype=np.float64)
+    problem = intrinsics_problem(K, w, h)
+    if problem:
+        raise WorkbenchError(f"{path}: {problem}")
+    return Camera(K, np.eye(3), np.zeros(3), w, h, _dist5(d))

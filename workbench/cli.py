@@ -6,6 +6,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 
 from workbench import __version__
 from workbench.errors import UsageError, WorkbenchError
@@ -33,8 +34,28 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _run_quietly(args) -> int:
+    """Run a command with library warnings kept off stderr.
+
+    Every result is checked where it matters (finite maps, plausible profiles): a numpy
+    overflow or a deprecation notice printed before the one-line error, or among the
+    progress lines, only hides what the command itself says.
+    """
+    import numpy as np
+
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        return args.run(args)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0, 1 for bad input, 2 for bad usage)."""
+    """Run the command line; returns the exit status.
+
+    0 on success, 1 for bad input or a failed run (a file, key or value at fault, a
+    calibration that drifted), 2 for a malformed command line (an unknown, missing or
+    out-of-range option), 130 when interrupted. Every error is one line on stderr,
+    ``workbench COMMAND: error: WHAT: why``, and a failed run writes nothing.
+    """
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
     if epoch is not None and not epoch.strip().isdigit():
         # read by ReportLab when it loads, and by every PDF's date line: say so before either fails
@@ -55,10 +76,14 @@ def main(argv: list[str] | None = None) -> int:
             parser.print_help()
             return 2
         prog = f"workbench {args.command}"
-        return args.run(args)
+        return _run_quietly(args)
     except WorkbenchError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return exc.exit_status
+    except MemoryError:
+        # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
+        print(f"{prog}: error: out of memory; nothing written (lower the resolution or the size)", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; nothing written", file=sys.stderr)
         return 130

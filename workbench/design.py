@@ -6,6 +6,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -317,26 +318,44 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
 
 def read_image(path, what: str) -> np.ndarray:
     """An image file as RGB uint8, or a WorkbenchError naming it."""
-    data = np.fromfile(str(path), dtype=np.uint8)
+    if Path(path).is_dir():
+        raise WorkbenchError(f"{what}: {path} is a directory, not an image")
+    try:
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except OSError:
+        data = np.zeros(0, np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
     if img is None:
         raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
+def physical_memory() -> int:
+    """The memory this command can have, bytes: what Linux says is available, else the machine's (16 GiB
+    where the system does not say). Available, not installed: on a shared machine the rest is in use."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 16 * 2**30
+
+
 def check_print_fits(grid: PrintGrid, where: str) -> None:
     """Refuse, before allocating, a print that would not fit in this machine's memory."""
     rows, cols = grid.shape
     need = rows * cols * BYTES_PER_PRINT_PIXEL
-    try:
-        have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        have = 16 * 2**30
+    have = physical_memory()
     if need > 0.7 * have:
         raise WorkbenchError(
             f"{where}: a {grid.width_mm:.1f} x {grid.height_mm:.1f} mm print at {grid.dpi:g} dpi is "
             f"{cols:,} x {rows:,} px ({rows * cols / 1e6:,.0f} Mpx) and needs about {need / 2**30:,.1f} GiB; "
-            f"this machine has {have / 2**30:.1f} GiB: lower [print].dpi"
+            f"this machine has {have / 2**30:.1f} GiB available: lower [print].dpi"
         )
 
 

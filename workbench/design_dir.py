@@ -2,17 +2,28 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from workbench import schemas
+from workbench.atomic import safe_name
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
+from workbench.jsonfile import read_json
 from workbench.mesh.io import read_mesh
-from workbench.render.imperfections import Imperfections
-from workbench.render.photo import build_scene
+from workbench.printing.boards import load_board
+
+
+def read_design_json(path: Path, fields: dict = schemas.DESIGN) -> dict:
+    """design.json of a design folder, checked (:data:`workbench.schemas.DESIGN`); view names unique."""
+    info = read_json(path, "design.json of workbench design", fields)
+    names = [v["name"] for v in info["views"]] if "views" in fields else []
+    for k, name in enumerate(names):
+        if name in names[:k]:
+            raise WorkbenchError(f"{path}: views[{k}].name: {name!r} is used twice")
+    return info
 
 
 class Design:
@@ -26,30 +37,55 @@ class Design:
             if not (directory / name).is_file():
                 raise WorkbenchError(f"{directory / name}: missing; is {directory} the output of workbench design?")
         self.dir = directory
-        self.info = json.loads((directory / "design.json").read_text())
-        self.fixture = json.loads((directory / "fixture.json").read_text())
+        self.info = read_design_json(directory / "design.json")
+        self.fixture = load_board(directory / "fixture.json", "fixture definition", schemas.FIXTURE)
         # the decorated mesh: the part in mm, in the input's vertex order
         self.V, self.F = read_mesh(directory / "decorated.obj")
-        flat, _ = read_mesh(directory / "flat.obj")
+        flat, flat_F = read_mesh(directory / "flat.obj")
+        # the same triangles, vertex for vertex: the print's layout of the decorated part
+        if flat.shape != self.V.shape or not np.array_equal(flat_F, self.F):
+            raise WorkbenchError(
+                f"{directory / 'flat.obj'}: {len(flat)} vertices and {len(flat_F)} faces do not match decorated.obj's "
+                f"{len(self.V)} and {len(self.F)}; rerun workbench design"
+            )
+        for name, arr in (("decorated.obj", self.V), ("flat.obj", flat)):
+            if not np.isfinite(arr).all():
+                raise WorkbenchError(f"{directory / name}: vertices have NaN or infinite coordinates")
         self.flat = flat[:, :2]
         img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_COLOR)
         if img is None:
             raise WorkbenchError(f"{directory / 'print.png'}: cannot read")
         self.rgb = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+        p = self.info["print"]
+        if self.rgb.shape[:2] != (p["height_px"], p["width_px"]):
+            raise WorkbenchError(
+                f"{directory / 'print.png'}: {self.rgb.shape[1]} x {self.rgb.shape[0]} px, design.json says "
+                f"{p['width_px']} x {p['height_px']}"
+            )
         owner = cv2.imread(str(directory / "owner.png"), cv2.IMREAD_UNCHANGED)
-        # owning view + 1 per print pixel, 0 for none (see design)
+        # owning view + 1 per print pixel, 0 for none (see design); validate needs it, render does not
         self.owner = None if owner is None else owner.astype(np.int16) - 1
+        if self.owner is not None and (
+            self.owner.shape != self.rgb.shape[:2] or self.owner.max() >= len(self.info["views"])
+        ):
+            raise WorkbenchError(
+                f"{directory / 'owner.png'}: not the view ownership of this print (its size or view numbers "
+                "differ); rerun workbench design"
+            )
 
     def view_image(self, index: int) -> np.ndarray:
         """The image of designed view ``index`` (RGB), as the design used it."""
         name = self.info["views"][index]["name"]
-        path = self.dir / f"view-{name}.png"
+        path = self.dir / f"view-{safe_name(name)}.png"
         img = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if img is None:
             raise WorkbenchError(f"{path}: missing; rerun workbench design")
         return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
-    def scene(self, imp: Imperfections, fixture: bool = True):
+    def scene(self, imp, fixture: bool = True):
+        """The render scene (:func:`workbench.render.photo.build_scene`) of this design with ``imp``."""
+        from workbench.render.photo import build_scene  # numba kernels: loaded by the commands that render
+
         p = self.info["print"]
         return build_scene(
             self.V,

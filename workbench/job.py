@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -116,6 +117,14 @@ class Job:
         return self.path.parent.name if self.path.stem == "job" else self.path.stem
 
 
+def _finite(value: float) -> bool:
+    """Finite, and within a float's range (TOML integers are unbounded)."""
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
 class _Reader:
     """Typed access to one TOML table, with errors that name the file and the key."""
 
@@ -148,7 +157,7 @@ class _Reader:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float) or (integer and not isinstance(value, int)):
             self.fail(f"must be {'an integer' if integer else 'a number'}, got {value!r}", key)
-        if not np.isfinite(value) or (lo is not None and value <= lo) or (hi is not None and value >= hi):
+        if not _finite(value) or (lo is not None and value <= lo) or (hi is not None and value >= hi):
             bounds = (
                 f" between {lo} and {hi}"
                 if lo is not None and hi is not None
@@ -173,7 +182,7 @@ class _Reader:
             return None
         try:
             arr = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             self.fail(f"must be a list of {n} numbers, got {value!r}", key)
         if arr.shape != (n,) or not np.isfinite(arr).all():
             self.fail(f"must be a list of {n} numbers, got {value!r}", key)
@@ -184,6 +193,8 @@ class _Reader:
         if value is None:
             return None
         path = (self.path.parent / value).resolve()
+        if path.is_dir():
+            self.fail(f"{value!r} is a directory, not a file ({path})", key)
         if not path.is_file():
             self.fail(f"file {value!r} not found (looked for {path})", key)
         return path
@@ -207,7 +218,7 @@ def _rotation(r: _Reader) -> np.ndarray:
     value = r.get("rotation", required=True)
     try:
         arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         arr = np.zeros(0)
     if arr.shape == (3,) and np.isfinite(arr).all():
         import cv2  # a rotation vector (Rodrigues, radians), as OpenCV writes them
@@ -221,14 +232,20 @@ def _rotation(r: _Reader) -> np.ndarray:
 
 
 VIEW_POSE_KEYS = {"position", "look_at", "up", "fov_deg"}
+VIEW_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 VIEW_K_KEYS = {"fx", "fy", "cx", "cy", "rotation", "translation"}
 
 
 def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
     r = _Reader(path, f"views[{i}]", table, {"name", "image", "region"} | VIEW_POSE_KEYS | VIEW_K_KEYS)
     name = r.string("name", required=True)
-    if not name:
-        r.fail("must not be empty", "name")
+    if not VIEW_NAME.fullmatch(name):
+        # the name becomes file names (view-NAME.png): nothing that leaves the output folder or hides a file
+        r.fail(
+            "must be 1 to 64 letters, digits, '.', '_' or '-', starting with a letter or digit, "
+            f"got {name!r}",
+            "name",
+        )
     if name in names:
         r.fail(f"view name {name!r} is used twice", "name")
     image = r.file("image")
@@ -284,6 +301,8 @@ def load_job(path: str | Path) -> Job:
         names the file and the key.
     """
     path = Path(path).resolve()
+    if path.is_dir():
+        raise WorkbenchError(f"{path}: is a directory, not a job file")
     if not path.is_file():
         raise WorkbenchError(f"{path}: no such job file")
     data = path.read_bytes()

@@ -11,7 +11,8 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import write_files
-from workbench.errors import UsageError
+from workbench.errors import UsageError, WorkbenchError
+from workbench.jsonfile import recorded_path
 from workbench.printing.boards import CharucoSpec, definition, draw_board, fixture_from_job
 from workbench.printing.paper import choose_sheet, parse_paper
 from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
@@ -141,9 +142,11 @@ def run(args) -> int:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
         from workbench.job import load_job
         from workbench.mesh.io import read_mesh
+        from workbench.mesh.validate import check_disc
 
         job = load_job(args.job)
         V, F = read_mesh(job.object.mesh, job.object.units)
+        check_disc(V, F, str(job.object.mesh))  # the footprint is the disc's boundary
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
         extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
         extra["footprint_board_mm"] = footprint.tolist()
@@ -166,16 +169,21 @@ def run(args) -> int:
                 int((sheet_h - 2 * BOARD_MARGIN_MM - BELOW_MM) // square),
             )
             squares = _squares(args.squares, default)
-        spec = CharucoSpec(
-            squares=squares,
-            square_mm=square,
-            marker_mm=args.marker_mm or 0.75 * square,
-            dictionary=args.dictionary or "DICT_5X5_250",
-            first_id=args.first_id or 0,
-        )
+        try:
+            spec = CharucoSpec(
+                squares=squares,
+                square_mm=square,
+                marker_mm=args.marker_mm or 0.75 * square,
+                dictionary=args.dictionary or "DICT_5X5_250",
+                first_id=args.first_id or 0,
+            )
+        except WorkbenchError as exc:  # every value came from an option: a usage error
+            raise UsageError(str(exc)) from None
         default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
         title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
     out = Path(args.output) if args.output else default_out
+    if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
+        extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
     pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint)
     extra["paper"] = paper_name
     extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}

@@ -4,19 +4,20 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from workbench import __version__
+from workbench import __version__, schemas
 from workbench.atomic import check_outputs, write_files
-from workbench.calibration import calibrate_camera, detect_corners, measure_printer
-from workbench.errors import WorkbenchError
+from workbench.calibration import calibrate_camera, check_printer_scale, detect_corners, measure_printer
+from workbench.camera import intrinsics_problem
+from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_dpi
-from workbench.jsonfile import read_json
+from workbench.jsonfile import check, read_json, recorded_path, resolve_recorded
+from workbench.printing.boards import load_board
 
 
 def add_parser(sub) -> None:
@@ -65,29 +66,18 @@ def _log(args):
     return (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
 
 
-def load_board(path: Path) -> dict:
-    d = read_json(path, "board definition")
-    for key in ("squares", "square_mm", "marker_mm", "dictionary", "charuco_corners", "markers"):
-        if key not in d:
-            raise WorkbenchError(f"{path}: {key}: missing; is it a board definition of workbench board?")
-    return d
-
-
 def _gray(path: Path) -> np.ndarray:
+    if path.is_dir():
+        raise WorkbenchError(f"{path}: is a directory, not an image")
     data = np.fromfile(str(path), dtype=np.uint8) if path.is_file() else np.zeros(0, np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
     if img is None:
-        raise WorkbenchError(f"{path}: cannot read image")
+        raise WorkbenchError(f"{path}: cannot read image" + ("" if path.exists() else " (no such file)"))
     return img
 
 
 def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def _relative(path: Path, to: Path) -> str:
-    """``path`` as seen from the folder of ``to`` (so a profile finds its board wherever it is run from)."""
-    return os.path.relpath(path.resolve(), to.resolve().parent)
 
 
 def residual_picture(cal, title: str) -> bytes:
@@ -127,9 +117,12 @@ def run_camera(args) -> int:
         "rms_px": cal.rms_px,
         "k3_fixed": cal.k3_fixed,
         "corner_coverage": cal.coverage,
-        "views": cal.per_view,
-        "board": {"file": _relative(board_path, Path(args.output)), "sha256": _sha(board_path)},
-        "photos_sha256": {p: _sha(Path(p)) for p in args.photos},
+        "tilt_spread_deg": cal.tilt_spread_deg,
+        "warnings": cal.warnings,
+        # photos as paths relative to the profile's folder (each with its sha256): the profile travels
+        "views": [{**v, "name": recorded_path(v["name"], out.parent)} for v in cal.per_view],
+        "board": {"file": recorded_path(board_path, out.parent), "sha256": _sha(board_path)},
+        "photos_sha256": {recorded_path(p, out.parent): _sha(Path(p)) for p in args.photos},
         "software": {"name": "workbench", "version": __version__},
     }
     pic = residual_picture(
@@ -139,6 +132,8 @@ def run_camera(args) -> int:
     for v in cal.per_view:
         if not v["used"]:
             log(f"left out {v['name']}: {v['reason']}")
+    for w in cal.warnings:
+        log(f"warning: {w}")
     log(
         f"fx {cal.K[0, 0]:.2f} fy {cal.K[1, 1]:.2f} cx {cal.K[0, 2]:.2f} cy {cal.K[1, 2]:.2f} px; dist "
         f"{np.round(cal.dist, 5).tolist()}; RMS {cal.rms_px:.3f} px; wrote {out}"
@@ -147,8 +142,8 @@ def run_camera(args) -> int:
 
 
 def _check_dpi(path: Path, dpi: float) -> None:
-    if not dpi > 0:
-        raise WorkbenchError(f"--dpi {dpi}: must be positive")
+    if not (np.isfinite(dpi) and 1 <= dpi <= 100_000):
+        raise UsageError(f"--dpi {dpi:g}: must be a scan resolution from 1 to 100000")
     recorded = png_dpi(path.read_bytes()) if path.suffix.lower() == ".png" and path.is_file() else None
     if recorded is not None and abs(recorded - dpi) > 0.01 * dpi:
         raise WorkbenchError(f"{path}: the scan says {recorded:.1f} dpi, --dpi says {dpi:g}: which is right?")
@@ -161,7 +156,8 @@ def run_printer(args) -> int:
     _check_dpi(scan_path, args.dpi)
     out = Path(args.output)
     check_outputs(out)
-    m = measure_printer(_gray(scan_path), board, args.dpi)
+    m = _measure(scan_path, board, args.dpi)
+    check_printer_scale(m, args.dpi, png_dpi(scan_path.read_bytes()) is not None, str(scan_path))
     profile = {
         "kind": "printer-profile",
         "name": args.name or out.stem,
@@ -172,8 +168,8 @@ def run_printer(args) -> int:
         "fit_rms_mm": m.rms_mm,
         "corners": m.corners,
         "dpi": args.dpi,
-        "board": {"file": _relative(board_path, Path(args.output)), "sha256": _sha(board_path)},
-        "scan": {"file": _relative(scan_path, Path(args.output)), "sha256": _sha(scan_path)},
+        "board": {"file": recorded_path(board_path, out.parent), "sha256": _sha(board_path)},
+        "scan": {"file": recorded_path(scan_path, out.parent), "sha256": _sha(scan_path)},
         "software": {"name": "workbench", "version": __version__},
     }
     write_files({out: (json.dumps(profile, indent=1) + "\n").encode()})
@@ -184,24 +180,48 @@ def run_printer(args) -> int:
     return 0
 
 
+def _measure(scan: Path, board: dict, dpi: float):
+    """The printer's scale in one scan; its errors name the scan."""
+    try:
+        return measure_printer(_gray(scan), board, dpi)
+    except WorkbenchError as exc:
+        raise WorkbenchError(str(exc) if str(exc).startswith(str(scan)) else f"{scan}: {exc}") from None
+
+
+def _camera_drift(path: Path, board: dict, K: np.ndarray, dist: np.ndarray) -> float:
+    """Reprojection RMS (px) of one photo of the board with the stored intrinsics; errors name the photo."""
+    img = _gray(path)
+    px, ids, problem = detect_corners(img, board)
+    if problem or len(ids) < 8:
+        raise WorkbenchError(f"{path}: {problem or f'too few corners of the board ({len(ids)}, need 8)'}")
+    obj = np.column_stack([np.asarray(board["charuco_corners"]["board_mm"])[ids], np.zeros(len(ids))])
+    try:
+        _, rvec, tvec = cv2.solvePnP(obj, px, K, dist, flags=cv2.SOLVEPNP_SQPNP)
+        rvec, tvec = cv2.solvePnPRefineLM(obj, px, K, dist, rvec, tvec)
+        proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    except cv2.error:
+        raise WorkbenchError(f"{path}: no pose of the board from its {len(ids)} corners (on one line?)") from None
+    return float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - px) ** 2, axis=1))))
+
+
 def run_check(args) -> int:
     log = _log(args)
+    for flag, v in (("--tolerance-pct", args.tolerance_pct), ("--tolerance-px", args.tolerance_px)):
+        if not (np.isfinite(v) and v > 0):
+            raise UsageError(f"{flag} {v:g}: must be a positive number")
     path = Path(args.profile)
-    prof = read_json(path, "profile")
-    kind = prof.get("kind")
-    board_file = (prof.get("board") or {}).get("file")
-    if kind not in ("camera-profile", "printer-profile") or not board_file:
-        raise WorkbenchError(f"{path}: kind: not a camera-profile or printer-profile of workbench calibrate")
-    board_path = Path(board_file)
-    if not board_path.is_absolute():
-        board_path = path.parent / board_path
+    what = "profile of workbench calibrate (camera-profile or printer-profile)"
+    prof = read_json(path, what, schemas.CALIBRATION_PROFILE)
+    kind = prof["kind"]
+    check(prof, schemas.CALIBRATION_KINDS[kind], path)
+    board_path = resolve_recorded(prof["board"]["file"], path)
     board = load_board(board_path)
     failures = []
     for item in args.inputs:
         p = Path(item)
         if kind == "printer-profile":
             _check_dpi(p, prof["dpi"])
-            m = measure_printer(_gray(p), board, prof["dpi"])
+            m = _measure(p, board, prof["dpi"])
             dx, dy = 100 * (m.scale_x - prof["scale_x"]), 100 * (m.scale_y - prof["scale_y"])
             ok = max(abs(dx), abs(dy)) <= args.tolerance_pct
             log(
@@ -209,16 +229,11 @@ def run_check(args) -> int:
                 f"{'OK' if ok else 'DRIFT'}"
             )
         else:
-            K, dist = np.asarray(prof["K"]), np.asarray(prof["dist"])
-            img = _gray(p)
-            px, ids, problem = detect_corners(img, board)
-            if problem or len(ids) < 8:
-                raise WorkbenchError(f"{p}: {problem or 'too few corners of the board'}")
-            obj = np.column_stack([np.asarray(board["charuco_corners"]["board_mm"])[ids], np.zeros(len(ids))])
-            _, rvec, tvec = cv2.solvePnP(obj, px, K, dist, flags=cv2.SOLVEPNP_SQPNP)
-            rvec, tvec = cv2.solvePnPRefineLM(obj, px, K, dist, rvec, tvec)
-            proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
-            rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - px) ** 2, axis=1))))
+            K, dist = np.asarray(prof["K"], dtype=np.float64), np.asarray(prof["dist"], dtype=np.float64)
+            problem = intrinsics_problem(K, *prof["image_size"])
+            if problem:
+                raise WorkbenchError(f"{path}: {problem}")
+            rms = _camera_drift(p, board, K, dist)
             ok = rms <= args.tolerance_px
             log(
                 f"{p.name}: reprojection RMS {rms:.3f} px with the stored intrinsics "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import sys
 import textwrap
@@ -11,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench import __version__
-from workbench.atomic import write_files
+from workbench.atomic import check_output_dir, safe_name, write_folder
 from workbench.commands.flatten import summary
 from workbench.conformal.distortion import weighted_quantiles
 from workbench.design import background_share, design, film_area_mm2, fit_warnings, read_image, view_statistics
@@ -19,6 +20,7 @@ from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
 from workbench.job import load_job
+from workbench.jsonfile import recorded_path
 from workbench.mesh.io import format_obj
 from workbench.printing.boards import definition, fixture_from_job
 
@@ -87,7 +89,8 @@ def print_with_alpha(rgb: np.ndarray, film: np.ndarray) -> np.ndarray:
 def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     job = load_job(args.job)
-    out = Path(args.out) if args.out else Path(f"design-{job.name}")
+    out = Path(args.out) if args.out else Path(f"design-{safe_name(job.name)}")
+    check_output_dir(out)  # before the minutes of work, not after them
     result = design(job, log)
     warnings = fit_warnings(result, job.object.material.max_stretch)
     if warnings and args.strict:
@@ -120,7 +123,12 @@ def run(args) -> int:
     over = None if limit is None else float(flat.area_3d[~flat.collapsed][flat.stretch[~flat.collapsed] > limit].sum())
     info = {
         "software": {"name": "workbench", "version": __version__},
-        "job": {"file": str(job.path), "sha256": job.sha256, "name": job.name},
+        # paths relative to the design folder, each with its hash: the folder travels
+        "job": {"file": recorded_path(job.path, out), "sha256": job.sha256, "name": job.name},
+        "inputs": [
+            {"file": recorded_path(p, out), "sha256": hashlib.sha256(p.read_bytes()).hexdigest()}
+            for p in (job.object.mesh, *(v.image for v in job.views))
+        ],
         "print": {
             "width_mm": flat.width_mm,
             "height_mm": flat.height_mm,
@@ -218,7 +226,7 @@ def run(args) -> int:
             )
     # the view images, so that the design directory alone is enough to validate photos
     for v in job.views:
-        files[out / f"view-{v.name}.png"] = (
+        files[out / f"view-{safe_name(v.name)}.png"] = (
             v.image.read_bytes() if v.image.suffix.lower() == ".png" else png_bytes(read_image(v.image, v.name))
         )
     spec, origin, footprint = fixture_from_job(job.fixture, result.V, result.F, f"{job.path}: fixture")
@@ -229,7 +237,7 @@ def run(args) -> int:
     timings = {**result.timings_s, "write": time.perf_counter() - t0}
     info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
     files[out / "design.json"] = (json.dumps(info, indent=2) + "\n").encode()
-    write_files(files)
+    write_folder(out, files)
     log(
         f"print {flat.width_mm:.2f} x {flat.height_mm:.2f} mm, {cols} x {rows} px at {grid.dpi:g} dpi; "
         + "; ".join(f"{s['name']} {100 * s['print_share']:.1f} %" for s in stats)

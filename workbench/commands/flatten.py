@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench import __version__
-from workbench.atomic import write_files
+from workbench.atomic import check_output_dir, write_folder
 from workbench.conformal.distortion import weighted_quantiles
 from workbench.conformal.flatten import (
     CrowdingError,
@@ -24,6 +24,7 @@ from workbench.conformal.flatten import (
 )
 from workbench.errors import UsageError
 from workbench.figures import stretch_figure
+from workbench.jsonfile import recorded_path
 from workbench.mesh.io import UNITS_MM, format_obj, read_mesh
 
 
@@ -139,15 +140,16 @@ def run(args) -> int:
     mesh_path = Path(args.mesh)
     out = Path(args.out) if args.out else Path(f"flatten-{mesh_path.stem}")
 
+    if args.outline == "free" and args.corners is not None:
+        raise UsageError("--corners belongs to --outline rectangle; a free outline has no corners")
+    if not (np.isfinite(args.dpi) and 1 <= args.dpi <= 10000):
+        raise UsageError(f"--dpi {args.dpi:g}: must be between 1 and 10000")
+    check_output_dir(out)  # before the work, not after it
     t0 = time.perf_counter()
     V, F = read_mesh(mesh_path, args.units)
     t_read = time.perf_counter() - t0
     log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
     compared = None
-    if args.outline == "free" and args.corners is not None:
-        raise UsageError("--corners belongs to --outline rectangle; a free outline has no corners")
-    if not (np.isfinite(args.dpi) and 1 <= args.dpi <= 10000):
-        raise UsageError(f"--dpi {args.dpi:g}: must be between 1 and 10000")
     options = FlattenOptions(
         corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline
     )
@@ -163,7 +165,7 @@ def run(args) -> int:
     info = {
         "software": {"name": "workbench", "version": __version__},
         "input": {
-            "mesh": str(mesh_path),
+            "mesh": recorded_path(mesh_path, out),
             "sha256": hashlib.sha256(mesh_path.read_bytes()).hexdigest(),
             "units": args.units,
         },
@@ -190,7 +192,8 @@ def run(args) -> int:
     timings = {"read": t_read, **result.timings_s, "write": t_write}
     # timings are the one field that differs between two runs on the same input
     info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
-    write_files(
+    write_folder(
+        out,
         {
             out / "flat.obj": obj,
             out / "flatten.json": (json.dumps(info, indent=2) + "\n").encode(),

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from workbench import schemas
 from workbench.atomic import write_files
-from workbench.errors import WorkbenchError
+from workbench.design_dir import read_design_json
+from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import boundary_loops
 from workbench.printing.paper import parse_paper
@@ -58,15 +59,11 @@ def load_design(directory: Path) -> tuple[dict, np.ndarray, np.ndarray | None]:
     for path in (info_path, png_path):
         if not path.is_file():
             raise WorkbenchError(f"{path}: missing; is {directory} the output of workbench design?")
-    try:
-        info = json.loads(info_path.read_text())
-        info["print"]["width_mm"], info["print"]["height_mm"], info["print"]["dpi"]  # noqa: B018
-    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError) as exc:
-        raise WorkbenchError(f"{info_path}: not a design.json of workbench design ({exc})") from None
+    info = read_design_json(info_path, schemas.DESIGN_PRINT)
     img = cv2.imread(str(png_path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise WorkbenchError(f"{png_path}: cannot read the print image")
-    expected = (info["print"].get("height_px"), info["print"].get("width_px"))
+    expected = (info["print"]["height_px"], info["print"]["width_px"])
     if img.shape[:2] != expected:
         raise WorkbenchError(
             f"{png_path}: {img.shape[1]} x {img.shape[0]} px, design.json says {expected[1]} x {expected[0]}"
@@ -85,7 +82,13 @@ def film_outline(directory: Path) -> np.ndarray | None:
     if not path.is_file():
         return None
     V, F = read_mesh(path)
-    return V[boundary_loops(F)[0], :2]
+    try:
+        loops = boundary_loops(F)
+    except (KeyError, IndexError, ValueError):  # a boundary that branches: not a manifold
+        loops = []
+    if len(loops) != 1 or not np.isfinite(V[loops[0]]).all():
+        raise WorkbenchError(f"{path}: not the flat layout of a disc (one boundary loop); rerun workbench design")
+    return V[loops[0], :2]
 
 
 def film_pages(directory: Path, info: dict) -> list[FilmPage]:
@@ -122,13 +125,14 @@ def run(args) -> int:
     profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
     info, rgb, film = load_design(Path(args.design))
     pr = info["print"]
-    job = info.get("job", {})
-    name = job.get("name", Path(args.design).name)
-    bleed = args.bleed_mm if args.bleed_mm is not None else pr.get("bleed_mm", 3.0)
-    margin = args.margin_mm if args.margin_mm is not None else pr.get("margin_mm", 10.0)
-    for key, v in (("--bleed-mm", bleed), ("--margin-mm", margin)):
-        if not (np.isfinite(v) and 0 <= v <= 50):
-            raise WorkbenchError(f"{key} {v}: must be between 0 and 50 mm")
+    job = info["job"]
+    name = job.get("name") or Path(args.design).name
+    bleed = args.bleed_mm if args.bleed_mm is not None else pr["bleed_mm"]
+    margin = args.margin_mm if args.margin_mm is not None else pr["margin_mm"]
+    for key, v in (("--bleed-mm", args.bleed_mm), ("--margin-mm", args.margin_mm)):
+        # the design's own values are checked where design.json is read
+        if v is not None and not (np.isfinite(v) and 0 <= v <= 50):
+            raise UsageError(f"{key} {v:g}: must be between 0 and 50 mm")
     out = Path(args.output) if args.output else Path("prints") / f"{name}.pdf"
     if info.get("films"):
         pages = film_pages(Path(args.design), info)
@@ -146,7 +150,7 @@ def run(args) -> int:
         pr["width_mm"],
         pr["height_mm"],
         name,
-        job.get("sha256", "unknown"),
+        job.get("sha256") or "unknown",
         paper,
         bleed,
         margin,

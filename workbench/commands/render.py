@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import sys
 from pathlib import Path
@@ -10,11 +11,13 @@ import cv2
 import numpy as np
 
 from workbench import __version__
-from workbench.atomic import check_outputs, write_files
+from workbench.atomic import check_output_dir, check_outputs, safe_name, write_files, write_folder
 from workbench.camera import Camera, load_camera, load_camera_profile
+from workbench.design import physical_memory
 from workbench.design_dir import Design
-from workbench.errors import UsageError
+from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_bytes
+from workbench.jsonfile import recorded_path
 from workbench.render.imperfections import REALISTIC, Imperfections
 from workbench.render.photo import render_photo
 
@@ -44,7 +47,7 @@ def add_parser(sub) -> None:
         "-o", "--output", metavar="PHOTO.png", help="photo file (default photo.png; --previews: DESIGN_DIR/previews)"
     )
     p.add_argument("--size", metavar="WxH", help="image size in pixels (orbit default 1600x1200; view: the view's)")
-    p.add_argument("--fov-deg", type=float, default=40.0, help="horizontal field of view for --orbit (default 40)")
+    p.add_argument("--fov-deg", type=float, help="horizontal field of view for --orbit (default 40)")
     p.add_argument("--intrinsics", metavar="PROFILE.json", help="camera profile (K, dist, image_size) for --orbit")
     p.add_argument("--no-fixture", action="store_true", help="the part alone, without its fixture plate")
     p.add_argument("--supersample", type=int, default=2, help="samples per pixel along each axis (default 2)")
@@ -166,7 +169,41 @@ def _size(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     return w, h
 
 
-def truth(camera: Camera, imp: Imperfections, design: Design, source: str) -> dict:
+# peak bytes per supersample of a render (z-buffer, face ids, barycentrics, colour, lens maps):
+# 3.1 GB measured for 4000 x 3000 px at 2 x 2 samples, with a margin
+BYTES_PER_SAMPLE = 80
+
+
+def check_render_fits(width: int, height: int, supersample: int) -> None:
+    """Refuse, before any work, a photo whose buffers would not fit in this machine's memory."""
+    need = width * height * supersample**2 * BYTES_PER_SAMPLE
+    have = physical_memory()
+    if need > 0.7 * have:
+        raise WorkbenchError(
+            f"--size {width}x{height} with --supersample {supersample} needs about {need / 2**30:,.1f} GiB; "
+            f"this machine has {have / 2**30:.1f} GiB available: lower --size or --supersample"
+        )
+
+
+def check_camera_options(args) -> None:
+    """Options that only one way of giving the camera reads are refused with the others, not ignored."""
+    given = "--view" if args.view else "--camera" if args.camera else "--previews" if args.previews else "--orbit"
+    own = {"--view": ("size",), "--orbit": ("size", "fov_deg", "intrinsics")}.get(given, ())
+    for key in ("size", "fov_deg", "intrinsics"):
+        if getattr(args, key) is not None and key not in own:
+            flag = "--" + key.replace("_", "-")
+            source = {"--camera": "the camera file", "--view": "the view", "--previews": "the previews"}[given]
+            raise UsageError(f"{flag} does not apply to {given}: {source} fixes the image")
+    if args.fov_deg is not None and not 0 < args.fov_deg < 180:
+        raise UsageError(f"--fov-deg {args.fov_deg:g}: must be between 0 and 180")
+    for key in ("fov_deg", "size"):
+        if getattr(args, key) is not None and args.intrinsics is not None:
+            raise UsageError(
+                f"--{key.replace('_', '-')} does not apply with --intrinsics: the profile's K and image_size fix it"
+            )
+
+
+def truth(camera: Camera, imp: Imperfections, design: Design, source: str, out: Path) -> dict:
     """PHOTO.json: a camera profile (K, dist, image_size) with the pose and every imperfection."""
     return {
         "K": camera.K.tolist(),
@@ -177,7 +214,12 @@ def truth(camera: Camera, imp: Imperfections, design: Design, source: str) -> di
         "camera_center_mm": camera.center.tolist(),
         "imperfections": imp.to_dict(),
         "source": source,
-        "design": {"dir": str(design.dir), "job_sha256": design.info.get("job", {}).get("sha256")},
+        # relative to the folder of PHOTO.json, as every recorded path
+        "design": {
+            "dir": recorded_path(design.dir, out.parent),
+            "job_sha256": design.info["job"].get("sha256"),
+            "design_json_sha256": hashlib.sha256((design.dir / "design.json").read_bytes()).hexdigest(),
+        },
         "software": {"name": "workbench", "version": __version__},
     }
 
@@ -197,6 +239,7 @@ def run(args) -> int:
     if not 1 <= args.supersample <= 8:
         raise UsageError("--supersample: between 1 and 8")
     imp = imperfections_from(args)
+    check_camera_options(args)
     design = Design(Path(args.design))
     fixture = not args.no_fixture
     if args.previews:
@@ -205,6 +248,11 @@ def run(args) -> int:
         cam = design.view_camera(args.view)
         if args.size:
             w, h = _size(args.size, (cam.width, cam.height))
+            if abs(h - cam.height * w / cam.width) > 1:
+                raise UsageError(
+                    f"--size {args.size}: the view {args.view!r} is {cam.width} x {cam.height}; "
+                    "keep its aspect ratio (the view's camera is scaled, not cropped)"
+                )
             cam = cam.scaled(w / cam.width)
         source = f"view {args.view}"
     elif args.camera:
@@ -216,7 +264,7 @@ def run(args) -> int:
         az, el, dist = _floats(args.orbit, 3, "--orbit")
         intr = load_camera_profile(Path(args.intrinsics)) if args.intrinsics else None
         w, h = _size(args.size, (1600, 1200))
-        cam = design.orbit_camera(az, el, dist, w, h, args.fov_deg, intr)
+        cam = design.orbit_camera(az, el, dist, w, h, args.fov_deg or 40.0, intr)
         if intr is not None and np.any(intr.dist) and not np.any(imp.distortion):
             imp = Imperfections(**{**imp.to_dict(), "distortion": tuple(intr.dist)})
         source = f"orbit {args.orbit}"
@@ -224,11 +272,12 @@ def run(args) -> int:
     check_outputs(out, out.with_suffix(".json"))  # before the rendering, not after it
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         raise UsageError(f"-o {out}: photos are written as .png or .jpg")
+    check_render_fits(cam.width, cam.height, args.supersample)
     rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
     write_files(
         {
             out: encode(rgb, out, imp),
-            out.with_suffix(".json"): (json.dumps(truth(cam, imp, design, source), indent=1) + "\n").encode(),
+            out.with_suffix(".json"): (json.dumps(truth(cam, imp, design, source, out), indent=1) + "\n").encode(),
         }
     )
     log(f"wrote {out} ({cam.width} x {cam.height}) and {out.with_suffix('.json')}")
@@ -237,6 +286,7 @@ def run(args) -> int:
 
 def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> int:
     out = Path(args.output) if args.output else design.dir / "previews"
+    check_output_dir(out)
     files, tiles = {}, []
     scene = design.scene(imp, fixture)
     cams = [(v["name"], design.view_camera(v["name"])) for v in design.info["views"]]
@@ -250,8 +300,10 @@ def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> in
     )
     for name, cam in cams:
         rgb = render_photo(scene, cam, imp, args.supersample)
-        files[out / f"{name}.png"] = png_bytes(rgb)
-        files[out / f"{name}.json"] = (json.dumps(truth(cam, imp, design, f"preview {name}"), indent=1) + "\n").encode()
+        files[out / f"{safe_name(name)}.png"] = png_bytes(rgb)
+        files[out / f"{safe_name(name)}.json"] = (
+            json.dumps(truth(cam, imp, design, f"preview {name}", out / name), indent=1) + "\n"
+        ).encode()
         h = 300
         tile = cv2.resize(rgb, (int(round(rgb.shape[1] * h / rgb.shape[0])), h), interpolation=cv2.INTER_AREA)
         tile = cv2.copyMakeBorder(tile, 30, 6, 6, 6, cv2.BORDER_CONSTANT, value=(255, 255, 255))
@@ -259,6 +311,6 @@ def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> in
         tiles.append(tile)
     sheet = np.hstack(tiles)
     files[out / "contact_sheet.png"] = png_bytes(sheet)
-    write_files(files)
+    write_folder(out, files)
     log(f"wrote {len(cams)} previews and {out / 'contact_sheet.png'}")
     return 0

@@ -63,6 +63,9 @@ class CrowdingError(WorkbenchError):
         self.region_vertices, self.region_share = region_vertices, region_share
 
 
+MIN_SIZE_MM, MAX_SIZE_MM = 0.01, 1e5
+
+
 @dataclass(frozen=True)
 class ScaleMode:
     """How the conformal map's free scale is fixed.
@@ -96,8 +99,11 @@ class ScaleMode:
                 mm = float(value)
             except ValueError:
                 mm = float("nan")
-            if not (np.isfinite(mm) and mm > 0):
-                raise UsageError(f"--scale {text}: {key} must be a positive number of mm")
+            # a film from a hundredth of a millimetre to 100 m: beyond, stretch and print size overflow
+            if not (np.isfinite(mm) and MIN_SIZE_MM <= mm <= MAX_SIZE_MM):
+                raise UsageError(
+                    f"--scale {text}: {key} must be a number of mm from {MIN_SIZE_MM:g} to {MAX_SIZE_MM:g}"
+                )
             return cls(key, mm)
         raise UsageError(f"--scale {text!r}: use isometric, area, no-shrink, rim, width=MM or height=MM")
 

@@ -43,6 +43,8 @@ def read_mesh(path: str | Path, units: str = "mm") -> tuple[np.ndarray, np.ndarr
     path = Path(path)
     if units not in UNITS_MM:
         raise WorkbenchError(f"unknown units {units!r}; use one of {', '.join(UNITS_MM)}")
+    if path.is_dir():
+        raise WorkbenchError(f"{path}: is a directory, not a mesh file")
     if not path.is_file():
         raise WorkbenchError(f"{path}: no such file")
     suffix = path.suffix.lower()
@@ -130,6 +132,8 @@ def _read_trimesh(path: Path, suffix: str) -> tuple[np.ndarray, np.ndarray]:
     loaded = trimesh.load(path, process=False, force=None)
     if isinstance(loaded, trimesh.Scene):
         meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+        if not meshes or all(len(m.faces) == 0 for m in meshes):
+            raise WorkbenchError(f"{path}: the file holds no triangles (an empty mesh)")
         if len(meshes) != 1:
             raise WorkbenchError(f"{path}: the scene holds {len(meshes)} meshes; give one mesh")
         loaded = meshes[0]

@@ -104,6 +104,8 @@ def boundary_loops(F: np.ndarray, B: np.ndarray | None = None) -> list[np.ndarra
         seen.add(start)
         v = nxt[start]
         while v != start:
+            if v in seen:  # a boundary that runs into itself: not a manifold (checked meshes never do)
+                raise ValueError(f"the boundary through vertex {v} is not a simple loop")
             loop.append(v)
             seen.add(v)
             v = nxt[v]

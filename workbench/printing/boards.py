@@ -12,6 +12,7 @@ mesh frame (mm).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -19,6 +20,11 @@ import numpy as np
 from workbench.errors import WorkbenchError
 
 DICTIONARIES = sorted(k for k in dir(cv2.aruco) if k.startswith("DICT_"))
+
+
+def dictionary_size(name: str) -> int:
+    """How many marker ids an OpenCV ArUco dictionary holds (DICT_ARUCO_ORIGINAL: 1024, no number in its name)."""
+    return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0])
 
 
 @dataclass(frozen=True)
@@ -52,7 +58,7 @@ class CharucoSpec:
         if self.dictionary not in DICTIONARIES:
             raise WorkbenchError(f"unknown ArUco dictionary {self.dictionary!r}; e.g. DICT_5X5_250, DICT_6X6_1000")
         n_markers = (nx * ny) // 2
-        size = int(self.dictionary.rsplit("_", 1)[1])
+        size = dictionary_size(self.dictionary)
         if self.first_id < 0 or self.first_id + n_markers > size:
             raise WorkbenchError(
                 f"{n_markers} markers from id {self.first_id} do not fit in {self.dictionary} ({size} ids)"
@@ -61,7 +67,13 @@ class CharucoSpec:
     @classmethod
     def from_definition(cls, d: dict) -> CharucoSpec:
         """The board of a definition file written by ``workbench board`` (or ``fixture.json``)."""
-        return cls(tuple(d["squares"]), d["square_mm"], d["marker_mm"], d["dictionary"], d.get("first_id", 0))
+        return cls(
+            tuple(int(n) for n in d["squares"]),
+            float(d["square_mm"]),
+            float(d["marker_mm"]),
+            d["dictionary"],
+            int(d.get("first_id") or 0),
+        )
 
     @property
     def size_mm(self) -> tuple[float, float]:
@@ -206,30 +218,27 @@ def fixture_from_job(fixture: dict | None, V: np.ndarray, F: np.ndarray, where: 
     footprint : (#B, 2) float
         The mesh boundary projected on the plate, board frame (x right, y down), mm.
     """
+    from workbench import schemas
+    from workbench.jsonfile import check
     from workbench.mesh.topology import boundary_loops
 
     fx = dict(fixture or {})
-    known = {"dictionary", "squares", "square_mm", "marker_mm", "first_id", "origin_mm"}
+    known = set(schemas.JOB_FIXTURE)
     unknown = sorted(set(fx) - known)
     if unknown:
         raise WorkbenchError(f"{where}: unknown key {unknown[0]!r} (known keys: {', '.join(sorted(known))})")
-    square = fx.get("square_mm", 20.0)
-    if isinstance(square, bool) or not isinstance(square, int | float) or not square > 0:
-        raise WorkbenchError(f"{where}.square_mm: must be a positive number, got {square!r}")
+    # the job's [fixture] table, checked like every file the workbench reads: "FILE: fixture.KEY: ..."
+    file, _, table = where.rpartition(": ")
+    check(fx, schemas.JOB_FIXTURE, file or where, table or "fixture")
+    square = fx["square_mm"]
     lo, hi = V.min(axis=0), V.max(axis=0)
-    if "squares" in fx:
-        sq = fx["squares"]
-        if not (isinstance(sq, list) and len(sq) == 2 and all(isinstance(v, int) for v in sq)):
-            raise WorkbenchError(f"{where}.squares: must be [nx, ny], got {sq!r}")
-        squares = (sq[0], sq[1])
+    if fx["squares"] is not None:
+        squares = (int(fx["squares"][0]), int(fx["squares"][1]))
     else:
         # two squares of margin on each side: the markers around the part stay visible
         squares = (int(np.ceil((hi[0] - lo[0]) / square)) + 4, int(np.ceil((hi[1] - lo[1]) / square)) + 4)
-    if "origin_mm" in fx:
-        o = fx["origin_mm"]
-        if not (isinstance(o, list) and len(o) == 3 and all(isinstance(v, int | float) for v in o)):
-            raise WorkbenchError(f"{where}.origin_mm: must be [x, y, z] in mm, got {o!r}")
-        origin = np.asarray(o, dtype=np.float64)
+    if fx["origin_mm"] is not None:
+        origin = np.asarray(fx["origin_mm"], dtype=np.float64)
     else:
         cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
         origin = np.array([cx - squares[0] * square / 2, cy + squares[1] * square / 2, lo[2]])
@@ -237,12 +246,47 @@ def fixture_from_job(fixture: dict | None, V: np.ndarray, F: np.ndarray, where: 
         spec = CharucoSpec(
             squares=squares,
             square_mm=float(square),
-            marker_mm=float(fx.get("marker_mm", 0.75 * square)),
-            dictionary=fx.get("dictionary", "DICT_5X5_250"),
-            first_id=int(fx.get("first_id", 0)),
+            marker_mm=float(fx["marker_mm"] or 0.75 * square),
+            dictionary=fx["dictionary"],
+            first_id=fx["first_id"],
         )
     except WorkbenchError as exc:
         raise WorkbenchError(f"{where}: {exc}") from None
     loop = boundary_loops(F)[0]
     footprint = np.stack([V[loop, 0] - origin[0], origin[1] - V[loop, 1]], axis=1)
     return spec, origin, footprint
+
+
+def load_board(path: str | Path, what: str = "board definition", fields: dict | None = None) -> dict:
+    """A board definition (``workbench board``'s FILE.json) or a design's ``fixture.json``, checked.
+
+    Beyond the schema (:data:`workbench.schemas.BOARD`, or ``fields``), the board must be
+    one OpenCV can build, with as many ChArUco corners and markers as its squares give.
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the file and the key at fault.
+    """
+    from workbench import schemas
+    from workbench.jsonfile import read_json
+
+    path = Path(path)
+    d = read_json(path, what, fields or schemas.BOARD)
+    try:
+        spec = CharucoSpec.from_definition(d)
+    except WorkbenchError as exc:
+        raise WorkbenchError(f"{path}: {exc}") from None
+    nx, ny = spec.squares
+    counts = {
+        "charuco_corners.board_mm": (len(d["charuco_corners"]["board_mm"]), (nx - 1) * (ny - 1)),
+        "markers.ids": (len(d["markers"]["ids"]), (nx * ny) // 2),
+    }
+    if "mesh_mm" in d["charuco_corners"]:
+        counts["charuco_corners.mesh_mm"] = (len(d["charuco_corners"]["mesh_mm"]), (nx - 1) * (ny - 1))
+    if "corners_mesh_mm" in d["markers"]:
+        counts["markers.corners_mesh_mm"] = (len(d["markers"]["corners_mesh_mm"]), (nx * ny) // 2)
+    for key, (got, want) in counts.items():
+        if got != want:
+            raise WorkbenchError(f"{path}: {key}: {got} entries, a {nx} x {ny} board has {want}")
+    return d

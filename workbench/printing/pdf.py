@@ -11,8 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from workbench import __version__
-from workbench.errors import WorkbenchError
+from workbench import __version__, schemas
 from workbench.jsonfile import read_json
 from workbench.printing.paper import choose_sheet
 from workbench.texture.outline import bleed_beyond_outline
@@ -54,19 +53,10 @@ def load_printer_profile(path: str | Path) -> PrinterProfile:
         Missing, not JSON, or a key missing or out of range; names the file and key.
     """
     path = Path(path)
-    data = read_json(path, "printer profile")
-    values = {}
-    for key in ("scale_x", "scale_y"):
-        v = data.get(key)
-        if isinstance(v, bool) or not isinstance(v, int | float):
-            raise WorkbenchError(f"{path}: {key}: must be a number (printed length / intended length), got {v!r}")
-        if not 0.8 < v < 1.25:
-            raise WorkbenchError(f"{path}: {key}: {v} is not a plausible printer scale (0.8 to 1.25)")
-        values[key] = float(v)
-    name = data.get("name", path.stem)
-    if not isinstance(name, str):
-        raise WorkbenchError(f"{path}: name: must be a string")
-    return PrinterProfile(name=name, path=path, **values)
+    data = read_json(path, "printer profile", schemas.PRINTER_PROFILE)
+    return PrinterProfile(
+        name=data["name"] or path.stem, path=path, scale_x=float(data["scale_x"]), scale_y=float(data["scale_y"])
+    )
 
 
 @dataclass(frozen=True)

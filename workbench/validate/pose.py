@@ -92,13 +92,19 @@ def estimate_pose(gray: np.ndarray, fixture: dict, K: np.ndarray, dist: np.ndarr
     ids = ids.ravel()
     obj = np.asarray(fixture["charuco_corners"]["mesh_mm"], dtype=np.float64)[ids]
     img = corners.reshape(-1, 2).astype(np.float64)
-    ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_SQPNP)
-    if not ok:
+    try:
+        ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_SQPNP)
+        if ok:
+            rvec, tvec = cv2.solvePnPRefineLM(
+                obj, img, K, dist, rvec, tvec, (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+            )
+            proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    except cv2.error as exc:
+        # OpenCV asserts on what it cannot solve (corners on one line, a degenerate K): this photo's verdict
+        reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
+        raise PoseError(f"the pose could not be solved from the {n} corners ({reason})") from None
+    if not ok or not (np.isfinite(rvec).all() and np.isfinite(tvec).all()):
         raise PoseError("the pose could not be solved from the corners")
-    rvec, tvec = cv2.solvePnPRefineLM(
-        obj, img, K, dist, rvec, tvec, (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    )
-    proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
     rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
     R = cv2.Rodrigues(rvec)[0]
     h, w = gray.shape[:2]

@@ -89,7 +89,7 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
     for e in report["photos"]:
         if e["verdict"] == "INVALID":
             continue
-        stem = e["photo"].rsplit("/", 1)[-1].rsplit(".", 1)[0]
+        stem = e.get("pictures") or e["photo"].rsplit("/", 1)[-1].rsplit(".", 1)[0]
         names = [f"{stem}_overlay_{e['view']}.png", f"{stem}_heatmap_{e['view']}.png"]
         c.setFont("Helvetica-Bold", 11)
         c.setFillColorRGB(*VERDICT_COLOURS[e["verdict"]])

@@ -221,6 +221,8 @@ class Score:
         Blur of the photo as seen in the view, sigma in view pixels.
     film : dict
         Film placement fitted in print coordinates: offset_mm, rotation_deg, scale_pct, rms_mm.
+    tiles_examined : int
+        Textured tiles of the region tried; those that matched the design are ``centres``.
     """
 
     centres: np.ndarray
@@ -230,6 +232,7 @@ class Score:
     ssim: float
     blur_px: float
     film: dict = field(default_factory=dict)
+    tiles_examined: int = 0
 
 
 def estimate_blur(design_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray) -> float:
@@ -353,7 +356,7 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
     gx = cv2.Sobel(ref, cv2.CV_32F, 1, 0, ksize=3) / 8
     gy = cv2.Sobel(ref, cv2.CV_32F, 0, 1, ksize=3) / 8
     H, W = ref.shape
-    centres, shifts = [], []
+    centres, shifts, examined = [], [], 0
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6)
     # tiles keep clear of the region's border by the largest shift they can measure:
     # a shifted film brings the neighbouring view's content into a band that wide
@@ -368,6 +371,7 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
                 continue  # one straight edge fixes only the shift across it
             if y < MARGIN or x < MARGIN or y + TILE + MARGIN > H or x + TILE + MARGIN > W:
                 continue
+            examined += 1
             d, cc = register_tile(ref[y : y + TILE, x : x + TILE], wr, x, y)
             if d is not None and cc >= MIN_CORRELATION and np.abs(d).max() < MARGIN - 1:
                 centres.append((x + (TILE - 1) / 2, y + (TILE - 1) / 2))
@@ -412,4 +416,4 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
         design_like = cv2.GaussianBlur(dg, (0, 0), blur) if blur else dg
         gain, off = np.polyfit(aligned[inner], design_like[inner], 1)
         sim = ssim(design_like, aligned * gain + off, inner)
-    return Score(centres, shifts, shift_mm, coverage, sim, float(blur), film)
+    return Score(centres, shifts, shift_mm, coverage, sim, float(blur), film, examined)

@@ -831,7 +831,7 @@ def crowding_advice(
     """
     if options.outline == "free":
         # no corners to move: a free outline that crowds needs the part split into films
-        return WorkbenchError(f"{exc}; this part needs several films")
+        return WorkbenchError(f'{exc}; this part needs several films (a job with films = "auto")')
     say = log or (lambda _m: None)
     say("searching for corners that print every face")
     try:
@@ -839,7 +839,7 @@ def crowding_advice(
     except WorkbenchError:
         return WorkbenchError(
             f"{exc}; none of the corner choices --corners auto compares prints every face: this part needs "
-            "another outline or several films"
+            'another outline or several films (a job with outline = "free" or films = "auto")'
         )
     c = ",".join(map(str, best.corners.tolist()))
     n_ok = sum(row["outcome"] == "ok" for row in compared)

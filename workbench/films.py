@@ -517,11 +517,9 @@ def split_films(
         except WorkbenchError as exc:
             # a ring around a finished film (or pinched between films): cut it across
             faces = np.flatnonzero(mask)
-            halves = (
-                None
-                if len(faces) < MIN_FILM_FACES
-                else split_in_two(faces, None, centroids[faces], normals[faces], area[faces])
-            )
+            halves = None
+            if len(faces) >= 2:
+                halves = split_in_two(faces, None, centroids[faces], normals[faces], area[faces])
             if halves is None:
                 raise WorkbenchError(f"{len(faces)} faces near vertex {int(F[faces[0], 0])}: {exc}") from None
             say(f"{len(faces)} faces are no disc ({exc}): split in two")
@@ -548,11 +546,9 @@ def split_films(
             if (owner_view[faces] < 0).any():
                 queue.append((faces[owner_view[faces] < 0], False))
             continue
-        halves = (
-            None
-            if len(faces) < MIN_FILM_FACES
-            else split_in_two(faces, layout, centroids[faces], normals[faces], area[faces])
-        )
+        # down to single triangles if need be (a triangle always fits: it is flat);
+        # films of a few faces then join a neighbour that still fits (see the end)
+        halves = None if len(faces) < 2 else split_in_two(faces, layout, centroids[faces], normals[faces], area[faces])
         if halves is None:
             raise WorkbenchError(
                 f"a region of {len(faces)} faces near vertex {int(F[faces[0], 0])} does not fit one film ({why}) "
@@ -580,7 +576,10 @@ def _absorb_small_films(V, F, done, graph, area, max_stretch, options, say) -> l
         near = [j for j in np.unique(near[(near >= 0) & (near != k)]) if j not in gone]
         for j in sorted(near, key=lambda j: -len(done[j].faces)):
             faces = np.union1d(done[j].faces, small.faces)
-            region = disc_region(F, np.isin(np.arange(len(F)), faces), area, allowed=film_of < 0, graph=graph)
+            try:
+                region = disc_region(F, np.isin(np.arange(len(F)), faces), area, allowed=film_of < 0, graph=graph)
+            except WorkbenchError:
+                continue  # together they would ring another film
             if region.sum() != len(faces):
                 continue
             fit, _, _ = fit_film(V, F, faces, max_stretch, options)

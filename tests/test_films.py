@@ -326,3 +326,23 @@ def test_stretch_window_centres_the_band_on_the_most_surface():
     assert share == pytest.approx(0.9)
     lo, hi = np.log(2.0 / s / 0.8), np.log(1.3 / (2.4 / s))
     assert lo > 0 and hi > 0 and lo == pytest.approx(hi)
+
+
+def test_a_mesh_no_rectangle_prints_is_made_by_films():
+    # cow-1 of the real-mesh corpus: every rectangle crowds part of it below half a
+    # print pixel (150 mm part, 300 dpi); split into films of max_stretch 1.5, every
+    # face is on exactly one film and every film is within the band
+    from conftest import ROOT
+
+    from workbench.conformal.flatten import CrowdingError, FlattenOptions, flatten
+
+    d = np.load(ROOT / "tests" / "data" / "corpus" / "cow-1.npz")
+    V = d["V"] / np.ptp(d["V"], axis=0).max() * 150
+    F = d["F"]
+    options = FlattenOptions(min_print_mm=0.5 * 25.4 / 300)
+    with pytest.raises(CrowdingError):
+        flatten(V, F, options)
+    films = split_films(V, F, np.ones(len(F), bool), np.zeros(len(F), np.int64), 1.5, options)
+    covered = np.concatenate([f.faces for f in films])
+    assert np.array_equal(np.sort(covered), np.arange(len(F)))
+    assert all(f.within >= 0.99 for f in films) and len(films) >= 2

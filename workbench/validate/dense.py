@@ -1,0 +1,638 @@
+"""The photo in print coordinates: a dense misregistration field, colour residuals, local defects, coverage.
+
+Every photo is mapped onto the print (each print pixel takes the photo's colour of its
+surface point), so one grid serves every view and every photo of a part. There:
+
+- **Misregistration** at every pixel with texture: DIS optical flow (OpenCV) between the
+  warped photo and the print, both normalised for local exposure. A per-pixel structure
+  tensor of the print says what the flow can know: texture in two directions gives the full
+  vector; along a single edge only the component across it (the aperture problem), which is
+  what is kept there (``normal``); no texture, nothing (``colour_only``).
+- **Colour**: the photo against the print blurred like it, after a local per-channel gain
+  and offset fit (shading, vignetting, exposure) on the print moved by the flow (so a shift
+  is not also a colour error). Residuals beyond what noise and the fit explain are colour
+  defects; where the photo shows the bare film's colour, ink is missing.
+- **Masks**: highlights (saturated, or a broad additive glare) and deep shadows are not
+  scored; they are reported as unmeasured with that reason.
+
+All functions here are numeric (arrays in, arrays out); the command does the I/O.
+Conventions: print pixel (i, j) of the analysis grid has its centre at
+((j + 0.5), (i + 0.5)) / ``px_per_mm`` mm from the trim's top-left corner (x right, y down).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from workbench.camera import Camera
+from workbench.raster import depth_buffer, rasterize_triangles
+from workbench.render.defects import FILM_RGB
+from workbench.views.visibility import _unoccluded_many
+
+MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at most this many pixels
+NORM_SIGMA_PX = 6.0  # window of the local exposure normalisation before the flow
+TENSOR_SIGMA_PX = 3.0  # window of the structure tensor
+MIN_EDGE = 4.0  # structure-tensor eigenvalue (grey levels² per px²) of a usable edge
+MIN_TWO_WAY = 4.0  # smaller eigenvalue for the full vector
+EXPOSURE_SIGMA_PX = 40.0  # window of the local gain/offset fit: larger than any defect it must not absorb
+COLOUR_TOL = 40.0  # grey levels (0-255) beyond the exposure model that make a colour defect
+SATURATED = 250  # a channel this bright is clipped: a highlight
+GLARE = 35.0  # additive brightness (grey levels) beyond the exposure model's offset that is glare
+SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
+MIN_DEFECT_MM2 = 1.0  # smaller regions are noise, not defects
+EDGE_PX = 6  # band along the edge of what a photo sees (the film's rim included) that is not scored
+MAX_GRAZING = 3.0  # a photo pixel covering more print pixels than this (along its long axis) is too oblique
+
+# states of a print pixel in one photo, in increasing order of what it says (the combined map keeps the highest)
+OFF_PART, NOT_SEEN, OCCLUDED, GRAZING, EDGE, SHADOWED, HIGHLIGHT, COLOUR_ONLY, NORMAL, FULL, DEFECT = range(11)
+STATE_NAMES = [
+    "off the part",
+    "not seen",
+    "occluded",
+    "too oblique",
+    "at the edge of what is seen",
+    "deep shadow",
+    "highlight",
+    "measured: colour only (no texture)",
+    "measured: colour and shift across an edge",
+    "measured: colour and full shift",
+    "defective",
+]
+MEASURED = (COLOUR_ONLY, NORMAL, FULL, DEFECT)
+
+
+@dataclass
+class PrintGrid:
+    """The print's analysis grid and the surface under it.
+
+    Attributes
+    ----------
+    X : (rows, cols, 3) float
+        Surface point under each pixel centre, mm (NaN: off the part).
+    owner : (rows, cols) int
+        Owning view per pixel (-1: none).
+    px_per_mm : float
+        Grid resolution (the print's, divided by ``factor``).
+    factor : int
+        Print pixels per grid pixel along each axis.
+    surface_per_print : (rows, cols) float
+        Surface mm per print mm (the film's local stretch, geometric mean of both axes).
+    reference : (rows, cols, 3) uint8
+        The print on this grid.
+    """
+
+    X: np.ndarray
+    owner: np.ndarray
+    px_per_mm: float
+    factor: int
+    surface_per_print: np.ndarray
+    reference: np.ndarray
+
+
+def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> PrintGrid:
+    """Surface points, ownership and stretch of every pixel of the print's analysis grid.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Part, mm.
+    F : (#F, 3) int
+        Triangles.
+    flat_uv_mm : (#V, 2) float
+        Flat layout, mm (y up, the design rectangle's bottom-left at the origin).
+    rect_height_mm : float
+        Height of the design rectangle.
+    print_rgb : (rows, cols, 3) uint8
+        The print.
+    dpi : float
+        Its resolution.
+    owner : (rows, cols) int
+        Owning view per print pixel (-1: none).
+
+    Returns
+    -------
+    PrintGrid
+    """
+    rows, cols = print_rgb.shape[:2]
+    factor = max(1, int(np.ceil(np.sqrt(rows * cols / MAX_GRID_PX))))
+    ppm = dpi / 25.4 / factor
+    gr, gc = rows // factor, cols // factor
+    # grid pixel centre (j, i) is at ((j + 0.5) / ppm, (i + 0.5) / ppm) mm
+    P = np.stack([flat_uv_mm[:, 0] * ppm - 0.5, (rect_height_mm - flat_uv_mm[:, 1]) * ppm - 0.5], axis=1)
+    face, bary = rasterize_triangles(P, F, gc, gr)
+    X = np.full((gr, gc, 3), np.nan)
+    on = face >= 0
+    f = face[on]
+    b = bary[on]
+    X[on] = b[:, :1] * V[F[f, 0]] + b[:, 1:2] * V[F[f, 1]] + b[:, 2:] * V[F[f, 2]]
+    # stretch: |∂X/∂x| and |∂X/∂y| per grid pixel, in mm per mm
+    with np.errstate(invalid="ignore"):
+        dx = np.linalg.norm(np.gradient(X, axis=1), axis=2) * ppm
+        dy = np.linalg.norm(np.gradient(X, axis=0), axis=2) * ppm
+    stretch = np.sqrt(dx * dy)
+    stretch = np.where(np.isfinite(stretch), stretch, 1.0)
+    ref = print_rgb[: gr * factor, : gc * factor]
+    if factor > 1:
+        ref = cv2.resize(ref, (gc, gr), interpolation=cv2.INTER_AREA)
+    own = -np.ones((gr, gc), dtype=np.int16)
+    if owner is not None:
+        own = owner[factor // 2 :: factor, factor // 2 :: factor][:gr, :gc].astype(np.int16)
+    own[~on] = -1
+    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref))
+
+
+def warp_to_print(
+    photo: np.ndarray, cam: Camera, grid: PrintGrid, V, F, depth: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The photo seen on the print: each grid pixel takes the photo's colour of its surface point.
+
+    Parameters
+    ----------
+    photo : (h, w, 3) uint8
+        The photo.
+    cam : Camera
+        Its posed camera, with the lens's distortion.
+    grid : PrintGrid
+    V, F : arrays
+        The part.
+    depth : (h, w) float, optional
+        Depth buffer of the part in the undistorted photo camera (computed when not given).
+
+    Returns
+    -------
+    warped : (rows, cols, 3) uint8
+        0 where the photo does not see the point.
+    state : (rows, cols) uint8
+        OFF_PART, NOT_SEEN (outside the photo or behind the camera), OCCLUDED (hidden
+        by another part of the mesh), GRAZING (seen too obliquely to measure) or FULL
+        (seen: to be scored).
+    """
+    rows, cols = grid.X.shape[:2]
+    on = np.isfinite(grid.X[..., 0])
+    pts = grid.X[on]
+    ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
+    pdepth = photo_depth(cam, V, F) if depth is None else depth
+    xy, z = ideal.project(pts)
+    seen = np.zeros(len(pts), dtype=np.bool_)
+    _unoccluded_many(
+        pdepth, ideal.width, ideal.height, ideal.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), seen
+    )
+    in_front = z > 0
+    inside_ideal = (
+        in_front & (xy[:, 0] >= 0) & (xy[:, 1] >= 0) & (xy[:, 0] <= cam.width - 1) & (xy[:, 1] <= cam.height - 1)
+    )
+    proj, _ = cv2.projectPoints(pts, cv2.Rodrigues(cam.R)[0], cam.t, cam.K, cam.dist)
+    proj = proj.reshape(-1, 2)
+    inside = (
+        in_front
+        & (proj[:, 0] >= 0)
+        & (proj[:, 1] >= 0)
+        & (proj[:, 0] <= cam.width - 1)
+        & (proj[:, 1] <= cam.height - 1)
+    )
+    mapx = np.full((rows, cols), -1e4, dtype=np.float32)
+    mapy = np.full((rows, cols), -1e4, dtype=np.float32)
+    mapx[on], mapy[on] = proj[:, 0], proj[:, 1]
+    # how many photo pixels one grid pixel spans: the photo is smoothed to about one grid pixel
+    # first (no aliasing), and a grid pixel seen far too obliquely is not scored
+    gxx, gxy = np.gradient(mapx, axis=1), np.gradient(mapy, axis=1)
+    gyx, gyy = np.gradient(mapx, axis=0), np.gradient(mapy, axis=0)
+    along_x, along_y = np.hypot(gxx, gxy), np.hypot(gyx, gyy)
+    ok = on & (np.abs(mapx) < 1e4)
+    scale = float(np.median(np.sqrt(along_x[ok] * along_y[ok]))) if ok.any() else 1.0
+    src = photo
+    if scale > 1.5:
+        src = cv2.GaussianBlur(photo, (0, 0), 0.5 * np.sqrt(scale * scale - 1.0))
+    warped = cv2.remap(src, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    state = np.full((rows, cols), OFF_PART, dtype=np.uint8)
+    st = np.full(len(pts), NOT_SEEN, dtype=np.uint8)
+    st[inside & inside_ideal & ~seen] = OCCLUDED
+    st[inside & seen] = FULL
+    state[on] = st
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # a grid pixel whose photo footprint is much thinner along one axis than the other
+        oblique = np.maximum(along_x, along_y) / np.minimum(along_x, along_y) > MAX_GRAZING
+    state[(state == FULL) & oblique] = GRAZING
+    return warped, state
+
+
+def photo_depth(cam: Camera, V, F) -> np.ndarray:
+    """Depth buffer (h, w) of the part seen by the undistorted photo camera, mm (+inf: none)."""
+    ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
+    pxy, pz = ideal.project(V)
+    return depth_buffer(pxy, pz, F, ideal.width, ideal.height)[1]
+
+
+def agreement(flow_px: np.ndarray, state: np.ndarray, px_per_mm: float, p0: np.ndarray, p1: np.ndarray) -> dict:
+    """How the dense field agrees with the tile registration, in print mm.
+
+    Parameters
+    ----------
+    flow_px : (rows, cols, 2) float
+        Dense misregistration, grid px.
+    state : (rows, cols) uint8
+        Where it is measured in full (FULL or DEFECT).
+    px_per_mm : float
+        Grid resolution.
+    p0, p1 : (n, 2) float
+        Per tile, the print point at its centre and the print point the photo shows there
+        (print mm): the tile's misregistration on the print is p1 - p0.
+
+    Returns
+    -------
+    dict
+        tiles compared, median and p95 of the difference's length (print mm).
+    """
+    if len(p0) == 0:
+        return {"tiles": 0, "median_mm": None, "p95_mm": None}
+    j = np.round(p0[:, 0] * px_per_mm - 0.5).astype(int)
+    i = np.round(p0[:, 1] * px_per_mm - 0.5).astype(int)
+    rows, cols = state.shape
+    ok = (i >= 0) & (j >= 0) & (i < rows) & (j < cols)
+    ok[ok] &= np.isin(state[i[ok], j[ok]], (FULL, DEFECT))
+    if not ok.any():
+        return {"tiles": 0, "median_mm": None, "p95_mm": None}
+    dense = flow_px[i[ok], j[ok]] / px_per_mm
+    diff = np.linalg.norm(dense - (p1[ok] - p0[ok]), axis=1)
+    return {"tiles": int(ok.sum()), "median_mm": float(np.median(diff)), "p95_mm": float(np.percentile(diff, 95))}
+
+
+def local_normalise(gray: np.ndarray, sigma: float) -> np.ndarray:
+    """Grey image with its local mean removed and its local contrast scaled to 1, as uint8 for DIS.
+
+    Parameters
+    ----------
+    gray : (H, W) float32
+    sigma : float
+        Window, pixels.
+
+    Returns
+    -------
+    (H, W) uint8
+        128 + 40 · (g - mean) / std, clipped.
+    """
+    m = cv2.GaussianBlur(gray, (0, 0), sigma)
+    d = gray - m
+    s = np.sqrt(cv2.GaussianBlur(d * d, (0, 0), sigma))
+    # a floor on the contrast: flat areas stay flat instead of amplifying noise
+    n = d / np.maximum(s, 6.0)
+    return np.clip(128.0 + 40.0 * n, 0, 255).astype(np.uint8)
+
+
+def structure_tensor(gray: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eigenvalues and dominant direction of the smoothed structure tensor.
+
+    Parameters
+    ----------
+    gray : (H, W) float32
+        Grey levels.
+    sigma : float
+        Gaussian window, pixels.
+
+    Returns
+    -------
+    l1, l2 : (H, W) float32
+        Larger and smaller eigenvalue, grey levels² per px².
+    e1 : (H, W, 2) float32
+        Unit eigenvector of ``l1``: the direction across the dominant edge.
+    """
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
+    a = cv2.GaussianBlur(gx * gx, (0, 0), sigma)
+    b = cv2.GaussianBlur(gx * gy, (0, 0), sigma)
+    c = cv2.GaussianBlur(gy * gy, (0, 0), sigma)
+    tr, det = a + c, a * c - b * b
+    disc = np.sqrt(np.maximum(tr * tr / 4 - det, 0))
+    l1, l2 = tr / 2 + disc, np.maximum(tr / 2 - disc, 0)
+    # eigenvector of l1: (b, l1 - a), or (l1 - c, b); take the better conditioned
+    v1 = np.stack([b, l1 - a], axis=-1)
+    v2 = np.stack([l1 - c, b], axis=-1)
+    n1, n2 = np.linalg.norm(v1, axis=-1), np.linalg.norm(v2, axis=-1)
+    v = np.where((n1 >= n2)[..., None], v1, v2)
+    n = np.maximum(np.maximum(n1, n2), 1e-12)[..., None]
+    e1 = np.where(n > 1e-9, v / n, np.array([1.0, 0.0], np.float32))
+    return l1.astype(np.float32), l2.astype(np.float32), e1.astype(np.float32)
+
+
+def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray) -> np.ndarray:
+    """Where each photo pixel's content sits in the design: misregistration per pixel, grid px.
+
+    DIS optical flow from the warped photo to the print, both normalised for local
+    exposure; outside ``scored`` the photo is replaced by the print (no data there must not
+    drag the flow). The flow ``g`` satisfies ``print(y + g(y)) ≈ photo(y)``: the content
+    the photo shows at y was designed at y + g, so it is displaced by ``m = -g``, the
+    convention of the tile registration (``photo(x + m) ≈ design(x)``), evaluated where the
+    photo shows the content: a defect is located where it is on the film.
+
+    Parameters
+    ----------
+    ref_gray, warped_gray : (H, W) float32
+        Print and warped photo, grey levels.
+    scored : (H, W) bool
+        Where the photo has data.
+
+    Returns
+    -------
+    (H, W, 2) float32
+        Misregistration m, grid pixels (x right, y down).
+    """
+    r = local_normalise(ref_gray, NORM_SIGMA_PX)
+    w = local_normalise(warped_gray, NORM_SIGMA_PX)
+    w = np.where(scored, w, r)
+    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+    g = dis.calc(w, r, None)
+    return -g
+
+
+def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma: float):
+    """Local per-channel gain and offset that turn the design into the photo (shading, vignetting, exposure).
+
+    A weighted linear regression of ``photo`` on ``model`` in a Gaussian window, per
+    channel; where the window has no contrast (a plain colour) the gain falls back to
+    the global one (a ridge term), so the offset carries the exposure there.
+
+    Parameters
+    ----------
+    model, photo : (H, W, 3) float32
+        Design (blurred and moved like the photo) and photo, grey levels.
+    weight : (H, W) float32
+        1 where the pixel may inform the fit, 0 elsewhere.
+    sigma : float
+        Window, pixels.
+
+    Returns
+    -------
+    gain, offset : (H, W, 3) float32
+    """
+    H, W = weight.shape
+    # the fields are smooth on the window's scale: sums at a quarter of the resolution, then
+    # interpolated back (four times faster, and the same to a fraction of a grey level)
+    q = 4 if sigma >= 16 else 1
+    small = (max(W // q, 1), max(H // q, 1))
+
+    def blur(a):
+        a = cv2.resize(a, small, interpolation=cv2.INTER_AREA) if q > 1 else a
+        return cv2.GaussianBlur(a, (0, 0), sigma / q)
+
+    def back(a):
+        return cv2.resize(a, (W, H), interpolation=cv2.INTER_LINEAR) if q > 1 else a
+
+    w = weight.astype(np.float32)
+    gain = np.empty_like(model)
+    offset = np.empty_like(model)
+    sw = blur(w) + 1e-6
+    wsum = max(float(w.sum()), 1.0)
+    for c in range(3):
+        x, y = model[..., c], photo[..., c]
+        mx, my = blur(w * x) / sw, blur(w * y) / sw
+        vxx = blur(w * x * x) / sw - mx * mx
+        cxy = blur(w * x * y) / sw - mx * my
+        gx = float((w * x).sum() / wsum)
+        gy = float((w * y).sum() / wsum)
+        gvar = float((w * (x - gx) ** 2).sum() / wsum)
+        g0 = float((w * (x - gx) * (y - gy)).sum() / wsum / max(gvar, 1e-6))
+        ridge = 25.0  # grey levels²: below this much contrast in the window the global gain wins
+        g = (cxy + ridge * g0) / (np.maximum(vxx, 0) + ridge)
+        gain[..., c] = back(g)
+        offset[..., c] = back(my - g * mx)
+    return gain, offset
+
+
+def estimate_blur(ref_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray) -> float:
+    """Gaussian sigma (grid px) that makes the print look most like the warped photo."""
+    m = mask.astype(bool)
+    if m.sum() < 100:
+        return 0.0
+    w = warped_gray[m] - warped_gray[m].mean()
+    best, best_s = -2.0, 0.0
+    for s in (0.0, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 3.0):
+        g = cv2.GaussianBlur(ref_gray, (0, 0), s) if s else ref_gray
+        d = g[m] - g[m].mean()
+        ncc = float((d * w).sum() / np.sqrt((d * d).sum() * (w * w).sum() + 1e-12))
+        if ncc > best:
+            best, best_s = ncc, s
+    return best_s
+
+
+@dataclass
+class DenseResult:
+    """One photo on the print grid.
+
+    Attributes
+    ----------
+    warped : (rows, cols, 3) uint8
+        The photo on the print.
+    state : (rows, cols) uint8
+        Per pixel, one of the states (OFF_PART ... DEFECT).
+    shift_px : (rows, cols, 2) float32
+        Misregistration, grid px (the normal component where only that is known; NaN where
+        not measured).
+    shift_mm : (rows, cols) float32
+        Its length on the surface, mm (NaN where not measured).
+    colour_residual : (rows, cols) float32
+        Largest channel residual after the exposure fit, grey levels (NaN where not scored).
+    missing : (rows, cols) bool
+        The photo shows the bare film where the design has ink.
+    labels : (rows, cols) int32
+        Defect number + 1 per pixel (0: none).
+    flow_px : (rows, cols, 2) float32
+        The flow's own misregistration vector everywhere (also where the texture does not
+        determine it), grid px.
+    defects : list of dict
+        Each defect: centre_mm (print), area_mm2 (print), area_surface_mm2, bbox_mm, kind,
+        peak_mm and mean_mm (misregistration), colour_peak (grey levels).
+    blur_px : float
+        The photo's blur on the grid, sigma.
+    """
+
+    warped: np.ndarray
+    state: np.ndarray
+    shift_px: np.ndarray
+    shift_mm: np.ndarray
+    colour_residual: np.ndarray
+    missing: np.ndarray
+    labels: np.ndarray
+    defects: list
+    blur_px: float
+    flow_px: np.ndarray
+
+
+def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm: float) -> DenseResult:
+    """Dense misregistration, colour residuals, masks and defects of one photo on the print.
+
+    Parameters
+    ----------
+    grid : PrintGrid
+    warped : (rows, cols, 3) uint8
+        The photo on the print (:func:`warp_to_print`).
+    state : (rows, cols) uint8
+        Its visibility states.
+    tolerance_mm : float
+        Misregistration beyond this (mm on the surface) is a defect.
+
+    Returns
+    -------
+    DenseResult
+    """
+    state = state.copy()
+    # the film's rim and the photo's edge: the flow and the exposure fit have no neighbours
+    # on one side there, so a band of EDGE_PX is not scored
+    seen0 = (state == FULL).astype(np.uint8)
+    k = 2 * EDGE_PX + 1
+    state[(state == FULL) & ~cv2.erode(seen0, np.ones((k, k), np.uint8), borderValue=0).astype(bool)] = EDGE
+    seen = state == FULL
+    ref = grid.reference.astype(np.float32)
+    pho = warped.astype(np.float32)
+    rg = cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY)
+    pg = cv2.cvtColor(pho, cv2.COLOR_RGB2GRAY)
+    # highlights: white-out, every channel clipped (and a margin around, where the glare still adds light)
+    # (an opening first: a highlight is broad; a white scratch that clips is a defect, not glare)
+    sat = ((warped >= SATURATED).all(axis=2) & seen).astype(np.uint8)
+    sat = cv2.morphologyEx(sat, cv2.MORPH_OPEN, np.ones((9, 9), np.uint8))
+    sat = cv2.dilate(sat, np.ones((7, 7), np.uint8)).astype(bool)
+    inner = cv2.erode(seen.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    blur = estimate_blur(rg, pg, inner & ~sat)
+    refb = cv2.GaussianBlur(ref, (0, 0), blur) if blur else ref
+    rgb_ = cv2.cvtColor(refb, cv2.COLOR_RGB2GRAY)
+    m = dense_flow(rgb_, pg, seen & ~sat)
+    # the print moved by the flow: what the photo shows if only misregistration happened
+    H, W = rg.shape
+    jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
+    moved = cv2.remap(refb, jj - m[..., 0], ii - m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    # exposure: a robust local fit (a second pass without the first pass's outliers)
+    weight = (inner & ~sat).astype(np.float32)
+    gain, offset = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
+    res = _residual(pho, gain * moved + offset)
+    weight = weight * (res < COLOUR_TOL)
+    gain, offset = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
+    pred = gain * moved + offset
+    res = _residual(pho, pred)
+    # glare: light added to every channel over a broad area, beyond the window's offset
+    white = gain * np.float32(255.0) + offset  # the film's white as the photo would show it here
+    # (the exposure fit's window is larger than any defect it must find, so a broad glare goes
+    # into its offset, a small dropout does not)
+    excess = offset.min(axis=2)
+    base = float(np.median(excess[scored_fit])) if (scored_fit := weight > 0).any() else 0.0
+    glare = excess - base > GLARE
+    highlight = seen & (sat | glare | (white.min(axis=2) > 300))
+    shadow = seen & ~highlight & (white.max(axis=2) < SHADOW)
+    state[highlight] = HIGHLIGHT
+    state[shadow] = SHADOWED
+    scored = state == FULL
+    # what the flow can know, from the print's own texture (blurred like the photo)
+    l1, l2, e1 = structure_tensor(rgb_, TENSOR_SIGMA_PX)
+    full = scored & (l2 >= MIN_TWO_WAY)
+    normal = scored & ~full & (l1 >= MIN_EDGE)
+    shift = np.full((H, W, 2), np.nan, np.float32)
+    shift[full] = m[full]
+    mn = (m * e1).sum(axis=2, keepdims=True) * e1  # the component across the edge
+    shift[normal] = mn[normal]
+    state[full] = FULL
+    state[normal] = NORMAL
+    state[scored & ~full & ~normal] = COLOUR_ONLY
+    # surface mm: print mm times the film's local stretch
+    shift_mm = np.linalg.norm(shift, axis=2) / grid.px_per_mm * grid.surface_per_print
+    colour = np.where(scored, res, np.nan).astype(np.float32)
+    # ink missing: the photo matches the bare film's colour, the design does not
+    film = np.asarray(FILM_RGB, np.float32)
+    film_pred = gain * film + offset
+    near_film = np.abs(pho - film_pred).max(axis=2) < COLOUR_TOL
+    design_inked = np.abs(refb - film).max(axis=2) > 2 * COLOUR_TOL
+    colour_bad = scored & (res > COLOUR_TOL)
+    missing = colour_bad & near_film & design_inked
+    # a defect's extent from the flow's own vector wherever there is texture: along an edge
+    # the normal component of a shift parallel to it is 0, which bounds the shift from below
+    # only, and would cut a bubble into stripes
+    # (only where a window of about a millimetre has texture in two directions: along a long
+    # straight line the flow's tangential part is unconstrained)
+    _, l2_wide, _ = structure_tensor(rgb_, 4 * TENSOR_SIGMA_PX)
+    m_mm = np.linalg.norm(m, axis=2) / grid.px_per_mm * grid.surface_per_print
+    m_use = np.where(l2_wide >= MIN_TWO_WAY, m_mm, shift_mm)
+    shift_bad = (full | normal) & (m_use > tolerance_mm)
+    labels, defects = find_defects(shift_bad, colour_bad, missing, shift_mm, res, grid)
+    state[labels > 0] = DEFECT
+    return DenseResult(warped, state, shift, shift_mm.astype(np.float32), colour, missing, labels, defects, blur, m)
+
+
+def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """Largest channel residual, grey levels; a channel clipped in the photo where the model is bright too
+    says nothing (yellow ink's red channel reaches 255 on a well exposed photo)."""
+    r = np.abs(photo - pred)
+    r[(photo >= SATURATED) & (pred >= SATURATED - 15)] = 0.0
+    return r.max(axis=2)
+
+
+def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: PrintGrid):
+    """Connected regions of excess misregistration or colour residual, sized on the print.
+
+    Parameters
+    ----------
+    shift_bad, colour_bad, missing : (H, W) bool
+        Pixels beyond the misregistration tolerance, beyond the colour tolerance, and
+        showing bare film.
+    shift_mm, colour_res : (H, W) float
+        Misregistration (mm on the surface) and colour residual (grey levels).
+    grid : PrintGrid
+
+    Returns
+    -------
+    labels : (H, W) int32
+        Defect number + 1 per pixel, 0 elsewhere.
+    defects : list of dict
+        In decreasing order of area.
+    """
+    k3 = np.ones((3, 3), np.uint8)
+    # an opening drops isolated pixels (noise, JPEG), a closing joins a region's parts
+    sb = cv2.morphologyEx(shift_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
+    cb = cv2.morphologyEx(colour_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
+    both = cv2.morphologyEx(sb | cb, cv2.MORPH_CLOSE, k3)
+    n, lab = cv2.connectedComponents(both, connectivity=8)
+    px_mm2 = 1.0 / grid.px_per_mm**2
+    found = []
+    for k in range(1, n):
+        region = lab == k
+        s_px, c_px = region & (sb > 0), region & (cb > 0)
+        ns, nc = int(s_px.sum()), int(c_px.sum())
+        if (ns + nc) == 0:
+            continue
+        # a bubble's flow edges leave a little colour residual (under 1 % of its area in
+        # tests); ink that is gone leaves a lot, and drags the flow around it too
+        if nc >= 0.2 * ns:
+            kind = "missing" if (region & missing).sum() > 0.5 * nc else "colour"
+            sized = c_px
+        else:
+            kind, sized = "shift", s_px
+        area = float(sized.sum()) * px_mm2
+        if area < MIN_DEFECT_MM2:
+            continue
+        ii, jj = np.nonzero(sized)
+        centre = [float((jj.mean() + 0.5) / grid.px_per_mm), float((ii.mean() + 0.5) / grid.px_per_mm)]
+        sm = shift_mm[region & np.isfinite(shift_mm)]
+        found.append(
+            {
+                "kind": kind,
+                "centre_mm": centre,
+                "area_mm2": area,
+                "area_surface_mm2": float((grid.surface_per_print[sized] ** 2).sum() * px_mm2),
+                "bbox_mm": [
+                    float(jj.min() / grid.px_per_mm),
+                    float(ii.min() / grid.px_per_mm),
+                    float((jj.max() + 1) / grid.px_per_mm),
+                    float((ii.max() + 1) / grid.px_per_mm),
+                ],
+                "peak_mm": float(sm.max()) if len(sm) else None,
+                "mean_mm": float(sm.mean()) if len(sm) else None,
+                "colour_peak": float(np.nanmax(colour_res[region])) if nc else 0.0,
+                "shift_area_mm2": ns * px_mm2,
+                "colour_area_mm2": nc * px_mm2,
+                "_mask": region,
+            }
+        )
+    found.sort(key=lambda d: (-d["area_mm2"], d["centre_mm"]))
+    labels = np.zeros(lab.shape, np.int32)
+    for i, d in enumerate(found):
+        labels[d.pop("_mask")] = i + 1
+    return labels, found

@@ -62,7 +62,7 @@ def add_parser(sub) -> None:
         default="rectangle",
         choices=("rectangle", "free"),
         help="rectangle (default; four corners) or free (least area distortion: the film keeps the rim's lengths, "
-        "the outline follows)"
+        "the outline follows)",
     )
     p.add_argument(
         "--units", default="mm", choices=sorted(UNITS_MM), help="unit of the mesh file's coordinates (default mm)"
@@ -147,9 +147,7 @@ def run(args) -> int:
         raise UsageError("--corners belongs to --outline rectangle; a free outline has no corners")
     if not (np.isfinite(args.dpi) and 1 <= args.dpi <= 10000):
         raise UsageError(f"--dpi {args.dpi:g}: must be between 1 and 10000")
-    options = FlattenOptions(
-        corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline
-    )
+    options = FlattenOptions(corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline)
     if args.corners == "auto":
         result, compared = flatten_auto_corners(V, F, options, name=str(mesh_path), log=log)
     else:

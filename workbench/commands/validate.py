@@ -24,7 +24,7 @@ from workbench.export import png_bytes
 from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
 from workbench.validate.pose import PoseError, estimate_pose
-from workbench.validate.score import _bilinear, score, view_surface, warp_photo
+from workbench.validate.score import TILE, _bilinear, score, view_surface, warp_photo
 
 MAX_RMS_PX = 1.0
 MIN_TILES = 5
@@ -309,10 +309,16 @@ def dense_summary(dr, grid, design: Design, sc, surface) -> dict:
     measured_shift = np.isfinite(dr.shift_mm)
     agree = {"tiles": 0, "median_mm": None, "p95_mm": None}
     if len(sc.centres):
-        p0 = _bilinear(surface.print_mm, sc.centres[:, 0], sc.centres[:, 1])
-        p1 = _bilinear(surface.print_mm, sc.centres[:, 0] + sc.shift_px[:, 0], sc.centres[:, 1] + sc.shift_px[:, 1])
-        ok = np.isfinite(p0).all(1) & np.isfinite(p1).all(1)
-        agree = dense.agreement(dr.flow_px, dr.state, grid.px_per_mm, p0[ok], p1[ok])
+        c, d = sc.centres, sc.shift_px
+        p0 = _bilinear(surface.print_mm, c[:, 0], c[:, 1])
+        p1 = _bilinear(surface.print_mm, c[:, 0] + d[:, 0], c[:, 1] + d[:, 1])
+        # each tile's footprint on the print: the box of its corners' print points
+        h = (TILE - 1) / 2
+        corners = [_bilinear(surface.print_mm, c[:, 0] + sx * h, c[:, 1] + sy * h) for sx in (-1, 1) for sy in (-1, 1)]
+        corners = np.stack(corners, axis=1)
+        boxes = np.concatenate([corners.min(axis=1), corners.max(axis=1)], axis=1)
+        ok = np.isfinite(p0).all(1) & np.isfinite(p1).all(1) & np.isfinite(boxes).all(1)
+        agree = dense.agreement(dr.flow_px, dr.texture == 2, grid.px_per_mm, p0[ok], p1[ok], boxes[ok])
     return {
         "grid_px_per_mm": grid.px_per_mm,
         "blur_px": dr.blur_px,

@@ -33,6 +33,7 @@ from workbench.render.defects import FILM_RGB
 from workbench.views.visibility import _unoccluded_many
 
 MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at most this many pixels
+REGISTRATION_BLUR_PX = 1.0  # both images smoothed alike before the flow (as the tiles are)
 NORM_SIGMA_PX = 6.0  # window of the local exposure normalisation before the flow
 TENSOR_SIGMA_PX = 3.0  # window of the structure tensor
 MIN_EDGE = 4.0  # structure-tensor eigenvalue (grey levels² per px²) of a usable edge
@@ -258,39 +259,48 @@ def photo_depth(cam: Camera, V, F) -> np.ndarray:
     return depth_buffer(pxy, pz, F, ideal.width, ideal.height)[1]
 
 
-def agreement(flow_px: np.ndarray, state: np.ndarray, px_per_mm: float, p0: np.ndarray, p1: np.ndarray) -> dict:
+def agreement(flow_px: np.ndarray, full: np.ndarray, px_per_mm: float, p0, p1, boxes_mm) -> dict:
     """How the dense field agrees with the tile registration, in print mm.
+
+    Each tile is compared with the median of the dense field over the tile's footprint on
+    the print, at the pixels where the field is known in full (texture in two directions).
 
     Parameters
     ----------
     flow_px : (rows, cols, 2) float
         Dense misregistration, grid px.
-    state : (rows, cols) uint8
-        Where it is measured (FULL, NORMAL or DEFECT: a tile has texture in two directions
-        as a whole, so the flow's own vector is compared also at its single edges).
+    full : (rows, cols) bool
+        Where the dense field is known in full.
     px_per_mm : float
         Grid resolution.
     p0, p1 : (n, 2) float
         Per tile, the print point at its centre and the print point the photo shows there
         (print mm): the tile's misregistration on the print is p1 - p0.
+    boxes_mm : (n, 4) float
+        Per tile, its footprint's bounding box on the print (x0, y0, x1, y1), mm.
 
     Returns
     -------
     dict
         tiles compared, median and p95 of the difference's length (print mm).
     """
-    if len(p0) == 0:
+    rows, cols = full.shape
+    diffs = []
+    for k in range(len(p0)):
+        x0, y0, x1, y1 = (np.asarray(boxes_mm[k]) * px_per_mm).round().astype(int)
+        x0, y0 = max(x0, 0), max(y0, 0)
+        x1, y1 = min(x1, cols), min(y1, rows)
+        if x1 <= x0 or y1 <= y0:
+            continue
+        f = full[y0:y1, x0:x1]
+        if f.sum() < 20:
+            continue
+        dense_mm = np.median(flow_px[y0:y1, x0:x1][f], axis=0) / px_per_mm
+        diffs.append(float(np.linalg.norm(dense_mm - (p1[k] - p0[k]))))
+    if not diffs:
         return {"tiles": 0, "median_mm": None, "p95_mm": None}
-    j = np.round(p0[:, 0] * px_per_mm - 0.5).astype(int)
-    i = np.round(p0[:, 1] * px_per_mm - 0.5).astype(int)
-    rows, cols = state.shape
-    ok = (i >= 0) & (j >= 0) & (i < rows) & (j < cols)
-    ok[ok] &= np.isin(state[i[ok], j[ok]], (FULL, NORMAL, DEFECT))
-    if not ok.any():
-        return {"tiles": 0, "median_mm": None, "p95_mm": None}
-    dense = flow_px[i[ok], j[ok]] / px_per_mm
-    diff = np.linalg.norm(dense - (p1[ok] - p0[ok]), axis=1)
-    return {"tiles": int(ok.sum()), "median_mm": float(np.median(diff)), "p95_mm": float(np.percentile(diff, 95))}
+    d = np.array(diffs)
+    return {"tiles": len(d), "median_mm": float(np.median(d)), "p95_mm": float(np.percentile(d, 95))}
 
 
 def local_normalise(gray: np.ndarray, sigma: float) -> np.ndarray:
@@ -484,6 +494,9 @@ class DenseResult:
     flow_px : (rows, cols, 2) float32
         The flow's own misregistration vector everywhere (also where the texture does not
         determine it), grid px.
+    texture : (rows, cols) uint8
+        What the print's texture lets the flow know where the photo is scored: 2 the full
+        vector, 1 the component across an edge, 0 nothing.
     defects : list of dict
         Each defect: centre_mm (print), area_mm2 (print), area_surface_mm2, bbox_mm, kind,
         peak_mm and mean_mm (misregistration), colour_peak (grey levels).
@@ -501,6 +514,7 @@ class DenseResult:
     defects: list
     blur_px: float
     flow_px: np.ndarray
+    texture: np.ndarray
 
 
 def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm: float) -> DenseResult:
@@ -537,14 +551,19 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
     sat = cv2.morphologyEx(sat, cv2.MORPH_OPEN, np.ones((9, 9), np.uint8))
     sat = cv2.dilate(sat, np.ones((7, 7), np.uint8)).astype(bool)
     inner = cv2.erode(seen.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
-    blur = estimate_blur(rg, pg, inner & ~sat)
-    refb = cv2.GaussianBlur(ref, (0, 0), blur) if blur else ref
-    rgb_ = cv2.cvtColor(refb, cv2.COLOR_RGB2GRAY)
-    m = dense_flow(rgb_, pg, seen & ~sat)
-    # the print moved by the flow: what the photo shows if only misregistration happened
+    # the flow on both images smoothed alike (unbiased whatever the photo's blur; estimating
+    # that blur first is not: misregistration makes more blur look better)
+    rgb_ = cv2.GaussianBlur(rg, (0, 0), REGISTRATION_BLUR_PX)
+    m = dense_flow(rgb_, cv2.GaussianBlur(pg, (0, 0), REGISTRATION_BLUR_PX), seen & ~sat)
+    # the print moved by the flow: what the photo shows if only misregistration happened;
+    # then the photo's blur, measured on the aligned pair
     H, W = rg.shape
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
-    moved = cv2.remap(refb, jj - m[..., 0], ii - m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    moved = cv2.remap(ref, jj - m[..., 0], ii - m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat)
+    if blur:
+        moved = cv2.GaussianBlur(moved, (0, 0), blur)
+    refb = cv2.GaussianBlur(ref, (0, 0), blur) if blur else ref
     # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)
     gain, offset = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
@@ -575,6 +594,9 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
     shift[normal] = mn[normal]
     state[full] = FULL
     state[normal] = NORMAL
+    texture = np.zeros((H, W), np.uint8)
+    texture[normal] = 1
+    texture[full] = 2
     state[scored & ~full & ~normal] = COLOUR_ONLY
     # surface mm: print mm times the film's local stretch
     shift_mm = np.hypot(shift[..., 0], shift[..., 1]) / grid.px_per_mm * grid.surface_per_print
@@ -597,7 +619,9 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
     shift_bad = (full | normal) & (m_use > tolerance_mm)
     labels, defects = find_defects(shift_bad, colour_bad, missing, shift_mm, res, grid)
     state[labels > 0] = DEFECT
-    return DenseResult(warped, state, shift, shift_mm.astype(np.float32), colour, missing, labels, defects, blur, m)
+    return DenseResult(
+        warped, state, shift, shift_mm.astype(np.float32), colour, missing, labels, defects, blur, m, texture
+    )
 
 
 def _cmax(a: np.ndarray) -> np.ndarray:

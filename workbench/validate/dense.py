@@ -642,6 +642,14 @@ def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
     return _cmax(r)
 
 
+def _filled(region: np.ndarray) -> np.ndarray:
+    """The region with its holes filled (a bubble's plain squares are inside it, not around it)."""
+    cs, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    out = np.zeros(region.shape, np.uint8)
+    cv2.drawContours(out, cs, -1, 1, thickness=cv2.FILLED)
+    return out.astype(bool) | region
+
+
 def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: PrintGrid):
     """Connected regions of excess misregistration or colour residual, sized on the print.
 
@@ -705,7 +713,7 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
                 "colour_peak": float(np.nanmax(colour_res[region])) if nc else 0.0,
                 "shift_area_mm2": ns * px_mm2,
                 "colour_area_mm2": nc * px_mm2,
-                "_mask": region,
+                "_mask": _filled(region),
             }
         )
     found.sort(key=lambda d: (-d["area_mm2"], d["centre_mm"]))

@@ -109,7 +109,8 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
     plt = _figure()
     rows, cols = state.shape
     w_mm, h_mm = cols / px_per_mm, rows / px_per_mm
-    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm * 0.75 + 1.2), dpi=110)
+    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm * 0.8 + 2.2), dpi=110)
+    fig.subplots_adjust(bottom=0.3, top=0.93)
     ax.imshow(coverage_image(state), extent=(0, w_mm, h_mm, 0), interpolation="nearest")
     on = state != dense.OFF_PART
     n_on = max(int(on.sum()), 1)
@@ -122,8 +123,17 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
             handles.append(Patch(color=STATE_COLOURS[k] / 255, label=f"{name}: {100 * share:.1f} %"))
     for k, d in enumerate(defects):
         x, y = d["centre_mm"]
-        ax.annotate(str(k + 1), (x, y), color="red", fontsize=9, fontweight="bold", ha="center", va="center")
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=7, frameon=False)
+        ax.annotate(
+            str(k + 1),
+            (x, y),
+            color="black",
+            fontsize=8,
+            fontweight="bold",
+            ha="center",
+            va="center",
+            bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "red", "lw": 1.2},
+        )
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
     ax.set_xlabel("print x (mm)")
     ax.set_ylabel("print y (mm)")
     ax.set_title(title, fontsize=9)

@@ -291,6 +291,14 @@ def validate_photo(
     files[f"{stem}_defects_print.png"] = png_bytes(
         pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm)
     )
+    files[f"{stem}_dense_print.png"] = pictures.dense_heatmap(
+        grid.reference,
+        dr.shift_mm,
+        dr.labels,
+        grid.px_per_mm,
+        2 * tolerance_mm,
+        f"{path.name} on the print: dense misregistration (the tolerance is mid-scale), defects outlined",
+    )
     files[f"{stem}_defects_{name}.png"] = png_bytes(
         pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm))
     )

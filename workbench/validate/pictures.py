@@ -138,3 +138,45 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
     ax.set_ylabel("print y (mm)")
     ax.set_title(title, fontsize=9)
     return figure_png(fig)
+
+
+def dense_heatmap(
+    reference: np.ndarray, shift_mm: np.ndarray, labels: np.ndarray, px_per_mm: float, vmax: float, title: str
+) -> bytes:
+    """The dense misregistration over the print (mm on the surface), defects outlined, with a colour bar; PNG.
+
+    Parameters
+    ----------
+    reference : (rows, cols, 3) uint8
+        The print on the grid (shown in grey under the field).
+    shift_mm : (rows, cols) float
+        Misregistration (NaN where not measured).
+    labels : (rows, cols) int
+        Defect number + 1 per pixel.
+    px_per_mm : float
+        Grid resolution.
+    vmax : float
+        Top of the colour scale, mm (the tolerance, typically: yellow is at the limit).
+    """
+    from workbench.figures import _figure, figure_png
+
+    plt = _figure()
+    rows, cols = shift_mm.shape
+    w_mm, h_mm = cols / px_per_mm, rows / px_per_mm
+    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm + 0.8), dpi=110)
+    grey = cv2.cvtColor(cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
+    ext = (0, w_mm, h_mm, 0)
+    ax.imshow(grey, extent=ext, alpha=0.5, interpolation="bilinear")
+    im = ax.imshow(
+        np.ma.masked_invalid(shift_mm), extent=ext, cmap="inferno", vmin=0, vmax=vmax, interpolation="nearest"
+    )
+    for k, c in enumerate(outlines(labels)):
+        if len(c):
+            xy = (c + 0.5) / px_per_mm
+            ax.plot(np.r_[xy[:, 0], xy[0, 0]], np.r_[xy[:, 1], xy[0, 1]], color="cyan", lw=1.2)
+            ax.annotate(str(k + 1), (xy[:, 0].max(), xy[:, 1].min()), color="cyan", fontsize=9, fontweight="bold")
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04).set_label("misregistration on the surface (mm)")
+    ax.set_xlabel("print x (mm)")
+    ax.set_ylabel("print y (mm)")
+    ax.set_title(title, fontsize=9)
+    return figure_png(fig)

@@ -178,7 +178,7 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
         if e["verdict"] == "INVALID":
             continue
         stem = e["photo"].rsplit("/", 1)[-1].rsplit(".", 1)[0]
-        names = [f"{stem}_heatmap_{e['view']}.png", f"{stem}_defects_photo.png", f"{stem}_defects_print.png"]
+        names = [f"{stem}_dense_print.png", f"{stem}_defects_photo.png", f"{stem}_defects_{e['view']}.png"]
         c.setFont("Helvetica-Bold", 11)
         c.setFillColorRGB(*VERDICT_COLOURS[e["verdict"]])
         c.drawString(20 * mm, H - 20 * mm, f"{stem}: {e['verdict']} in view {e['view']}")

@@ -563,7 +563,6 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
     blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat)
     if blur:
         moved = cv2.GaussianBlur(moved, (0, 0), blur)
-    refb = cv2.GaussianBlur(ref, (0, 0), blur) if blur else ref
     # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)
     gain, offset = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
@@ -604,10 +603,21 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
     # ink missing: the photo matches the bare film's colour, the design does not
     film = np.asarray(FILM_RGB, np.float32)
     film_pred = gain * film + offset
-    near_film = _cmax(np.abs(pho - film_pred)) < COLOUR_TOL
-    design_inked = _cmax(np.abs(refb - film)) > 2 * COLOUR_TOL
-    colour_bad = scored & (res > COLOUR_TOL)
-    missing = colour_bad & near_film & design_inked
+    # how much of the ink is gone, per pixel: the photo's step from the design's colour towards
+    # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
+    step = film_pred - pred
+    step2 = (step * step).sum(axis=2)
+    inked = scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        alpha = np.where(inked, ((pho - pred) * step).sum(axis=2) / step2, 0.0)
+    alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
+    # beyond what blur and the flow's residual error explain: at an edge a fraction of a pixel
+    # of either changes the colour by a share of the edge's contrast, so the tolerance grows
+    # with the model's gradient (half a pixel's worth of it)
+    gx = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 1, 0, ksize=3) / 8))
+    gy = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 0, 1, ksize=3) / 8))
+    colour_bad = scored & (res > COLOUR_TOL + 0.5 * np.hypot(gx, gy))
+    missing = colour_bad & (alpha > 0.5)
     # a defect's extent from the flow's own vector wherever there is texture: along an edge
     # the normal component of a shift parallel to it is 0, which bounds the shift from below
     # only, and would cut a bubble into stripes
@@ -617,7 +627,10 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
     m_mm = np.hypot(m[..., 0], m[..., 1]) / grid.px_per_mm * grid.surface_per_print
     m_use = np.where(l2_wide >= MIN_TWO_WAY, m_mm, shift_mm)
     shift_bad = (full | normal) & (m_use > tolerance_mm)
-    labels, defects = find_defects(shift_bad, colour_bad, missing, shift_mm, res, grid)
+    # the honest measure (full vector, or the component across an edge) beyond the tolerance:
+    # a region without any of it is the flow's guess along edges, not a defect
+    evidence = (full | normal) & (shift_mm > tolerance_mm)
+    labels, defects = find_defects(shift_bad, colour_bad, missing, shift_mm, res, grid, alpha, evidence)
     state[labels > 0] = DEFECT
     return DenseResult(
         warped, state, shift, shift_mm.astype(np.float32), colour, missing, labels, defects, blur, m, texture
@@ -650,7 +663,7 @@ def _filled(region: np.ndarray) -> np.ndarray:
     return out.astype(bool) | region
 
 
-def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: PrintGrid):
+def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: PrintGrid, alpha=None, evidence=None):
     """Connected regions of excess misregistration or colour residual, sized on the print.
 
     Parameters
@@ -661,6 +674,13 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
     shift_mm, colour_res : (H, W) float
         Misregistration (mm on the surface) and colour residual (grey levels).
     grid : PrintGrid
+    alpha : (H, W) float, optional
+        Share of the ink gone per pixel (0 to 1). A region of missing ink is sized by its
+        sum (sub-pixel, and independent of the blur, which only spreads it) and located at
+        its weighted centre; a threshold would size a thin scratch by the blur's width.
+    evidence : (H, W) bool, optional
+        Where the misregistration actually measured (full vector, or the component across
+        an edge) exceeds the tolerance; a shift region needs a quarter of its pixels there.
 
     Returns
     -------
@@ -680,6 +700,8 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
     for k in range(1, n):
         region = lab == k
         s_px, c_px = region & (sb > 0), region & (cb > 0)
+        if evidence is not None and (s_px & evidence).sum() < 0.25 * s_px.sum():
+            s_px = s_px & evidence  # the rest is the flow's guess along an edge
         ns, nc = int(s_px.sum()), int(c_px.sum())
         if (ns + nc) == 0:
             continue
@@ -690,18 +712,27 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
             sized = c_px
         else:
             kind, sized = "shift", s_px
-        area = float(sized.sum()) * px_mm2
+        ii, jj = np.nonzero(sized)
+        wts = np.ones(len(ii))
+        if kind == "missing" and alpha is not None:
+            # the blur's tails reach a few pixels beyond the thresholded region
+            grown = cv2.dilate(region.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+            ii, jj = np.nonzero(grown)
+            wts = alpha[ii, jj].astype(np.float64)
+        area = float(wts.sum()) * px_mm2
         if area < MIN_DEFECT_MM2:
             continue
-        ii, jj = np.nonzero(sized)
-        centre = [float((jj.mean() + 0.5) / grid.px_per_mm), float((ii.mean() + 0.5) / grid.px_per_mm)]
+        centre = [
+            float(((jj + 0.5) * wts).sum() / wts.sum() / grid.px_per_mm),
+            float(((ii + 0.5) * wts).sum() / wts.sum() / grid.px_per_mm),
+        ]
         sm = shift_mm[region & np.isfinite(shift_mm)]
         found.append(
             {
                 "kind": kind,
                 "centre_mm": centre,
                 "area_mm2": area,
-                "area_surface_mm2": float((grid.surface_per_print[sized] ** 2).sum() * px_mm2),
+                "area_surface_mm2": float((grid.surface_per_print[ii, jj] ** 2 * wts).sum() * px_mm2),
                 "bbox_mm": [
                     float(jj.min() / grid.px_per_mm),
                     float(ii.min() / grid.px_per_mm),

@@ -237,9 +237,9 @@ def validate_photo(
         )
     grid = cache["grid"]
     clock.append(time.perf_counter())  # tiles
-    on_print, state = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
+    on_print, state, scale = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
-    dr = dense.analyse(grid, on_print, state, tolerance_mm)
+    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale)
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
     entry.update(
         {

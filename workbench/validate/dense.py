@@ -147,7 +147,7 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
 
 def warp_to_print(
     photo: np.ndarray, cam: Camera, grid: PrintGrid, V, F, depth: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The photo seen on the print: each grid pixel takes the photo's colour of its surface point.
 
     Parameters
@@ -170,6 +170,8 @@ def warp_to_print(
         OFF_PART, NOT_SEEN (outside the photo or behind the camera), OCCLUDED (hidden
         by another part of the mesh), GRAZING (seen too obliquely to measure) or FULL
         (seen: to be scored).
+    scale : float
+        Photo pixels per grid pixel (median over the part; below 1 the photo is coarser).
     """
     rows, cols = grid.X.shape[:2]
     on = np.isfinite(grid.X[..., 0])
@@ -216,7 +218,7 @@ def warp_to_print(
         # a grid pixel whose photo footprint is much thinner along one axis than the other
         oblique = np.maximum(along_x, along_y) / np.minimum(along_x, along_y) > MAX_GRAZING
     state[(state == FULL) & oblique] = GRAZING
-    return warped, state
+    return warped, state, scale
 
 
 def project_distorted(cam: Camera, X: np.ndarray) -> np.ndarray:
@@ -517,7 +519,9 @@ class DenseResult:
     texture: np.ndarray
 
 
-def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm: float) -> DenseResult:
+def analyse(
+    grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm: float, scale: float = 1.0
+) -> DenseResult:
     """Dense misregistration, colour residuals, masks and defects of one photo on the print.
 
     Parameters
@@ -529,6 +533,10 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
         Its visibility states.
     tolerance_mm : float
         Misregistration beyond this (mm on the surface) is a defect.
+    scale : float
+        Photo pixels per grid pixel (:func:`warp_to_print`): where the photo is coarser than
+        the grid, both images are smoothed to its resolution before the flow (detail the photo
+        cannot resolve would otherwise move edges).
 
     Returns
     -------
@@ -553,8 +561,9 @@ def analyse(grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm
     inner = cv2.erode(seen.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     # the flow on both images smoothed alike (unbiased whatever the photo's blur; estimating
     # that blur first is not: misregistration makes more blur look better)
-    rgb_ = cv2.GaussianBlur(rg, (0, 0), REGISTRATION_BLUR_PX)
-    m = dense_flow(rgb_, cv2.GaussianBlur(pg, (0, 0), REGISTRATION_BLUR_PX), seen & ~sat)
+    reg = max(REGISTRATION_BLUR_PX, REGISTRATION_BLUR_PX / max(scale, 1e-3))
+    rgb_ = cv2.GaussianBlur(rg, (0, 0), reg)
+    m = dense_flow(rgb_, cv2.GaussianBlur(pg, (0, 0), reg), seen & ~sat)
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
     H, W = rg.shape

@@ -92,11 +92,15 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def markers_under_the_part(pose, design: Design) -> list[int]:
-    """Markers seen where the part, if it sat where the fixture says, would hide them."""
+def markers_under_the_part(pose, design: Design, face: np.ndarray | None = None) -> list[int]:
+    """Markers seen where the part, if it sat where the fixture says, would hide them.
+
+    ``face``: the part's face buffer in the undistorted photo camera, when the caller has it.
+    """
     cam = Camera(pose.camera.K, pose.camera.R, pose.camera.t, pose.camera.width, pose.camera.height)
-    xy, z = cam.project(design.V)
-    face, _ = depth_buffer(xy, z, design.F, cam.width, cam.height)
+    if face is None:
+        xy, z = cam.project(design.V)
+        face, _ = depth_buffer(xy, z, design.F, cam.width, cam.height)
     fx = design.fixture
     mesh = np.asarray(fx["markers"]["corners_mesh_mm"])
     index = {int(i): k for k, i in enumerate(fx["markers"]["ids"])}
@@ -202,7 +206,9 @@ def validate_photo(
             f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"
         )
         return entry, files, None
-    hidden = markers_under_the_part(pose, design)
+    # one z-buffer of the part in the photo: for this check and for both warps
+    face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
+    hidden = markers_under_the_part(pose, design, face_buffer)
     if hidden:
         entry["reason"] = (
             f"the object is not where the fixture says: marker {hidden[0]} is visible where the part "
@@ -226,7 +232,6 @@ def validate_photo(
         )
     surface, view_rgb = cache[vi]
     clock.append(time.perf_counter())  # pose
-    depth = dense.photo_depth(pose.camera, design.V, design.F)  # one z-buffer for both warps
     warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
     p = design.info["print"]
     clock.append(time.perf_counter())  # warps
@@ -288,8 +293,9 @@ def validate_photo(
     files[f"{stem}_warped_{name}.png"] = png_bytes(warped)
     files[f"{stem}_overlay_{name}.png"] = png_bytes(overlay)
     files[f"{stem}_heatmap_{name}.png"] = heatmap_png(view_rgb, sc, f"{path.name} in view {name}: {entry['verdict']}")
+    # light compression for the pictures: level 3 costs a few tenths of a second per photo
     files[f"{stem}_defects_print.png"] = png_bytes(
-        pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm)
+        pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm), compression=1
     )
     files[f"{stem}_dense_print.png"] = pictures.dense_heatmap(
         grid.reference,
@@ -300,11 +306,12 @@ def validate_photo(
         f"{path.name} on the print: dense misregistration (the tolerance is mid-scale), defects outlined",
     )
     files[f"{stem}_defects_{name}.png"] = png_bytes(
-        pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm))
+        pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm)),
+        compression=1,
     )
     centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
     radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
-    files[f"{stem}_defects_photo.png"] = png_bytes(pictures.photo_circled(photo, centres, radii))
+    files[f"{stem}_defects_photo.png"] = png_bytes(pictures.photo_circled(photo, centres, radii), compression=1)
     clock.append(time.perf_counter())  # pictures
     stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "figures and verdict", "pictures")
     entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}

@@ -177,7 +177,7 @@ def warp_to_print(
     on = np.isfinite(grid.X[..., 0])
     pts = grid.X[on]
     ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
-    pdepth = photo_depth(cam, V, F) if depth is None else depth
+    pdepth = photo_buffers(cam, V, F)[1] if depth is None else depth
     xy, z = ideal.project(pts)
     seen = np.zeros(len(pts), dtype=np.bool_)
     _unoccluded_many(
@@ -254,11 +254,11 @@ def project_distorted(cam: Camera, X: np.ndarray) -> np.ndarray:
     return out
 
 
-def photo_depth(cam: Camera, V, F) -> np.ndarray:
-    """Depth buffer (h, w) of the part seen by the undistorted photo camera, mm (+inf: none)."""
+def photo_buffers(cam: Camera, V, F) -> tuple[np.ndarray, np.ndarray]:
+    """Face and depth buffers (h, w) of the part seen by the undistorted photo camera (-1, +inf: none)."""
     ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
     pxy, pz = ideal.project(V)
-    return depth_buffer(pxy, pz, F, ideal.width, ideal.height)[1]
+    return depth_buffer(pxy, pz, F, ideal.width, ideal.height)
 
 
 def agreement(flow_px: np.ndarray, full: np.ndarray, px_per_mm: float, p0, p1, boxes_mm) -> dict:

@@ -31,7 +31,7 @@ TARGET_RATIO = 0.6
 
 
 def render(design: Path, photo: Path, orbit: str, extra: list[str]) -> None:
-    cmd = [WB, "render", str(design), "--orbit", orbit, "--size", "4000x3000", "--realistic", *extra]
+    cmd = [WB, "render", str(design), f"--orbit={orbit}", "--size", "4000x3000", "--realistic", *extra]
     subprocess.run([*cmd, "-o", str(photo), "-q"], check=True)
 
 
@@ -101,11 +101,13 @@ def main() -> None:
             "--out",
             str(tmp / "v"),
             "-q",
+            "--jobs",
+            "1",
         ]
         seconds, peak = run_child(cmd)
         report = json.loads((tmp / "v" / "validation.json").read_text())
         per = [e["seconds"] for e in report["photos"]]
-        print("workbench validate: 2 photos of 4000 x 3000 px (12 Mpx), realistic imperfections")
+        print("workbench validate --jobs 1: 2 photos of 4000 x 3000 px (12 Mpx), realistic imperfections")
         print(f"  whole command {seconds:.2f} s (with start-up, QA report), peak {peak:.0f} MiB")
         print(
             f"  per photo {', '.join(f'{s:.2f} s' for s in per)}; verdicts "

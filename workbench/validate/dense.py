@@ -640,7 +640,8 @@ def analyse(
     # a region without any of it is the flow's guess along edges, not a defect
     evidence = (full | normal) & (shift_mm > tolerance_mm)
     labels, defects = find_defects(shift_bad, colour_bad, missing, shift_mm, res, grid, alpha, evidence)
-    state[labels > 0] = DEFECT
+    # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
+    state[(labels > 0) & np.isin(state, (COLOUR_ONLY, NORMAL, FULL))] = DEFECT
     return DenseResult(
         warped, state, shift, shift_mm.astype(np.float32), colour, missing, labels, defects, blur, m, texture
     )

@@ -284,7 +284,11 @@ def validate_photo(
         entry["verdict"] = "FAIL" if why else "PASS"
         entry["reason"] = "; ".join(why) or (
             f"misregistration p95 {p95:.3f} mm <= tolerance {tolerance_mm} mm, "
-            f"{'no defect' if not entry['defects'] else 'no defect'} > {max_defect_mm2:g} mm²"
+            + (
+                f"no defect > {max_defect_mm2:g} mm²"
+                if not entry["defects"]
+                else f"{len(entry['defects'])} defect(s), none > {max_defect_mm2:g} mm²"
+            )
         )
     clock.append(time.perf_counter())  # summary
     stem = path.stem

@@ -41,6 +41,7 @@ bench: install
 	$(PY) benchmarks/bench_design.py
 	$(PY) benchmarks/bench_render.py
 	$(PY) benchmarks/bench_validate.py
+	$(PY) benchmarks/bench_defects.py
 	$(PY) -m pytest -q -m slow
 
 lint: install

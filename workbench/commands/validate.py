@@ -528,7 +528,8 @@ def run(args) -> int:
     work = [(p, args.view, args.tolerance_mm, args.max_defect_mm2) for p in args.photos]
     if jobs > 1:
         # processes, not threads: most of the work holds the GIL between numpy calls; results
-        # come back in the photos' order, so the outputs do not depend on the scheduling
+        # come back in the photos' order, so the outputs do not depend on the scheduling.
+        # Spawned, not forked: forked workers hung here in their first OpenCV/numba call.
         with ProcessPoolExecutor(
             jobs,
             mp_context=get_context("spawn"),

@@ -6,6 +6,7 @@ import io
 
 from workbench.printing.pdf import build_date
 
+REPORT_IMAGE_PX = 1200  # widest picture embedded in the report
 VERDICT_COLOURS = {"PASS": (0.1, 0.55, 0.2), "FAIL": (0.8, 0.1, 0.1), "INVALID": (0.55, 0.45, 0.1)}
 
 
@@ -210,6 +211,12 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
             if name not in pictures:
                 continue
             img = Image.open(io.BytesIO(pictures[name]))
+            # a third of an A4 page needs no more: ReportLab encodes every pixel in Python, and
+            # full-size pictures made the report the longest serial step of a batch
+            if img.width > REPORT_IMAGE_PX:
+                img = img.convert("RGB").resize(
+                    (REPORT_IMAGE_PX, max(1, round(img.height * REPORT_IMAGE_PX / img.width))), Image.LANCZOS
+                )
             w = W - 40 * mm
             h = w * img.height / img.width
             h = min(h, (H - 60 * mm) / 3)

@@ -10,6 +10,17 @@ REPORT_IMAGE_PX = 1200  # widest picture embedded in the report
 VERDICT_COLOURS = {"PASS": (0.1, 0.55, 0.2), "FAIL": (0.8, 0.1, 0.1), "INVALID": (0.55, 0.45, 0.1)}
 
 
+def _jpeg(img):
+    """A picture as a JPEG for the PDF: ReportLab embeds JPEG data as it is, where it encodes every
+    pixel of any other image in Python (a second per full-size picture)."""
+    from reportlab.lib.utils import ImageReader
+
+    buf = io.BytesIO()
+    img.convert("RGB").save(buf, format="JPEG", quality=90, optimize=False)
+    buf.seek(0)
+    return ImageReader(buf)
+
+
 def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
     """Page one: is this part good, and if not, where is it wrong (the part's verdict, its defects on the
     print, the coverage map, the rule)."""
@@ -115,7 +126,6 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
     from PIL import Image
     from reportlab.lib.pagesizes import A4
     from reportlab.lib.units import mm
-    from reportlab.lib.utils import ImageReader
     from reportlab.pdfgen import canvas as rl_canvas
 
     buf = io.BytesIO()
@@ -221,7 +231,7 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
             h = w * img.height / img.width
             h = min(h, (H - 60 * mm) / 3)
             w = h * img.width / img.height
-            c.drawImage(ImageReader(img), 20 * mm, top - h, width=w, height=h)
+            c.drawImage(_jpeg(img), 20 * mm, top - h, width=w, height=h)
             top -= h + 6 * mm
         c.showPage()
     c.save()

@@ -21,7 +21,8 @@ WB := $(VENV)/bin/workbench
 DEMO := out/demo
 
 # the whole pipeline on the bundled default job: design, print PDF, fixture PDF, two
-# synthetic photos (one perfect, one with the film 0.8 mm off), validation and QA report
+# synthetic photos (one perfect, one with the film 0.8 mm off, one glossy with a bubble and an ink
+# dropout), validation and QA report
 demo: install
 	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
 	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf
@@ -29,7 +30,9 @@ demo: install
 	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic -o $(DEMO)/photo_perfect.jpg
 	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic --film-offset-mm 0.8,0 \
 		-o $(DEMO)/photo_film_0.8mm.jpg
-	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg $(DEMO)/photo_film_0.8mm.jpg \
+	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic --gloss 0.5 \
+		--defect bubble:45,30,6,1 --defect dropout:60,25,1.784 -o $(DEMO)/photo_defects.jpg
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg $(DEMO)/photo_film_0.8mm.jpg $(DEMO)/photo_defects.jpg \
 		--camera $(DEMO)/photo_perfect.json --out $(DEMO)/validation
 	$(PY) fixtures/demo_summary.py $(DEMO)
 
@@ -39,6 +42,7 @@ bench: install
 	$(PY) benchmarks/bench_render.py
 	$(PY) benchmarks/bench_validate.py
 	$(PY) benchmarks/bench_films.py
+	$(PY) benchmarks/bench_defects.py
 	$(PY) -m pytest -q -m slow
 
 lint: install

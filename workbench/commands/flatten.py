@@ -64,7 +64,7 @@ def add_parser(sub) -> None:
         default="rectangle",
         choices=("rectangle", "free"),
         help="rectangle (default; four corners) or free (least area distortion: the film keeps the rim's lengths, "
-        "the outline follows)"
+        "the outline follows)",
     )
     p.add_argument(
         "--units", default="mm", choices=sorted(UNITS_MM), help="unit of the mesh file's coordinates (default mm)"

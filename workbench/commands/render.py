@@ -18,6 +18,7 @@ from workbench.design_dir import Design
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_bytes
 from workbench.jsonfile import recorded_path
+from workbench.render.defects import Defect
 from workbench.render.imperfections import REALISTIC, Imperfections
 from workbench.render.photo import render_photo
 
@@ -71,6 +72,20 @@ def add_parser(sub) -> None:
     g.add_argument("--shading", action="store_true", default=None, help="Lambertian shading")
     g.add_argument("--light", metavar="X,Y,Z", help="direction towards the light (world)")
     g.add_argument("--ambient", type=float, help="ambient share of the light (default 0.35)")
+    g.add_argument(
+        "--gloss", type=float, help="glossy film: strength of the light's specular highlight (0 to 1; 0: matte)"
+    )
+    g.add_argument("--shininess", type=float, help="Blinn-Phong exponent of the highlight (default 80: small, sharp)")
+    g.add_argument(
+        "--defect",
+        metavar="KIND:...",
+        action="append",
+        help=(
+            "a local film defect, print mm (x right, y down), repeatable: bubble:X,Y,R,SHIFT (a disc of radius R "
+            "where the print slid SHIFT mm along +x; or bubble:X,Y,R,DX,DY), scratch:X0,Y0,X1,Y1,W (ink gone along "
+            "a line W mm wide), dropout:X,Y,R (ink missing in a disc)"
+        ),
+    )
     g.add_argument("--vignetting", type=float, help="brightness loss at the corners (0 to 1)")
     g.add_argument("--jpeg-quality", type=int, help="JPEG round trip at this quality")
     g.add_argument("--seed", type=int, default=0, help="noise seed")
@@ -139,10 +154,19 @@ def imperfections_from(args) -> Imperfections:
         "light": _direction(args.light, "--light"),
         "ambient": args.ambient,
         "vignetting": args.vignetting,
+        "gloss": args.gloss,
+        "shininess": args.shininess,
         "jpeg_quality": args.jpeg_quality,
     }
     kw.update({k: v for k, v in pairs.items() if v is not None})
     kw["seed"] = args.seed
+    defects = []
+    for spec in args.defect or []:
+        try:
+            defects.append(Defect.parse(spec).spec())
+        except ValueError as exc:
+            raise UsageError(f"--defect {spec!r}: {exc}") from None
+    kw["defects"] = tuple(defects)
     for key, lo, hi in (
         ("blur_px", 0, 50),
         ("noise", 0, 100),
@@ -150,6 +174,8 @@ def imperfections_from(args) -> Imperfections:
         ("gamma", 0.05, 20),
         ("ambient", 0, 1),
         ("vignetting", 0, 1),
+        ("gloss", 0, 1),
+        ("shininess", 1, 10000),
         ("jpeg_quality", 1, 100),
     ):
         if key in kw and not lo <= kw[key] <= hi:
@@ -213,6 +239,8 @@ def truth(camera: Camera, imp: Imperfections, design: Design, source: str, out: 
         "t": camera.t.tolist(),
         "camera_center_mm": camera.center.tolist(),
         "imperfections": imp.to_dict(),
+        # each defect's centre and area in print mm: what validate must find
+        "defects": [Defect.parse(d).truth() for d in imp.defects],
         "source": source,
         # relative to the folder of PHOTO.json, as every recorded path
         "design": {

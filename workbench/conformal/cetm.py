@@ -248,7 +248,6 @@ class NewtonOptions:
     max_iterations: int = 50
 
 
-
 # Budget of a solve on the fixed input triangulation before flips take over: a clean
 # mesh converges in 2 to 6 steps with full steps.
 FIXED_MAX_ITERATIONS = 20

@@ -45,12 +45,20 @@ class Imperfections:
         Direction towards the light, world frame.
     ambient : float
         Share of light that does not depend on the surface's direction.
+    gloss : float
+        Specular reflection of the film (0: matte): a white highlight of this strength
+        (share of full scale) where the surface mirrors the light towards the camera
+        (Blinn-Phong), added on the part only, not on the fixture's paper.
+    shininess : float
+        Blinn-Phong exponent: larger is a smaller, sharper highlight.
     vignetting : float
         Brightness falls by this share at the image corners (quadratic in radius).
     jpeg_quality : int or None
         JPEG round trip at this quality.
     seed : int
         Seed of the noise.
+    defects : tuple of str
+        Local film defects (:mod:`workbench.render.defects` specification strings).
     """
 
     film_offset_mm: tuple[float, float] = (0.0, 0.0)
@@ -66,14 +74,21 @@ class Imperfections:
     shading: bool = False
     light: tuple[float, float, float] = (0.3, -0.5, 1.0)
     ambient: float = 0.35
+    gloss: float = 0.0
+    shininess: float = 80.0
     vignetting: float = 0.0
     jpeg_quality: int | None = None
     seed: int = 0
+    defects: tuple = ()
     extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        object.__setattr__(self, "defects", tuple(self.defects))  # a list from a truth file, hashable again
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d.pop("extra")
+        d["defects"] = list(self.defects)
         return d
 
 

@@ -11,6 +11,7 @@ import numpy as np
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
 from workbench.raster import _JIT, depth_buffer
+from workbench.render.defects import Defect, apply_defects
 from workbench.render.imperfections import Imperfections, film_transform
 
 TABLE_GREY = 90  # what the camera sees around the plate
@@ -120,6 +121,9 @@ def build_scene(
         q[vertex_film == film - 1] -= [dx, dy]
     uv = q * ppm - 0.5
     normals = vertex_normals(V, F)
+    if imp.defects:
+        # the film's defects live in its texture: every lookup of the print shows them
+        print_rgb = apply_defects(print_rgb, dpi, [Defect.parse(d) for d in imp.defects])
     Vs, Fs, uvs, ns, tex = [V], [F], [uv], [normals], [np.zeros(len(F), np.int8)]
     textures = [print_rgb]
     if fixture is not None:
@@ -185,7 +189,9 @@ def _bilinear(img, x, y, c):
 
 
 @numba.njit(parallel=True, **_JIT)
-def _shade(face, P, invz, F, uv, normals, face_tex, tex0, tex1, light, ambient, shading, background, out):
+def _shade(
+    face, P, invz, F, uv, normals, face_tex, tex0, tex1, light, ambient, shading, background, V, eye, gloss, shine, out
+):
     H, W = face.shape
     for i in numba.prange(H):
         for j in range(W):
@@ -213,9 +219,24 @@ def _shade(face, P, invz, F, uv, normals, face_tex, tex0, tex1, light, ambient, 
                 nn = np.sqrt(nx * nx + ny * ny + nz * nz)
                 d = (nx * light[0] + ny * light[1] + nz * light[2]) / nn
                 k = ambient + (1.0 - ambient) * max(d, 0.0)
+            spec = 0.0
+            if gloss > 0.0 and face_tex[f] == 0:
+                # Blinn-Phong: the half vector of light and view directions against the normal
+                nx = l0 * normals[i0, 0] + l1 * normals[i1, 0] + l2 * normals[i2, 0]
+                ny = l0 * normals[i0, 1] + l1 * normals[i1, 1] + l2 * normals[i2, 1]
+                nz = l0 * normals[i0, 2] + l1 * normals[i1, 2] + l2 * normals[i2, 2]
+                vx = eye[0] - (l0 * V[i0, 0] + l1 * V[i1, 0] + l2 * V[i2, 0])
+                vy = eye[1] - (l0 * V[i0, 1] + l1 * V[i1, 1] + l2 * V[i2, 1])
+                vz = eye[2] - (l0 * V[i0, 2] + l1 * V[i1, 2] + l2 * V[i2, 2])
+                vn = np.sqrt(vx * vx + vy * vy + vz * vz)
+                hx, hy, hz = light[0] + vx / vn, light[1] + vy / vn, light[2] + vz / vn
+                hn = np.sqrt(hx * hx + hy * hy + hz * hz) * np.sqrt(nx * nx + ny * ny + nz * nz)
+                c_h = (nx * hx + ny * hy + nz * hz) / hn
+                if c_h > 0.0:
+                    spec = 255.0 * gloss * c_h**shine
             for c in range(3):
                 val = _bilinear(tex0, u, v, c) if face_tex[f] == 0 else _bilinear(tex1, u, v, c)
-                out[i, j, c] = val * k
+                out[i, j, c] = val * k + spec
 
 
 def render_ideal(scene: Scene, camera: Camera, imp: Imperfections) -> tuple[np.ndarray, np.ndarray]:
@@ -249,6 +270,10 @@ def render_ideal(scene: Scene, camera: Camera, imp: Imperfections) -> tuple[np.n
         float(imp.ambient),
         bool(imp.shading),
         float(TABLE_GREY),
+        np.ascontiguousarray(scene.V, dtype=np.float64),
+        camera.center.astype(np.float64),
+        float(imp.gloss),
+        float(imp.shininess),
         out,
     )
     return out, face

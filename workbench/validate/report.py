@@ -6,11 +6,110 @@ import io
 
 from workbench.printing.pdf import build_date
 
+REPORT_IMAGE_PX = 1200  # widest picture embedded in the report
 VERDICT_COLOURS = {"PASS": (0.1, 0.55, 0.2), "FAIL": (0.8, 0.1, 0.1), "INVALID": (0.55, 0.45, 0.1)}
 
 
+def _jpeg(img):
+    """A picture as a JPEG for the PDF: ReportLab embeds JPEG data as it is, where it encodes every
+    pixel of any other image in Python (a second per full-size picture)."""
+    from reportlab.lib.utils import ImageReader
+
+    buf = io.BytesIO()
+    img.convert("RGB").save(buf, format="JPEG", quality=90, optimize=False)
+    buf.seek(0)
+    return ImageReader(buf)
+
+
+def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
+    """Page one: is this part good, and if not, where is it wrong (the part's verdict, its defects on the
+    print, the coverage map, the rule)."""
+    from PIL import Image
+    from reportlab.lib.units import mm
+    from reportlab.lib.utils import ImageReader
+
+    part = report.get("part") or {}
+    verdict = part.get("verdict", "INVALID")
+    job = report["design"].get("job") or {}
+    c.setFont("Helvetica-Bold", 14)
+    c.drawString(20 * mm, H - 20 * mm, f"Is this part good?  {job.get('name', 'design')}")
+    c.setFillColorRGB(*VERDICT_COLOURS[verdict])
+    c.setFont("Helvetica-Bold", 36)
+    c.drawString(20 * mm, H - 36 * mm, verdict)
+    c.setFillColorRGB(0, 0, 0)
+    c.setFont("Helvetica", 9)
+    photos = report["photos"]
+    n_pass = sum(e["verdict"] == "PASS" for e in photos)
+    n_fail = sum(e["verdict"] == "FAIL" for e in photos)
+    n_inv = sum(e["verdict"] == "INVALID" for e in photos)
+    c.drawString(70 * mm, H - 28 * mm, f"{len(photos)} photo(s): {n_pass} PASS, {n_fail} FAIL, {n_inv} INVALID")
+    measured = part.get("measured_share_of_part")
+    if measured is not None:
+        views = part.get("coverage_by_view", {})
+        cov = ", ".join(f"{k} {100 * v['measured']:.0f} %" for k, v in views.items())
+        c.drawString(70 * mm, H - 33 * mm, f"measured: {100 * measured:.0f} % of the part's print ({cov})")
+    fails = [e for e in photos if e["verdict"] == "FAIL"]
+    if fails:
+        c.drawString(70 * mm, H - 38 * mm, f"why: {fails[0]['reason']}"[:110])
+    y = H - 48 * mm
+    defects = part.get("defects", [])
+    limit = report.get("max_defect_mm2")
+    c.setFont("Helvetica-Bold", 9)
+    c.drawString(
+        20 * mm, y, f"Where it is wrong: {len(defects)} defect(s) on the print" if defects else "No defect found"
+    )
+    y -= 5 * mm
+    if defects:
+        cols = [20, 28, 46, 86, 108, 128, 150]
+        heads = ["#", "kind", "position on the print (mm)", "area mm²", "view", "over limit", "photos"]
+        for x, h in zip(cols, heads, strict=True):
+            c.drawString(x * mm, y, h)
+        c.setFont("Helvetica", 8)
+        for k, d in enumerate(defects[:12]):
+            y -= 4.2 * mm
+            over = limit is not None and d["area_mm2"] > limit
+            row = [
+                str(k + 1),
+                d["kind"],
+                f"x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f}",
+                f"{d['area_mm2']:.1f}",
+                d.get("view") or "-",
+                "yes" if over else "no",
+                ", ".join(d["photos"])[:40],
+            ]
+            if over:
+                c.setFillColorRGB(*VERDICT_COLOURS["FAIL"])
+            for x, v in zip(cols, row, strict=True):
+                c.drawString(x * mm, y, v)
+            c.setFillColorRGB(0, 0, 0)
+        if len(defects) > 12:
+            y -= 4.2 * mm
+            c.drawString(20 * mm, y, f"... and {len(defects) - 12} more (validation.json)")
+    y -= 6 * mm
+    if "coverage_print.png" in pictures:
+        img = Image.open(io.BytesIO(pictures["coverage_print.png"]))
+        w = W - 40 * mm
+        h = min(w * img.height / img.width, y - 45 * mm)
+        w = h * img.width / img.height
+        c.drawImage(ImageReader(img), 20 * mm, y - h, width=w, height=h)
+        y -= h + 4 * mm
+    rule = (report.get("verdict_rule") or {}).get("text", "")
+    c.setFont("Helvetica-Oblique", 7)
+    words, line = rule.split(), ""
+    for word in words:
+        if len(line) + len(word) > 150:
+            c.drawString(20 * mm, y, line)
+            y -= 3.5 * mm
+            line = ""
+        line += word + " "
+    if line:
+        c.drawString(20 * mm, y, line)
+    c.showPage()
+
+
 def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
-    """PDF: a summary page (verdicts, figures, identifiers and hashes), then one page per scored photo.
+    """PDF: a first page (is the part good, where is it wrong), a summary page (verdicts, figures,
+    identifiers and hashes), then one page per scored photo.
 
     Parameters
     ----------
@@ -27,7 +126,6 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
     from PIL import Image
     from reportlab.lib.pagesizes import A4
     from reportlab.lib.units import mm
-    from reportlab.lib.utils import ImageReader
     from reportlab.pdfgen import canvas as rl_canvas
 
     buf = io.BytesIO()
@@ -36,6 +134,7 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
     job = report["design"].get("job") or {}
     c.setTitle(f"workbench QA report: {job.get('name', '')}")
     c.setCreator(f"workbench {report['software']['version']}")
+    first_page(c, report, pictures, W, H)
     c.setFont("Helvetica-Bold", 14)
     c.drawString(20 * mm, H - 20 * mm, f"QA acceptance report: {job.get('name', 'design')}")
     c.setFont("Helvetica", 8)
@@ -90,23 +189,49 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
         if e["verdict"] == "INVALID":
             continue
         stem = e.get("pictures") or e["photo"].rsplit("/", 1)[-1].rsplit(".", 1)[0]
-        names = [f"{stem}_overlay_{e['view']}.png", f"{stem}_heatmap_{e['view']}.png"]
+        names = [f"{stem}_dense_print.png", f"{stem}_defects_photo.png", f"{stem}_defects_{e['view']}.png"]
         c.setFont("Helvetica-Bold", 11)
         c.setFillColorRGB(*VERDICT_COLOURS[e["verdict"]])
         c.drawString(20 * mm, H - 20 * mm, f"{stem}: {e['verdict']} in view {e['view']}")
         c.setFillColorRGB(0, 0, 0)
         c.setFont("Helvetica", 8)
-        c.drawString(20 * mm, H - 26 * mm, e["reason"])
+        c.drawString(20 * mm, H - 26 * mm, e["reason"][:160])
         top = H - 32 * mm
+        dn = e.get("dense") or {}
+        if dn:
+            mm_ = dn.get("misregistration_mm") or {}
+            ag = dn.get("agreement_with_tiles_mm") or {}
+            cov = ", ".join(f"{k} {100 * v['measured']:.0f} %" for k, v in (dn.get("coverage") or {}).items())
+            line = f"dense field: p95 {mm_.get('p95') or 0:.3f} mm, max {mm_.get('max') or 0:.3f} mm"
+            if ag.get("median_mm") is not None:
+                line += f"; agrees with the {ag['tiles']} tiles to a median of {ag['median_mm']:.3f} mm"
+            c.drawString(20 * mm, top, f"{line}; measured: {cov}")
+            top -= 4.2 * mm
+        for d in (e.get("defects") or [])[:6]:
+            c.drawString(
+                24 * mm,
+                top,
+                f"{d['id']}. {d['kind']} at x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f} mm: "
+                f"{d['area_mm2']:.1f} mm², misregistration peak {d['peak_mm'] or 0:.2f} mm, "
+                f"mean {d['mean_mm'] or 0:.2f} mm",
+            )
+            top -= 3.8 * mm
+        top -= 2 * mm
         for name in names:
             if name not in pictures:
                 continue
             img = Image.open(io.BytesIO(pictures[name]))
+            # a third of an A4 page needs no more: ReportLab encodes every pixel in Python, and
+            # full-size pictures made the report the longest serial step of a batch
+            if img.width > REPORT_IMAGE_PX:
+                img = img.convert("RGB").resize(
+                    (REPORT_IMAGE_PX, max(1, round(img.height * REPORT_IMAGE_PX / img.width))), Image.LANCZOS
+                )
             w = W - 40 * mm
             h = w * img.height / img.width
-            h = min(h, (H - 60 * mm) / 2)
+            h = min(h, (H - 60 * mm) / 3)
             w = h * img.width / img.height
-            c.drawImage(ImageReader(img), 20 * mm, top - h, width=w, height=h)
+            c.drawImage(_jpeg(img), 20 * mm, top - h, width=w, height=h)
             top -= h + 6 * mm
         c.showPage()
     c.save()

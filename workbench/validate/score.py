@@ -94,11 +94,14 @@ def view_surface(
     return ViewSurface(X, pm, owned)
 
 
-def warp_photo(photo: np.ndarray, photo_cam: Camera, surface: ViewSurface, V, F) -> tuple[np.ndarray, np.ndarray]:
+def warp_photo(
+    photo: np.ndarray, photo_cam: Camera, surface: ViewSurface, V, F, depth: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """The photo seen from the designed view: each view pixel takes the photo's colour of its surface point.
 
     Only surface points the photo's camera sees (in front, inside the photo, not hidden
-    behind another part of the mesh) are taken.
+    behind another part of the mesh) are taken. ``depth``: the part's depth buffer in the
+    undistorted photo camera, when the caller has it already.
 
     Returns
     -------
@@ -110,8 +113,10 @@ def warp_photo(photo: np.ndarray, photo_cam: Camera, surface: ViewSurface, V, F)
     pts = surface.X[finite]
     # visibility from the photo: a z-buffer of the ideal (undistorted) photo camera
     ideal = Camera(photo_cam.K, photo_cam.R, photo_cam.t, photo_cam.width, photo_cam.height)
-    pxy, pz = ideal.project(V)
-    _, pdepth = depth_buffer(pxy, pz, F, ideal.width, ideal.height)
+    if depth is None:
+        pxy, pz = ideal.project(V)
+        _, depth = depth_buffer(pxy, pz, F, ideal.width, ideal.height)
+    pdepth = depth
     xy, z = ideal.project(pts)
     seen = np.zeros(len(pts), dtype=np.bool_)
     _unoccluded_many(

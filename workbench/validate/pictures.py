@@ -1,0 +1,182 @@
+"""Pictures of the dense validation: defects over the print, over a view and over the photo; the coverage map."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from workbench.validate import dense
+
+# one colour per state of a print pixel (RGB), in dense's order
+STATE_COLOURS = np.array(
+    [
+        (255, 255, 255),  # off the part
+        (150, 150, 150),  # not seen
+        (120, 90, 160),  # occluded
+        (190, 160, 100),  # too oblique
+        (200, 200, 200),  # at the edge of what is seen
+        (60, 60, 60),  # deep shadow
+        (250, 230, 60),  # highlight
+        (150, 200, 150),  # measured: colour only
+        (70, 170, 90),  # measured: colour and normal shift
+        (20, 120, 40),  # measured: colour and full shift
+        (220, 30, 30),  # defective
+    ],
+    dtype=np.uint8,
+)
+DEFECT_BGR = (0, 0, 255)
+
+
+def outlines(labels: np.ndarray) -> list[np.ndarray]:
+    """Outer contour of each defect, (n, 2) int arrays of (x, y) grid pixels, in defect order."""
+    out = []
+    for k in range(1, int(labels.max()) + 1):
+        cs, _ = cv2.findContours((labels == k).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        out.append(max(cs, key=len).reshape(-1, 2) if cs else np.zeros((0, 2), int))
+    return out
+
+
+def defects_on_print(warped: np.ndarray, labels: np.ndarray, defects: list, px_per_mm: float) -> np.ndarray:
+    """The photo on the print with each defect outlined and numbered; (rows, cols, 3) uint8 RGB."""
+    img = cv2.cvtColor(warped, cv2.COLOR_RGB2BGR)
+    thick = max(1, int(round(px_per_mm * 0.2)))
+    for k, c in enumerate(outlines(labels)):
+        if len(c):
+            cv2.polylines(img, [c.reshape(-1, 1, 2)], True, DEFECT_BGR, thick, cv2.LINE_AA)
+            x, y = c.max(axis=0)
+            cv2.putText(img, str(k + 1), (int(x) + 3, int(y)), cv2.FONT_HERSHEY_SIMPLEX, 0.6, DEFECT_BGR, 2)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def coverage_image(state: np.ndarray) -> np.ndarray:
+    """States as colours (:data:`STATE_COLOURS`); (rows, cols, 3) uint8 RGB."""
+    return STATE_COLOURS[state]
+
+
+def labels_in_view(labels: np.ndarray, print_mm: np.ndarray, px_per_mm: float) -> np.ndarray:
+    """Defect labels of the print grid seen in a view: (H, W) int32 through the view's print coordinates."""
+    pm = np.nan_to_num(print_mm, nan=-1e4)
+    j = np.round(pm[..., 0] * px_per_mm - 0.5).astype(np.int64)
+    i = np.round(pm[..., 1] * px_per_mm - 0.5).astype(np.int64)
+    rows, cols = labels.shape
+    ok = (i >= 0) & (j >= 0) & (i < rows) & (j < cols)
+    out = np.zeros(pm.shape[:2], np.int32)
+    out[ok] = labels[i[ok], j[ok]]
+    return out
+
+
+def defects_on_image(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """An image (a view) with defect outlines and numbers; (H, W, 3) uint8 RGB."""
+    img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+    for k, c in enumerate(outlines(labels)):
+        if len(c):
+            cv2.polylines(img, [c.reshape(-1, 1, 2)], True, DEFECT_BGR, 2, cv2.LINE_AA)
+            x, y = c.max(axis=0)
+            cv2.putText(img, str(k + 1), (int(x) + 3, int(y)), cv2.FONT_HERSHEY_SIMPLEX, 0.6, DEFECT_BGR, 2)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def photo_circled(photo: np.ndarray, centres_px: np.ndarray, radii_px: np.ndarray, max_side: int = 2000) -> np.ndarray:
+    """The photo (reduced to ``max_side``) with a numbered circle around each defect.
+
+    Parameters
+    ----------
+    photo : (h, w, 3) uint8
+    centres_px : (n, 2) float
+        Defect centres in the photo, pixels.
+    radii_px : (n,) float
+        Circle radii, photo pixels.
+    """
+    s = min(1.0, max_side / max(photo.shape[:2]))
+    img = cv2.resize(photo, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else photo.copy()
+    img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
+    for k, (c, r) in enumerate(zip(centres_px, radii_px, strict=True)):
+        if not np.isfinite(c).all():
+            continue
+        x, y = int(round((c[0] + 0.5) * s - 0.5)), int(round((c[1] + 0.5) * s - 0.5))
+        rr = int(round(max(r * s, 12)))
+        cv2.circle(img, (x, y), rr, DEFECT_BGR, 3, cv2.LINE_AA)
+        cv2.putText(img, str(k + 1), (x + rr + 4, y), cv2.FONT_HERSHEY_SIMPLEX, 1.0, DEFECT_BGR, 2)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: list) -> bytes:
+    """The print's coverage map with a legend (share of the part per state) and numbered defects, PNG."""
+    from matplotlib.patches import Patch
+
+    from workbench.figures import _figure, figure_png
+
+    plt = _figure()
+    rows, cols = state.shape
+    w_mm, h_mm = cols / px_per_mm, rows / px_per_mm
+    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm * 0.8 + 2.2), dpi=110)
+    fig.subplots_adjust(bottom=0.3, top=0.93)
+    ax.imshow(coverage_image(state), extent=(0, w_mm, h_mm, 0), interpolation="nearest")
+    on = state != dense.OFF_PART
+    n_on = max(int(on.sum()), 1)
+    handles = []
+    for k, name in enumerate(dense.STATE_NAMES):
+        if k == dense.OFF_PART:
+            continue
+        share = float((state == k).sum()) / n_on
+        if share > 0:
+            handles.append(Patch(color=STATE_COLOURS[k] / 255, label=f"{name}: {100 * share:.1f} %"))
+    for k, d in enumerate(defects):
+        x, y = d["centre_mm"]
+        ax.annotate(
+            str(k + 1),
+            (x, y),
+            color="black",
+            fontsize=8,
+            fontweight="bold",
+            ha="center",
+            va="center",
+            bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "red", "lw": 1.2},
+        )
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
+    ax.set_xlabel("print x (mm)")
+    ax.set_ylabel("print y (mm)")
+    ax.set_title(title, fontsize=9)
+    return figure_png(fig)
+
+
+def dense_heatmap(
+    reference: np.ndarray, shift_mm: np.ndarray, labels: np.ndarray, px_per_mm: float, vmax: float, title: str
+) -> bytes:
+    """The dense misregistration over the print (mm on the surface), defects outlined, with a colour bar; PNG.
+
+    Parameters
+    ----------
+    reference : (rows, cols, 3) uint8
+        The print on the grid (shown in grey under the field).
+    shift_mm : (rows, cols) float
+        Misregistration (NaN where not measured).
+    labels : (rows, cols) int
+        Defect number + 1 per pixel.
+    px_per_mm : float
+        Grid resolution.
+    vmax : float
+        Top of the colour scale, mm (the tolerance, typically: yellow is at the limit).
+    """
+    from workbench.figures import _figure, figure_png
+
+    plt = _figure()
+    rows, cols = shift_mm.shape
+    w_mm, h_mm = cols / px_per_mm, rows / px_per_mm
+    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm + 0.8), dpi=110)
+    grey = cv2.cvtColor(cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
+    ext = (0, w_mm, h_mm, 0)
+    ax.imshow(grey, extent=ext, alpha=0.5, interpolation="bilinear")
+    im = ax.imshow(
+        np.ma.masked_invalid(shift_mm), extent=ext, cmap="inferno", vmin=0, vmax=vmax, interpolation="nearest"
+    )
+    for k, c in enumerate(outlines(labels)):
+        if len(c):
+            xy = (c + 0.5) / px_per_mm
+            ax.plot(np.r_[xy[:, 0], xy[0, 0]], np.r_[xy[:, 1], xy[0, 1]], color="cyan", lw=1.2)
+            ax.annotate(str(k + 1), (xy[:, 0].max(), xy[:, 1].min()), color="cyan", fontsize=9, fontweight="bold")
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04).set_label("misregistration on the surface (mm)")
+    ax.set_xlabel("print x (mm)")
+    ax.set_ylabel("print y (mm)")
+    ax.set_title(title, fontsize=9)
+    return figure_png(fig)

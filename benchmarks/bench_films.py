@@ -26,22 +26,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
 from test_design import view_check  # noqa: E402
+from test_films import HAND as LID_FILMS  # noqa: E402
 
 from workbench.design import design  # noqa: E402
 from workbench.export import texture_uv  # noqa: E402
 from workbench.job import load_job  # noqa: E402
-
-LID_FILMS = """
-[[films]]
-name = "logo"
-views = ["logo"]
-outline = "free"
-
-[[films]]
-name = "front"
-views = ["front"]
-outline = "free"
-"""
 
 
 def report(name: str, job_path: Path) -> None:

@@ -295,6 +295,14 @@ def test_validate_through_the_films_atlas(tmp_path):
     (entry,) = json.loads((v2 / "validation.json").read_text())["photos"]
     logo = {f["name"]: f for f in entry["films"]}["logo"]
     assert logo["tiles"] >= 8 and np.allclose(logo["offset_mm"], [0.0, 0.0], atol=0.05)
+    # the QA report has a page per film with its placement per photo
+    import pypdf
+
+    text = [page.extract_text() for page in pypdf.PdfReader(v / "qa_report.pdf").pages]
+    front_page = next(t for t in text if "film 2 of 2: front" in t)
+    offset = front["offset_mm"]
+    assert "p1.jpg" in front_page and f"{offset[0]:+.3f}, {offset[1]:+.3f}" in front_page
+    assert any("film 1 of 2: logo" in t for t in text)
 
 
 @pytest.mark.slow

@@ -107,9 +107,59 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     c.showPage()
 
 
+def film_pages(c, report: dict, W: float, H: float) -> None:
+    """With several films, a page per film: its placement as each photo measured it."""
+    from reportlab.lib.units import mm
+
+    names: list[str] = []
+    for e in report["photos"]:
+        for f in e.get("films") or []:
+            if f["name"] not in names:
+                names.append(f["name"])
+    for k, name in enumerate(names):
+        c.setFont("Helvetica-Bold", 14)
+        c.drawString(20 * mm, H - 20 * mm, f"film {k + 1} of {len(names)}: {name}")
+        c.setFont("Helvetica", 8)
+        c.drawString(
+            20 * mm,
+            H - 27 * mm,
+            "placement fitted on this film's own tiles (print coordinates: x right, y down; rotation "
+            "counter-clockwise on the print)",
+        )
+        cols = [20, 70, 88, 112, 140, 160]
+        heads = ["photo", "tiles", "p95 mm", "offset mm (x, y)", "rotation °", "scale %"]
+        y = H - 36 * mm
+        c.setFont("Helvetica-Bold", 8)
+        for x, h in zip(cols, heads, strict=True):
+            c.drawString(x * mm, y, h)
+        c.setFont("Helvetica", 8)
+        for e in report["photos"]:
+            f = next((f for f in e.get("films") or [] if f["name"] == name), None)
+            if f is None:
+                continue
+            y -= 5 * mm
+            mis = f.get("misregistration_mm") or {}
+            off = f.get("offset_mm")
+            row = [
+                e["photo"].rsplit("/", 1)[-1][:30],
+                str(f["tiles"]),
+                f"{mis['p95']:.3f}" if mis.get("p95") is not None else "-",
+                f"{off[0]:+.3f}, {off[1]:+.3f}" if off else "not seen (fewer than 4 tiles)",
+                f"{f['rotation_deg']:+.3f}" if off else "",
+                f"{f['scale_pct']:+.3f}" if off else "",
+            ]
+            for x, v in zip(cols, row, strict=True):
+                c.drawString(x * mm, y, v)
+            if y < 30 * mm:
+                c.showPage()
+                y = H - 20 * mm
+        c.showPage()
+
+
 def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
     """PDF: a first page (is the part good, where is it wrong), a summary page (verdicts, figures,
-    identifiers and hashes), then one page per scored photo.
+    identifiers and hashes), with several films a page per film (its placement per photo),
+    then one page per scored photo.
 
     Parameters
     ----------
@@ -185,6 +235,7 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
             c.showPage()
             y = H - 20 * mm
     c.showPage()
+    film_pages(c, report, W, H)
     for e in report["photos"]:
         if e["verdict"] == "INVALID":
             continue

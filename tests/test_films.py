@@ -58,7 +58,7 @@ def test_two_films_by_hand_keep_every_view_exact_across_the_seam(tmp_path):
     first = np.where(owned.any(axis=1), np.argmax(owned, axis=1), -1)
     for k, f in enumerate(r.films):
         # each film is a disc made of the faces its view owns (plus holes filled)
-        assert is_disc(f.flat.F[:, :]) and (first[f.faces] == k).mean() > 0.97
+        assert is_disc(f.flat.F) and (first[f.faces] == k).mean() > 0.97
     assert r.seams["length_mm"] > 100 and r.seams["in_view_mm"] == 0.0
     vt = atlas_vt(r)
     for v in range(len(job.views)):

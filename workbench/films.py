@@ -13,6 +13,7 @@ from workbench.conformal.flatten import CrowdingError, FlattenOptions, FlattenRe
 from workbench.conformal.layout import polygon_self_intersections
 from workbench.errors import WorkbenchError
 from workbench.mesh.topology import boundary_loops, unique_edges
+from workbench.views.visibility import face_adjacency
 
 # A film is within its material when the stretch (3D length / print length) stays in
 # [MIN_STRETCH, max_stretch] on all but this share of its surface (design's warning rule).
@@ -32,8 +33,8 @@ def face_graph(F: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
 
     Returns
     -------
-    adjacency : (#F, #F) sparse bool
-        True where two faces share an edge.
+    adjacency : (#F, #F) sparse
+        Non-zero where two faces share an edge (:func:`workbench.views.visibility.face_adjacency`).
     E : (#E, 2) int
         Undirected edges (see :func:`workbench.mesh.topology.unique_edges`).
     edge_faces : (#E, 2) int
@@ -48,11 +49,7 @@ def face_graph(F: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
     first = np.r_[True, e[1:] != e[:-1]]
     edge_faces[e[first], 0] = f[first]
     edge_faces[e[~first], 1] = f[~first]
-    inner = edge_faces[:, 1] >= 0
-    a, b = edge_faces[inner, 0], edge_faces[inner, 1]
-    n = len(F)
-    adjacency = sp.csr_matrix((np.ones(2 * len(a), bool), (np.r_[a, b], np.r_[b, a])), shape=(n, n))
-    return adjacency, E, edge_faces
+    return face_adjacency(FE), E, edge_faces
 
 
 def _components(adjacency: sp.csr_matrix, mask: np.ndarray) -> np.ndarray:

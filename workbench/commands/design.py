@@ -48,7 +48,7 @@ def add_parser(sub) -> None:
 
 
 def film_records(result) -> list[dict]:
-    """design.json's ``films`` (one record per film) followed by the seams' record."""
+    """design.json's ``films``: one record per film."""
     seam = result.seams
     records = []
     for k, f in enumerate(result.films):
@@ -77,7 +77,6 @@ def film_records(result) -> list[dict]:
                 "scale_mode": str(f.flat.scale),
             }
         )
-    records.append({"length_mm": seam["length_mm"], "inside_a_view_mm": seam["in_view_mm"]})
     return records
 
 
@@ -216,7 +215,7 @@ def run(args) -> int:
     }
     if result.films:
         info["films"] = film_records(result)
-        info["seams"] = info["films"].pop()
+        info["seams"] = {"length_mm": result.seams["length_mm"], "inside_a_view_mm": result.seams["in_view_mm"]}
         for f in result.films:
             files[out / f"print-{f.name}.png"] = png_bytes(print_with_alpha(f.rgb, f.film), grid.dpi)
             files[out / f"flat-{f.name}.obj"] = format_obj(

@@ -76,9 +76,9 @@ def load_design(directory: Path) -> tuple[dict, np.ndarray, np.ndarray | None]:
     return info, cv2.cvtColor(img[:, :, :3], cv2.COLOR_BGR2RGB), film
 
 
-def film_outline(directory: Path) -> np.ndarray | None:
-    """The boundary of the design's flat.obj (mm, y up), or None when the directory has none."""
-    path = directory / "flat.obj"
+def film_outline(path: Path) -> np.ndarray | None:
+    """The boundary of a design's flat layout (``flat.obj`` or a film's ``flat-NAME.obj``; mm, y up), or None
+    when the file is not there."""
     if not path.is_file():
         return None
     V, F = read_mesh(path)
@@ -105,13 +105,15 @@ def film_pages(directory: Path, info: dict) -> list[FilmPage]:
         img = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
         if img is None or img.ndim != 3 or img.shape[:2] != size:
             raise WorkbenchError(f"{png}: missing, unreadable or not {size[1]} x {size[0]} px; rerun workbench design")
-        V, F = read_mesh(flat)
+        outline = film_outline(flat)
+        if outline is None:
+            raise WorkbenchError(f"{flat}: missing; rerun workbench design")
         pages.append(
             FilmPage(
                 rgb=cv2.cvtColor(img[:, :, :3], cv2.COLOR_BGR2RGB),
                 width_mm=width_mm,
                 height_mm=height_mm,
-                outline_mm=V[boundary_loops(F)[0], :2],
+                outline_mm=outline,
                 film=img[:, :, 3] > 127 if img.shape[2] == 4 else None,
                 label=f"film {k + 1} of {len(films)}: {name}",
             )
@@ -143,7 +145,7 @@ def run(args) -> int:
         log(f"wrote {out}: {len(pages)} films, one page each ({', '.join(sorted({s.paper for s in sheets}))})")
         log("print at 100 % (actual size, no fit-to-page) and check that both bars measure 100 mm")
         return 0
-    outline = None if args.no_cut else film_outline(Path(args.design))
+    outline = None if args.no_cut else film_outline(Path(args.design) / "flat.obj")
     pdf, sheet = print_pdf(
         rgb,
         pr["dpi"],

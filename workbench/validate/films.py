@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.validate.score import Score, ViewSurface, _bilinear, fit_film
+from workbench.validate.score import Score, ViewSurface, fit_film, tile_print_points
 
 
 def film_boxes_mm(films: list[dict], px_per_mm: float) -> list[tuple[float, float, float, float]]:
@@ -49,13 +49,7 @@ def fit_per_film(sc: Score, surface: ViewSurface, films: list[dict], px_per_mm: 
     c, d = sc.centres, sc.shift_px
     if len(c) == 0:
         return [{"name": f["name"], "tiles": 0} for f in films]
-    p0 = _bilinear(surface.print_mm, c[:, 0], c[:, 1])
-    p1 = _bilinear(surface.print_mm, c[:, 0] + d[:, 0], c[:, 1] + d[:, 1])
-    jx = _bilinear(surface.print_mm, c[:, 0] + 1, c[:, 1]) - p0
-    jy = _bilinear(surface.print_mm, c[:, 0], c[:, 1] + 1) - p0
-    J = np.stack([jx, jy], axis=2)
-    good = np.isfinite(p0).all(1) & np.isfinite(p1).all(1) & np.isfinite(J).all((1, 2))
-    good &= np.abs(np.linalg.det(np.nan_to_num(J))) > 1e-12
+    p0, p1, J, good = tile_print_points(surface, c, d)
     for f, (x0, y0, w, h) in zip(films, film_boxes_mm(films, px_per_mm), strict=True):
         mine = good & (p0[:, 0] >= x0) & (p0[:, 0] < x0 + w) & (p0[:, 1] >= y0) & (p0[:, 1] < y0 + h)
         rec: dict = {"name": f["name"], "tiles": int(mine.sum())}

@@ -329,6 +329,35 @@ def fit_film(p_design: np.ndarray, p_shown: np.ndarray, print_size_mm, jacobians
     }
 
 
+def tile_print_points(surface: ViewSurface, centres: np.ndarray, shifts: np.ndarray):
+    """Where each tile's design content and its shown content are on the print, and the local Jacobian.
+
+    Parameters
+    ----------
+    surface : ViewSurface
+        The view's print coordinates per pixel.
+    centres, shifts : (n, 2) float
+        Tile centres and measured shifts, view pixels.
+
+    Returns
+    -------
+    p_design, p_shown : (n, 2) float
+        Print mm (x right, y down) of the tile's centre and of where the photo shows its content.
+    jacobians : (n, 2, 2) float
+        Print mm per view pixel along view x (column 0) and view y (column 1).
+    good : (n,) bool
+        Tiles where all of these are finite and the Jacobian invertible.
+    """
+    p0 = _bilinear(surface.print_mm, centres[:, 0], centres[:, 1])
+    p1 = _bilinear(surface.print_mm, centres[:, 0] + shifts[:, 0], centres[:, 1] + shifts[:, 1])
+    jx = _bilinear(surface.print_mm, centres[:, 0] + 1, centres[:, 1]) - p0
+    jy = _bilinear(surface.print_mm, centres[:, 0], centres[:, 1] + 1) - p0
+    J = np.stack([jx, jy], axis=2)
+    good = np.isfinite(p0).all(1) & np.isfinite(p1).all(1) & np.isfinite(J).all((1, 2))
+    good &= np.abs(np.linalg.det(np.nan_to_num(J))) > 1e-12
+    return p0, p1, J, good
+
+
 def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface: ViewSurface, print_size_mm) -> Score:
     """Misregistration field, similarity, coverage and film fit of a warped photo.
 
@@ -392,18 +421,7 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
         ok = np.isfinite(shift_mm)
         centres, shifts, shift_mm = centres[ok], shifts[ok], shift_mm[ok]
         if len(centres) >= 4:
-            p0 = _bilinear(surface.print_mm, centres[:, 0], centres[:, 1])
-            p1 = _bilinear(surface.print_mm, centres[:, 0] + shifts[:, 0], centres[:, 1] + shifts[:, 1])
-            # local Jacobian: print mm per view pixel along view x and view y at each tile
-            jx = _bilinear(surface.print_mm, centres[:, 0] + 1, centres[:, 1]) - p0
-            jy = _bilinear(surface.print_mm, centres[:, 0], centres[:, 1] + 1) - p0
-            J = np.stack([jx, jy], axis=2)
-            good = (
-                np.isfinite(p0).all(1)
-                & np.isfinite(p1).all(1)
-                & np.isfinite(J).all((1, 2))
-                & (np.abs(np.linalg.det(np.nan_to_num(J))) > 1e-12)
-            )
+            p0, p1, J, good = tile_print_points(surface, centres, shifts)
             if good.sum() >= 4:
                 film = fit_film(p0[good], p1[good], print_size_mm, jacobians=J[good])
     # similarity after alignment: the photo aligned on the design by one homography,

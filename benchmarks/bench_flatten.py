@@ -20,7 +20,8 @@ Prints three blocks:
 4. The real-mesh corpus (``tests/data/corpus`` and, when present, the shared meshes
    beside the checkout), each as a 150 mm part at 300 dpi: how many flatten, how many needed
    Ptolemy flips, how many flips, and the time they cost (whole ``flatten`` against the
-   solve on the input triangulation alone, where that one succeeds).
+   solve on the input triangulation alone, where that one succeeds); for each one the
+   automatic corners crowd, what ``--corners auto`` makes of it.
 
 Notes
 -----
@@ -289,7 +290,7 @@ def readme_lines(rows: list[dict]) -> None:
 
 def real_meshes() -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from workbench.conformal.flatten import flatten
+    from workbench.conformal.flatten import CrowdingError, flatten, flatten_auto_corners
     from workbench.errors import WorkbenchError
     from workbench.mesh.io import read_mesh
 
@@ -299,7 +300,7 @@ def real_meshes() -> None:
     if shared.is_dir():
         paths += sorted(p for p in shared.iterdir() if p.suffix in (".obj", ".off"))
     print("\nreal disc meshes as 150 mm parts at 300 dpi: flattened / refused for crowding, Ptolemy flips, cost")
-    ok = refused = flipped_runs = 0
+    ok = refused = flipped_runs = auto_ok = 0
     total_flips, t_flip = 0, 0.0
     for p in paths:
         if p.suffix == ".npz":
@@ -314,9 +315,26 @@ def real_meshes() -> None:
         except WorkbenchError as exc:
             refused += 1
             print(f"  {p.stem:32s} refused: {str(exc)[len(p.name) + 2 :][:90]}")
+            if not isinstance(exc, CrowdingError):
+                continue
+            # what --corners auto makes of it
+            t1 = time.perf_counter()
+            try:
+                auto, search = flatten_auto_corners(V, F, name=p.name)
+            except WorkbenchError as exc2:
+                tail = str(exc2).split("(of ")[-1].split(");")[0] if "(of " in str(exc2) else "no prediction"
+                print(f"  {'':32s} --corners auto refused in {time.perf_counter() - t1:.1f} s: {tail}")
+            else:
+                auto_ok += 1
+                print(
+                    f"  {'':32s} --corners auto: {search['predicted']} quadruples predicted, "
+                    f"{len(search['candidates'])} flattened, {time.perf_counter() - t1:.1f} s, "
+                    f"flipped faces {auto.flipped_faces}"
+                )
             continue
         dt = time.perf_counter() - t0
         ok += 1
+        auto_ok += 1
         if r.intrinsic_flips:
             flipped_runs += 1
             total_flips += r.intrinsic_flips
@@ -328,7 +346,8 @@ def real_meshes() -> None:
         )
     print(
         f"  {ok} of {len(paths)} flatten with no flipped face, {refused} refused for crowding; {flipped_runs} needed "
-        f"flips ({total_flips} in all, {t_flip:.1f} s for those meshes)"
+        f"flips ({total_flips} in all, {t_flip:.1f} s for those meshes); with --corners auto {auto_ok} flatten "
+        f"and {len(paths) - auto_ok} are refused"
     )
 
 

@@ -21,8 +21,16 @@ def _figure():
 def _label_films(ax, labels) -> None:
     """Write each film's name at its centre: ``labels`` is a list of (x_mm, y_mm, text)."""
     for x, y, text in labels:
-        ax.text(x, y, text, ha="center", va="center", fontsize=8, color="black",
-                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7})
+        ax.text(
+            x,
+            y,
+            text,
+            ha="center",
+            va="center",
+            fontsize=8,
+            color="black",
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7},
+        )
 
 
 def figure_png(fig) -> bytes:

@@ -400,9 +400,10 @@ def split_in_two(
         c2 = layout.uv[layout.F].mean(axis=1)
         w = layout.area_3d
         weight = np.bincount(layout.parent, weights=w, minlength=len(faces))
-        pts = np.stack(
-            [np.bincount(layout.parent, weights=w * c2[:, k], minlength=len(faces)) for k in range(2)], axis=1
-        ) / np.maximum(weight, 1e-300)[:, None]
+        pts = (
+            np.stack([np.bincount(layout.parent, weights=w * c2[:, k], minlength=len(faces)) for k in range(2)], axis=1)
+            / np.maximum(weight, 1e-300)[:, None]
+        )
     else:
         d3 = points - np.average(points, axis=0, weights=area)
         axes = np.linalg.eigh((d3 * area[:, None]).T @ d3)[1][:, -2:]

@@ -242,8 +242,7 @@ def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
     if not VIEW_NAME.fullmatch(name):
         # the name becomes file names (view-NAME.png): nothing that leaves the output folder or hides a file
         r.fail(
-            "must be 1 to 64 letters, digits, '.', '_' or '-', starting with a letter or digit, "
-            f"got {name!r}",
+            f"must be 1 to 64 letters, digits, '.', '_' or '-', starting with a letter or digit, got {name!r}",
             "name",
         )
     if name in names:
@@ -372,8 +371,10 @@ def _films(path: Path, top: _Reader, obj: ObjectSpec, spec: PrintSpec, view_name
         return None
     if raw == "auto":
         if obj.material.max_stretch is None:
-            top.fail('"auto" splits the part so that each film stays within the material: set '
-                     "[object].material.max_stretch", "films")
+            top.fail(
+                '"auto" splits the part so that each film stays within the material: set [object].material.max_stretch',
+                "films",
+            )
         if obj.corners is not None:
             top.fail('"auto" films have free outlines: leave out [object].corners', "films")
         return "auto"
@@ -398,7 +399,7 @@ def _films(path: Path, top: _Reader, obj: ObjectSpec, spec: PrintSpec, view_name
             views = tuple(views)
         faces = r.file("faces", required=False)
         if (views is None) == (faces is None):
-            r.fail("give the surface as views = [...] or as faces = \"file.txt\" (one of them)")
+            r.fail('give the surface as views = [...] or as faces = "file.txt" (one of them)')
         outline = r.string("outline", spec.outline, choices=("rectangle", "free"))
         corners = r.get("corners")
         if corners is not None:

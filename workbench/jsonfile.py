@@ -106,9 +106,7 @@ def _describe(field: Field) -> str:
 
 
 def _in_range(values: np.ndarray, field: Field) -> bool:
-    return bool(
-        (field.lo is None or (values >= field.lo).all()) and (field.hi is None or (values <= field.hi).all())
-    )
+    return bool((field.lo is None or (values >= field.lo).all()) and (field.hi is None or (values <= field.hi).all()))
 
 
 def _shape_ok(shape: tuple, want: tuple, min_len: int) -> bool:

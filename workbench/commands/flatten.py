@@ -150,9 +150,7 @@ def run(args) -> int:
     t_read = time.perf_counter() - t0
     log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
     compared = None
-    options = FlattenOptions(
-        corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline
-    )
+    options = FlattenOptions(corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline)
     if args.corners == "auto":
         result, compared = flatten_auto_corners(V, F, options, name=str(mesh_path), log=log)
     else:
@@ -198,7 +196,7 @@ def run(args) -> int:
             out / "flat.obj": obj,
             out / "flatten.json": (json.dumps(info, indent=2) + "\n").encode(),
             out / "flatten.png": png,
-        }
+        },
     )
     log(
         f"{result.width_mm:.3f} x {result.height_mm:.3f} mm ({result.scale}); "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -15,6 +16,7 @@ from workbench.conformal.cetm import (
     angle_sums,
     conformal_scale_factors,
 )
+from workbench.conformal.corner_search import boundary_sites, corner_response, even_turning_targets, search_corners
 from workbench.conformal.corners import candidate_corners, choose_corners, corner_positions
 from workbench.conformal.distortion import flat_to_surface_singular_values, weighted_quantiles
 from workbench.conformal.intrinsic import IntrinsicTriangulation
@@ -710,15 +712,23 @@ def flatten_auto_corners(
     options: FlattenOptions = FlattenOptions(),
     name: str = "mesh",
     log: Callable[[str], None] | None = None,
-    rotations: int = 8,
+    verify: int = 6,
     skip: tuple[np.ndarray, ...] = (),
-) -> tuple[FlattenResult, list[dict]]:
+) -> tuple[FlattenResult, dict]:
     """Flatten with the corners that print every face with the least area distortion.
 
-    Candidates: the automatic rule's corners (:func:`choose_corners`) and
-    :func:`candidate_corners`. Each is flattened in full; those refused (part of the
-    surface would shrink to nothing) or with a flipped face are out; of the rest the
-    one with the least :func:`area_distortion` wins.
+    One solve with the automatic rule's corners (:func:`choose_corners`) gives the
+    first-order response of the map to moving each corner to one of
+    :data:`~workbench.conformal.corner_search.SITES` boundary sites
+    (:mod:`workbench.conformal.corner_search`). A local search from 24 quadruples
+    spread along the boundary (8 starting points, first side 15, 25 or 35 % of the
+    perimeter) predicts the crowding and area distortion of thousands of quadruples;
+    the automatic corners and the ``verify`` best predicted ones are then flattened in
+    full. Those refused (part of the surface would shrink below what the print
+    carries) or with a flipped face are out; of the rest the one with the least
+    :func:`area_distortion` wins. When the first-order response cannot be computed
+    (the solve needed boundary splits), the spread quadruples themselves are
+    flattened, with up to 8 guided ones that open a crowded region.
 
     Parameters
     ----------
@@ -732,8 +742,8 @@ def flatten_auto_corners(
         The mesh's name in messages.
     log : callable(str), optional
         Receives one line per candidate.
-    rotations : int
-        Starting points of :func:`candidate_corners`.
+    verify : int
+        Predicted quadruples flattened in full.
     skip : tuple of (4,) int
         Corner sets already known to fail (a refusal being explained): not solved again.
 
@@ -741,9 +751,12 @@ def flatten_auto_corners(
     -------
     result : FlattenResult
         The winner's.
-    compared : list of dict
-        One per candidate: ``corners``, ``outcome`` ('ok', 'refused' or 'flipped'),
-        ``area_distortion`` (None unless ok), ``reason``.
+    search : dict
+        ``sites`` (boundary sites compared), ``predicted`` (quadruples predicted),
+        ``candidates``: one per quadruple flattened, with ``corners``, ``outcome``
+        ('ok', 'refused' or 'flipped'), ``area_distortion`` (None unless ok),
+        ``reason``, and ``predicted`` {``crowded_share``, ``area_distortion``} where
+        the search proposed it.
 
     Raises
     ------
@@ -753,37 +766,39 @@ def flatten_auto_corners(
     say = log or (lambda _m: None)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    loop, _, _ = check_disc(V, F, name)
+    loop, E, FE = check_disc(V, F, name)
     first, _ = choose_corners(V, F, loop)
     skipped = {frozenset(np.asarray(c).tolist()) for c in skip}
-    candidates = [
-        c
-        for c in [first] + [c for c in candidate_corners(V, loop, rotations) if not np.array_equal(c, first)]
-        if frozenset(c.tolist()) not in skipped
-    ]
-    seen = {frozenset(c.tolist()) for c in candidates} | skipped
-    best, best_score, compared, guided = None, np.inf, [], 0
+    search = {"sites": 0, "predicted": 0, "candidates": []}
+    proposed = _predicted_corners(V, F, loop, first, E, FE, options, search, verify + len(skipped) + 1, say)
+    guided_search = proposed is None
+    if guided_search:
+        proposed = [(c, None) for c in candidate_corners(V, loop, 8)]
+    candidates = [(first, None)] + [(c, p) for c, p in proposed if not _same_corners(c, first)]
+    candidates = [(c, p) for c, p in candidates if frozenset(c.tolist()) not in skipped]
+    if not guided_search:
+        least = min((p["crowded_share"] for _, p in proposed), default=0.0)
+        # far beyond printable, the prediction's error does not matter: check two, not all
+        candidates = candidates[: (verify if least <= 10 * MAX_CROWDED_AREA else 2) + 1]
+    seen = {frozenset(c.tolist()) for c, _ in candidates} | skipped
+    best, best_score, guided = None, np.inf, 0
     i = 0
     while i < len(candidates):
-        c = candidates[i]
+        c, prediction = candidates[i]
         i += 1
-        opts = FlattenOptions(
-            corners=tuple(int(x) for x in c),
-            scale=options.scale,
-            newton=options.newton,
-            flips=options.flips,
-            min_print_mm=options.min_print_mm,
-        )
+        opts = dataclasses.replace(options, corners=tuple(int(x) for x in c), outline="rectangle")
         row = {"corners": [int(x) for x in c], "outcome": "ok", "area_distortion": None, "reason": ""}
+        if prediction is not None:
+            row["predicted"] = prediction
         try:
             r = flatten(V, F, opts, name)
         except CrowdingError as exc:
             row["outcome"], row["reason"] = "refused", str(exc).removeprefix(f"{name}: ")
             # guided: open the crowded region by putting two corners where it meets the boundary
-            flank = corners_flanking(loop, exc.region_vertices)
+            flank = corners_flanking(loop, exc.region_vertices) if guided_search else None
             if flank is not None and guided < MAX_GUIDED and frozenset(flank.tolist()) not in seen:
                 seen.add(frozenset(flank.tolist()))
-                candidates.append(flank)
+                candidates.append((flank, None))
                 guided += 1
         except WorkbenchError as exc:
             row["outcome"], row["reason"] = "refused", str(exc).removeprefix(f"{name}: ")
@@ -794,16 +809,82 @@ def flatten_auto_corners(
                 row["area_distortion"] = area_distortion(r)
                 if row["area_distortion"] < best_score:
                     best, best_score = r, row["area_distortion"]
-        compared.append(row)
+        search["candidates"].append(row)
         score = "" if row["area_distortion"] is None else f", area distortion {row['area_distortion']:.3f}"
         say(f"corners {i}/{len(candidates)} {','.join(map(str, row['corners']))}: {row['outcome']}{score}")
     if best is None:
+        least = min(
+            (row["predicted"]["crowded_share"] for row in search["candidates"] if "predicted" in row), default=None
+        )
+        predicted = (
+            f" (of {search['predicted']} quadruples predicted, the least crowded still crowds "
+            f"{100 * least:.2g} % of the surface)"
+            if least is not None
+            else ""
+        )
         raise WorkbenchError(
-            f"{name}: none of {len(candidates)} corner choices prints every face onto a rectangle (the part is "
-            "too long and thin for one rectangle); split it into several films"
+            f"{name}: none of {len(search['candidates'])} corner choices prints every face onto a rectangle"
+            f"{predicted}; the part is too long and thin for one rectangle: split it into several films"
         )
     best.corner_rule = "auto"
-    return best, compared
+    return best, search
+
+
+def _same_corners(a: np.ndarray, b: np.ndarray) -> bool:
+    return frozenset(np.asarray(a).tolist()) == frozenset(np.asarray(b).tolist())
+
+
+def _predicted_corners(V, F, loop, first, E, FE, options, search, count, say):
+    """The search's best quadruples as (corners, prediction) pairs, or None when it cannot run."""
+    theta, w = even_turning_targets(V, loop, len(V))
+    lam = input_log_lengths(V, F)
+    sites = loop[boundary_sites(V, loop)]
+    k = len(sites)
+    old = np.empty(0, dtype=np.int64)
+    try:
+        tri = IntrinsicTriangulation.from_mesh(F, lam, len(V), FE, flips=True)
+        newton = conformal_scale_factors(tri, theta, fixed=int(loop[0]), options=options.newton, edges=(E, FE))
+    except WorkbenchError:
+        # the evenly turning map is the accurate base; when its solve fails, the
+        # rectangle of the automatic corners serves, its corners' response taken off
+        # (less exact next to those corners, where the solved scale is singular)
+        old = first
+        try:
+            newton, _ = _solve(
+                V,
+                F,
+                lam,
+                np.roll(loop, -int(np.flatnonzero(loop == first[0])[0])),
+                first,
+                options,
+                lambda _m: None,
+                (E, FE),
+            )
+        except WorkbenchError:
+            return None
+    # a triangle the solve left degenerate at the rim has an infinite cotangent:
+    # weightless here, it barely moves the response of the rest
+    cot = np.where(newton.degenerate[:, None] | ~np.isfinite(newton.cot), 0.0, newton.cot)
+    try:
+        G = corner_response(newton.assembler, cot, np.concatenate([sites, old]), loop, w, len(V))
+    except WorkbenchError:
+        return None
+    base = newton.u[: len(V)] - G[:, k:].sum(axis=1)
+    G = G[:, :k]
+    starts = [
+        np.array([r, r + int(side * k), r + k // 2, r + k // 2 + int(side * k)]) % k
+        for side in (0.15, 0.25, 0.35)
+        for r in range(0, k // 2, max(1, k // 16))
+    ]
+    optima, evaluated = search_corners(
+        face_areas(V, F), F, base, G, starts, options.min_print_mm, CROWDING, 0.5 * MAX_CROWDED_AREA
+    )
+    search["sites"], search["predicted"] = k, evaluated
+    say(f"predicted {evaluated} corner quadruples on {k} boundary sites from one solve")
+    return [
+        (sites[q], {"crowded_share": round(share, 6), "area_distortion": round(dist, 6)})
+        for q, share, dist in optima[:count]
+    ]
 
 
 def crowding_advice(
@@ -835,15 +916,15 @@ def crowding_advice(
     say = log or (lambda _m: None)
     say("searching for corners that print every face")
     try:
-        best, compared = flatten_auto_corners(V, F, options, name, log, rotations=4, skip=(exc.corners,))
+        best, search = flatten_auto_corners(V, F, options, name, log, skip=(exc.corners,))
     except WorkbenchError:
         return WorkbenchError(
             f"{exc}; none of the corner choices --corners auto compares prints every face: this part needs "
             'another outline or several films (a job with outline = "free" or films = "auto")'
         )
     c = ",".join(map(str, best.corners.tolist()))
-    n_ok = sum(row["outcome"] == "ok" for row in compared)
+    n_ok = sum(row["outcome"] == "ok" for row in search["candidates"])
     return WorkbenchError(
-        f"{exc}; corners {c} print every face (best of {n_ok} of {len(compared)} choices that do): "
+        f"{exc}; corners {c} print every face (best of {n_ok} of {len(search['candidates'])} choices that do): "
         f"use --corners {c}, or --corners auto"
     )

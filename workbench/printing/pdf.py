@@ -464,4 +464,3 @@ def _draw_page(c, fp: FilmPage, sheet: PrintSheet, dpi, job_name, job_sha256, bl
     )
     cx, cy = sheet.check_square
     page.text(cx, cy - 7.5, note, size=2.0)
-

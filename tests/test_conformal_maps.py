@@ -127,8 +127,10 @@ def check_subdivision(r, V, F):
         p = r.V[r.F[:, k]]
         n_f = np.cross(b - a, c - a)
         area2 = np.einsum("ij,ij->i", n_f, n_f)
-        bary = [np.einsum("ij,ij->i", np.cross(c - b, p - b), n_f) / area2,
-                np.einsum("ij,ij->i", np.cross(a - c, p - c), n_f) / area2]
+        bary = [
+            np.einsum("ij,ij->i", np.cross(c - b, p - b), n_f) / area2,
+            np.einsum("ij,ij->i", np.cross(a - c, p - c), n_f) / area2,
+        ]
         assert min(bary[0].min(), bary[1].min(), (1 - bary[0] - bary[1]).min()) >= -1e-9
     # the refinement covers the surface exactly once: areas add up per input face
     area_in = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1) / 2

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.spatial import Delaunay
-from test_real_meshes import CORPUS, load
+from test_real_meshes import CORPUS, SHARED, load
 
 from workbench.conformal.cetm import conformal_scale_factors
 from workbench.conformal.corner_search import corner_response, even_turning_targets
@@ -18,6 +18,7 @@ from workbench.conformal.flatten import (
 )
 from workbench.conformal.intrinsic import IntrinsicTriangulation
 from workbench.errors import WorkbenchError
+from workbench.mesh.io import read_mesh
 from workbench.mesh.validate import check_disc
 
 RADIUS = 50.0
@@ -99,3 +100,13 @@ def test_auto_corners_refuse_a_part_no_rectangle_prints_naming_the_least_crowded
     assert "quadruples predicted, the least crowded still crowds" in msg and "several films" in msg
     share = float(msg.split("still crowds ")[1].split(" %")[0]) / 100
     assert share > 1e-2
+
+
+@pytest.mark.skipif(not (SHARED / "camel_b.obj").is_file(), reason="the shared meshes are not beside this checkout")
+def test_an_overshooting_newton_step_is_shortened_not_fatal():
+    # camel_b's evenly turning map: the first full Newton step goes so far that the
+    # Delaunay flips at the trial point cannot settle; the line search must shorten it
+    # (it used to stop with "Delaunay edge flips did not terminate")
+    V, F = read_mesh(SHARED / "camel_b.obj")
+    loop, w, newton = evenly_turning_map(V * 150 / np.linalg.norm(V.max(0) - V.min(0)), F)
+    assert newton.residual_rad <= 1e-9 and not newton.degenerate.any()

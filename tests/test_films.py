@@ -290,8 +290,10 @@ def test_validate_through_the_films_atlas(tmp_path):
     assert front["tiles"] >= 8 and np.allclose(front["offset_mm"], [0.5, 0.0], atol=0.05)
     assert np.allclose({f["name"]: f for f in perfect["films"]}["front"]["offset_mm"], [0, 0], atol=0.05)
     v2 = tmp_path / "v2"
-    main(["validate", str(out), str(photos[1]), "--camera", str(tmp_path / "p0.json"), "--view", "logo"]
-         + ["--out", str(v2), "-q"])
+    main(
+        ["validate", str(out), str(photos[1]), "--camera", str(tmp_path / "p0.json"), "--view", "logo"]
+        + ["--out", str(v2), "-q"]
+    )
     (entry,) = json.loads((v2 / "validation.json").read_text())["photos"]
     logo = {f["name"]: f for f in entry["films"]}["logo"]
     assert logo["tiles"] >= 8 and np.allclose(logo["offset_mm"], [0.0, 0.0], atol=0.05)

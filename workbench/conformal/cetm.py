@@ -417,11 +417,15 @@ def conformal_scale_factors(
         )
     flips_before = tri.flips
 
-    def state(u: np.ndarray):
+    def state(u: np.ndarray, trial: bool = False):
         # a trial step can overshoot wildly (crowded meshes): overflow then gives a
         # non-finite residual, which the line search rejects like any worse point
         with np.errstate(over="ignore", invalid="ignore"):
             if flip and tri.make_delaunay(u) < 0:
+                if trial:
+                    # so far out that the flips cannot settle: a shorter step will. Every
+                    # flip kept the metric, so the half-flipped triangulation is valid
+                    return None, None, None, None, np.inf
                 raise WorkbenchError("conformal map: Delaunay edge flips did not terminate")
             alpha, cot, degenerate = scaled_face_angles(tri.F, tri.lam, u)
             g = theta - angle_sums(tri.F, alpha, n)
@@ -459,7 +463,7 @@ def conformal_scale_factors(
             if not flip and halvings == FIXED_MAX_HALVINGS:
                 raise DegenerateMetricError("a long line search on the input triangulation", np.array([]))
             trial = u + t * step
-            new = state(trial)
+            new = state(trial, trial=True)
             # accept: residual halved (quadratic regime), or the convex energy's slope
             # along the step still non-positive (so the energy has not increased)
             if new[4] <= 0.5 * res or (np.isfinite(new[4]) and float(new[3] @ step) <= 0.0):

@@ -78,3 +78,31 @@ def test_crowded_part_is_refused_in_one_line(capsys, tmp_path):
     assert len(err.splitlines()) == 1 and "in the print (largest region" in err
     assert "another outline or several films" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "path",
+    [pytest.param(p, id=p.stem, marks=() if p.stem in FAST else pytest.mark.slow) for p in CORPUS],
+)
+def test_corpus_disc_with_auto_corners(path):
+    # --corners auto: a rectangle that prints every face without a fold, or one line
+    # saying that none of the quadruples it predicted does, and by how much at best
+    from workbench.conformal.flatten import flatten_auto_corners
+
+    V, F = load(path)
+    V = V * (150.0 / np.linalg.norm(V.max(0) - V.min(0)))
+    try:
+        r, search = flatten_auto_corners(V, F, name=path.name)
+    except WorkbenchError as exc:
+        msg = str(exc)
+        assert "\n" not in msg and "prints every face onto a rectangle" in msg and "several films" in msg, msg
+        return
+    check_subdivision(r, V, F)
+    assert r.flipped_faces == 0
+    assert r.area_3d[r.crowded].sum() <= 1e-3 * r.area_3d.sum()
+    # the automatic corners are among those compared: never worse than them
+    first = search["candidates"][0]
+    if first["outcome"] == "ok":
+        assert (
+            min(c["area_distortion"] for c in search["candidates"] if c["outcome"] == "ok") <= first["area_distortion"]
+        )

@@ -717,18 +717,19 @@ def flatten_auto_corners(
 ) -> tuple[FlattenResult, dict]:
     """Flatten with the corners that print every face with the least area distortion.
 
-    One solve with the automatic rule's corners (:func:`choose_corners`) gives the
-    first-order response of the map to moving each corner to one of
-    :data:`~workbench.conformal.corner_search.SITES` boundary sites
-    (:mod:`workbench.conformal.corner_search`). A local search from 24 quadruples
-    spread along the boundary (8 starting points, first side 15, 25 or 35 % of the
-    perimeter) predicts the crowding and area distortion of thousands of quadruples;
-    the automatic corners and the ``verify`` best predicted ones are then flattened in
-    full. Those refused (part of the surface would shrink below what the print
-    carries) or with a flipped face are out; of the rest the one with the least
-    :func:`area_distortion` wins. When the first-order response cannot be computed
-    (the solve needed boundary splits), the spread quadruples themselves are
-    flattened, with up to 8 guided ones that open a crowded region.
+    One solve of the map whose rim turns evenly gives the first-order response of the
+    log scale to a corner at each of :data:`~workbench.conformal.corner_search.SITES`
+    boundary sites (:mod:`workbench.conformal.corner_search`). A local search from 24
+    quadruples spread along the boundary (8 starting points, first side 15, 25 or 35 %
+    of the perimeter) predicts the crowding and area distortion of thousands of
+    quadruples; the automatic rule's corners (:func:`choose_corners`) and the
+    ``verify`` best predicted ones (2 when even the best crowds more than ten times
+    what is allowed) are then flattened in full. Those refused (part of the surface
+    would shrink below what the print carries) or with a flipped face are out; of the
+    rest the one with the least :func:`area_distortion` wins. When no response can be
+    computed (both the evenly turning solve and that of the automatic corners fail),
+    the spread quadruples themselves are flattened, with up to 8 guided ones that open
+    a crowded region.
 
     Parameters
     ----------

@@ -11,7 +11,16 @@ from test_design import FIXTURES, view_check
 from workbench.cli import main
 from workbench.design import design
 from workbench.export import texture_uv
-from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, split_films
+from workbench.films import (
+    cut_to_disc,
+    disc_region,
+    face_graph,
+    fit_film,
+    is_disc,
+    is_disc_region,
+    pack_films,
+    split_films,
+)
 from workbench.job import load_job
 from workbench.mesh.io import format_obj
 from workbench.mesh.validate import face_areas
@@ -108,7 +117,7 @@ def hemisphere(radius=40.0, n=48):
 
 def test_auto_split_keeps_every_film_within_the_material(tmp_path):
     # a hemisphere under one view from above: one free film squeezes its rim (stretch far
-    # outside [0.8, 1.3]); films = "auto" splits it, every film within the band on
+    # outside [0.8, 1.3]); films = "auto" splits it in two, every film within the band on
     # 99 % of its surface, every decorated face on exactly one film, and the closed loop
     # through the atlas stays exact across the seams
     V, F = hemisphere()
@@ -134,7 +143,8 @@ fov_deg = 24
     )
     job = load_job(path)
     r = design(job)
-    assert len(r.films) >= 2
+    # one film does not fit, two do: the split and its merges end at two
+    assert len(r.films) == 2
     for f in r.films:
         assert f.within >= 0.99, (f.name, f.within)
     covered = np.concatenate([f.faces for f in r.films])
@@ -181,6 +191,8 @@ def test_disc_region_fills_holes_and_opens_pinches():
         disc_region(F, ring, area, allowed=~blocked)
     kept = disc_region(F, ring, area, allowed=~blocked, keep_holes=True)
     assert not is_disc(F[kept]) and is_disc(cut_to_disc(V, F[kept])[1])
+    # the same judged on the part's faces: the ring is no disc, the filled region is
+    assert not is_disc_region(F, kept) and is_disc_region(F, region)
 
 
 def test_pack_films_places_prints_without_overlap():
@@ -339,7 +351,8 @@ def test_stretch_window_centres_the_band_on_the_most_surface():
 def test_a_mesh_no_rectangle_prints_is_made_by_films():
     # cow-1 of the real-mesh corpus: every rectangle crowds part of it below half a
     # print pixel (150 mm part, 300 dpi); split into films of max_stretch 1.5, every
-    # face is on exactly one film and every film is within the band
+    # face is on exactly one film and every film is within the band (3 films; 23
+    # before the merges)
     from conftest import ROOT
 
     from workbench.conformal.flatten import CrowdingError, FlattenOptions, flatten
@@ -354,3 +367,18 @@ def test_a_mesh_no_rectangle_prints_is_made_by_films():
     covered = np.concatenate([f.faces for f in films])
     assert np.array_equal(np.sort(covered), np.arange(len(F)))
     assert all(f.within >= 0.99 for f in films) and len(films) >= 2
+    # the fewest the merges reach: no two adjacent films could be one (their union is
+    # no disc, or leaves the band, overlaps itself or crowds)
+    graph = face_graph(F)
+    film_of = np.full(len(F), -1)
+    for k, f in enumerate(films):
+        film_of[f.faces] = k
+    _, _, edge_faces = graph
+    inner = edge_faces[edge_faces[:, 1] >= 0]
+    a, b = film_of[inner[:, 0]], film_of[inner[:, 1]]
+    pairs = sorted({(min(x, y), max(x, y)) for x, y in zip(a.tolist(), b.tolist(), strict=True) if x != y})
+    assert pairs
+    for x, y in pairs:
+        faces = np.union1d(films[x].faces, films[y].faces)
+        region = np.isin(np.arange(len(F)), faces)
+        assert not is_disc_region(F, region, graph) or fit_film(V, F, faces, 1.5, options)[0] is None, (x, y)

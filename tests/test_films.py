@@ -382,3 +382,48 @@ def test_a_mesh_no_rectangle_prints_is_made_by_films():
         faces = np.union1d(films[x].faces, films[y].faces)
         region = np.isin(np.arange(len(F)), faces)
         assert not is_disc_region(F, region, graph) or fit_film(V, F, faces, 1.5, options)[0] is None, (x, y)
+
+
+def test_validate_measures_the_misregistration_across_seams(tmp_path):
+    # the lid in three films cut across x = -15 and x = 15 mm (both seams cross the logo
+    # view's dome); a photo with film 1 (west) moved by (0.5, 0) mm in its print, scored
+    # against the logo view: the west film is measured moved, the seam west | mid apart
+    # by 0.5 mm times the west film's scale on the part (its stretch, within 1 % of 1
+    # here), the seam mid | east in place; a perfect photo finds both seams in place
+    from workbench.mesh.io import read_mesh
+
+    V, F = read_mesh(FIXTURES / "default" / "part.obj")
+    x = V[F].mean(axis=1)[:, 0]
+    films = ""
+    for name, faces in (("west", x < -15), ("mid", np.abs(x) <= 15), ("east", x > 15)):
+        (tmp_path / f"{name}.txt").write_text("\n".join(map(str, np.flatnonzero(faces))))
+        films += f'\n[[films]]\nname = "{name}"\nfaces = "{name}.txt"\noutline = "free"\n'
+    out = tmp_path / "d"
+    assert main(["design", str(default_job_with(tmp_path, films)), "--out", str(out), "-q"]) == 0
+    west = json.loads((out / "design.json").read_text())["films"][0]
+    photos = []
+    for k, extra in enumerate(([], ["--film-offset-mm", "1:0.5,0"])):
+        photos.append(tmp_path / f"p{k}.jpg")
+        args = ["render", str(out), "--orbit", "10,55,330", "--size", "2000x1500", "-o", str(photos[-1]), "-q"]
+        assert main(args + extra) == 0
+    v = tmp_path / "v"
+    main(["validate", str(out), *map(str, photos), "--camera", str(tmp_path / "p0.json"), "--view", "logo"]
+         + ["--out", str(v), "-q"])
+    perfect, moved = json.loads((v / "validation.json").read_text())["photos"]
+    fits = {f["name"]: f for f in moved["films"]}
+    assert all(f["measured"] and f["tiles"] >= 8 for f in fits.values())
+    assert np.allclose(fits["west"]["offset_mm"], [0.5, 0.0], atol=0.05)
+    seams = {tuple(s["films"]): s for s in moved["seams"]}
+    assert sorted(seams) == [("mid", "east"), ("west", "mid")]
+    for s in seams.values():
+        assert 20 < s["seen_mm"] <= s["length_mm"] + 1e-9
+    truth = 0.5 * west["stretch"]["p50"]
+    mis = seams[("west", "mid")]["misregistration_mm"]
+    assert abs(mis["mean"] - truth) < 0.05 and mis["max"] < 0.5 * west["stretch"]["max"] + 0.05, mis
+    assert seams[("mid", "east")]["misregistration_mm"]["max"] < 0.05
+    for s in perfect["seams"]:
+        assert s["misregistration_mm"]["max"] < 0.05, s
+    import pypdf
+
+    text = "".join(page.extract_text() for page in pypdf.PdfReader(v / "qa_report.pdf").pages)
+    assert "seams between films" in text and f"{mis['mean']:.3f}" in text

@@ -427,3 +427,50 @@ def test_validate_measures_the_misregistration_across_seams(tmp_path):
 
     text = "".join(page.extract_text() for page in pypdf.PdfReader(v / "qa_report.pdf").pages)
     assert "seams between films" in text and f"{mis['mean']:.3f}" in text
+
+
+@pytest.mark.slow
+def test_face_mask_film_moved_is_measured_and_the_others_stay(tmp_path):
+    # the face mask split automatically; photos of its front view at twice the view's
+    # resolution. In a perfect photo every film the view measures is in place (0.05 mm);
+    # with the film of most tiles moved by (0.5, 0) mm, that film is measured moved and
+    # every other measured film in place, each within 0.05 mm; a film with fewer than
+    # four tiles in this view is reported unmeasured, and so are its seams
+    out = tmp_path / "d"
+    assert main(["design", str(FIXTURES / "face-mask-films" / "job.toml"), "--out", str(out), "-q"]) == 0
+    info = json.loads((out / "design.json").read_text())
+    cam = next(v["camera"] for v in info["views"] if v["name"] == "front")
+    K = np.asarray(cam["K"], dtype=float)
+    K[:2] *= 2
+    K[:2, 2] += 0.5  # pixel centres: x' = (x + 0.5) 2 - 0.5
+    w, h = cam["image_size"]
+    camera = {"K": K.tolist(), "dist": [0.0] * 5, "image_size": [2 * w, 2 * h], "R": cam["R"], "t": cam["t"]}
+    (tmp_path / "front2.json").write_text(json.dumps(camera))
+
+    def measure(name, extra):
+        photo = tmp_path / f"{name}.jpg"
+        args = ["render", str(out), "--camera", str(tmp_path / "front2.json"), "-o", str(photo), "-q", *extra]
+        assert main(args) == 0
+        v = tmp_path / f"v-{name}"
+        main(["validate", str(out), str(photo), "--camera", str(tmp_path / "front2.json"), "--view", "front"]
+             + ["--out", str(v), "-q"])
+        (entry,) = json.loads((v / "validation.json").read_text())["photos"]
+        return entry
+
+    perfect = measure("perfect", [])
+    films = {f["name"]: f for f in perfect["films"]}
+    for f in films.values():
+        assert f["measured"] == (f["tiles"] >= 4)
+        if f["measured"]:
+            assert np.hypot(*f["offset_mm"]) < 0.05, f
+    k = max(range(len(info["films"])), key=lambda i: perfect["films"][i]["tiles"])
+    name = info["films"][k]["name"]
+    moved = measure("moved", ["--film-offset-mm", f"{k + 1}:0.5,0"])
+    measured = [f for f in moved["films"] if f["measured"]]
+    assert len(measured) >= 2 and any(f["name"] == name for f in measured)
+    for f in measured:
+        truth = [0.5, 0.0] if f["name"] == name else [0.0, 0.0]
+        assert np.hypot(*np.subtract(f["offset_mm"], truth)) < 0.05, f
+    unmeasured = {f["name"] for f in moved["films"] if not f["measured"]}
+    for s in moved["seams"]:
+        assert bool(set(s["films"]) & unmeasured) == ("misregistration_mm" not in s), s

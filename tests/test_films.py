@@ -474,3 +474,23 @@ def test_face_mask_film_moved_is_measured_and_the_others_stay(tmp_path):
     unmeasured = {f["name"] for f in moved["films"] if not f["measured"]}
     for s in moved["seams"]:
         assert bool(set(s["films"]) & unmeasured) == ("misregistration_mm" not in s), s
+    # across a seam of the moved film with a measured one, the inks land apart by 0.5 mm
+    # times the moved film's scale on the part along print x, which the design's
+    # geometry gives edge by edge: the measured mean lies within the seam's range
+    from workbench.design_dir import Design
+    from workbench.validate.films import film_seams
+
+    d = Design(out)
+    edges = film_seams(d.V, d.F, d.flat, info["print"]["height_mm"], info["films"])
+    names = [f["name"] for f in info["films"]]
+    checked = 0
+    for s in moved["seams"]:
+        if name not in s["films"] or "misregistration_mm" not in s:
+            continue
+        a, b = sorted(names.index(n) for n in s["films"])
+        on = (edges.films[:, 0] == a) & (edges.films[:, 1] == b)
+        truth = np.linalg.norm(edges.J[on, 0 if a == k else 1] @ [0.5, 0.0], axis=1)
+        mean = s["misregistration_mm"]["mean"]
+        assert truth.min() - 0.05 < mean < truth.max() + 0.05, (s, truth.min(), truth.max())
+        checked += 1
+    assert checked >= 1

@@ -400,7 +400,8 @@ def test_validate_measures_the_misregistration_across_seams(tmp_path):
         films += f'\n[[films]]\nname = "{name}"\nfaces = "{name}.txt"\noutline = "free"\n'
     out = tmp_path / "d"
     assert main(["design", str(default_job_with(tmp_path, films)), "--out", str(out), "-q"]) == 0
-    west = json.loads((out / "design.json").read_text())["films"][0]
+    info = json.loads((out / "design.json").read_text())
+    west = info["films"][0]
     photos = []
     for k, extra in enumerate(([], ["--film-offset-mm", "1:0.5,0"])):
         photos.append(tmp_path / f"p{k}.jpg")
@@ -417,6 +418,8 @@ def test_validate_measures_the_misregistration_across_seams(tmp_path):
     assert sorted(seams) == [("mid", "east"), ("west", "mid")]
     for s in seams.values():
         assert 20 < s["seen_mm"] <= s["length_mm"] + 1e-9
+    # the seams validate finds on the atlas are the design's, edge for edge
+    assert sum(s["length_mm"] for s in seams.values()) == pytest.approx(info["seams"]["length_mm"], rel=1e-9)
     truth = 0.5 * west["stretch"]["p50"]
     mis = seams[("west", "mid")]["misregistration_mm"]
     assert abs(mis["mean"] - truth) < 0.05 and mis["max"] < 0.5 * west["stretch"]["max"] + 0.05, mis

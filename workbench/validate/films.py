@@ -188,13 +188,16 @@ def film_seams(V: np.ndarray, F: np.ndarray, uv_mm: np.ndarray, height_mm: float
         with np.errstate(divide="ignore", invalid="ignore"):
             return dP @ np.linalg.pinv(dQ)
 
-    X = 0.5 * (V[H[i, 0]] + V[H[i, 1]])
+    J = np.stack([jacobian(face[i]), jacobian(face[j])], axis=1)
+    # a triangle collapsed in its print has no map to carry a displacement: its edge is left out
+    ok = np.isfinite(J).all(axis=(1, 2, 3))
+    i, j, J = i[ok], j[ok], J[ok]
     return SeamEdges(
         films=np.column_stack([film_of[face[i]], film_of[face[j]]]),
-        X=X,
+        X=0.5 * (V[H[i, 0]] + V[H[i, 1]]),
         length=np.linalg.norm(V[H[i, 1]] - V[H[i, 0]], axis=1),
         p=np.stack([0.5 * (q[H[i, 0]] + q[H[i, 1]]), 0.5 * (q[H[j, 0]] + q[H[j, 1]])], axis=1),
-        J=np.stack([jacobian(face[i]), jacobian(face[j])], axis=1),
+        J=J,
     )
 
 

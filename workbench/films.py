@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import heapq
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -329,6 +330,52 @@ class FilmFit:
     within: float
 
 
+def probe_film(
+    V: np.ndarray, F: np.ndarray, faces: np.ndarray, max_stretch: float, options: FlattenOptions
+) -> tuple[ScaleMode | None, float, str, FlattenResult | None]:
+    """The first half of :func:`fit_film`: the free layout, the best scale, its share in the band, no overlap.
+
+    Returns
+    -------
+    scale : ScaleMode or None
+        The print scale that keeps the most surface within the band, when the region
+        passes (the share in the band and an outline clear of itself).
+    within : float
+        That share (0 when the layout failed).
+    reason : str
+        Why it does not fit, or "".
+    layout : FlattenResult or None
+        The free layout at area scale.
+    """
+    Vs, Fs, _ = submesh(V, F, faces)
+    probe = replace(options, outline="free", scale=ScaleMode("area"), min_print_mm=0.0, check_overlap=False)
+    try:
+        flat = flatten(Vs, Fs, probe)
+    except WorkbenchError as exc:
+        return None, 0.0, str(exc).split(": ", 1)[-1], None
+    s, within = stretch_window(flat.stretch, flat.area_3d, max_stretch)
+    if within < 1 - MAX_OFF_SHARE:
+        return None, within, f"{1 - within:.1%} of it leaves the stretch band", flat
+    loop = boundary_loops(flat.F)[0]
+    if len(polygon_self_intersections(flat.uv[loop])):
+        return None, within, "its outline overlaps itself", flat
+    return ScaleMode("width", flat.width_mm * s), within, "", flat
+
+
+def final_film(
+    V: np.ndarray, F: np.ndarray, faces: np.ndarray, scale: ScaleMode, within: float, options: FlattenOptions
+) -> tuple[FilmFit | None, str]:
+    """The second half of :func:`fit_film`: the film's map at its scale, refused if it crowds."""
+    Vs, Fs, _ = submesh(V, F, faces)
+    try:
+        final = flatten(Vs, Fs, replace(options, outline="free", scale=scale))
+    except CrowdingError as exc:
+        return None, f"{exc.share:.1%} of it is crowded"
+    except WorkbenchError as exc:
+        return None, str(exc).split(": ", 1)[-1]
+    return FilmFit(faces=faces, flat=final, scale=scale, within=within), ""
+
+
 def fit_film(
     V: np.ndarray, F: np.ndarray, faces: np.ndarray, max_stretch: float, options: FlattenOptions
 ) -> tuple[FilmFit | None, str, FlattenResult | None]:
@@ -343,26 +390,11 @@ def fit_film(
     layout : FlattenResult or None
         The region's free layout (area scale), for the cut that splits it.
     """
-    Vs, Fs, _ = submesh(V, F, faces)
-    probe = replace(options, outline="free", scale=ScaleMode("area"), min_print_mm=0.0, check_overlap=False)
-    try:
-        flat = flatten(Vs, Fs, probe)
-    except WorkbenchError as exc:
-        return None, str(exc).split(": ", 1)[-1], None
-    s, within = stretch_window(flat.stretch, flat.area_3d, max_stretch)
-    if within < 1 - MAX_OFF_SHARE:
-        return None, f"{1 - within:.1%} of it leaves the stretch band", flat
-    loop = boundary_loops(flat.F)[0]
-    if len(polygon_self_intersections(flat.uv[loop])):
-        return None, "its outline overlaps itself", flat
-    scale = ScaleMode("width", flat.width_mm * s)
-    try:
-        final = flatten(Vs, Fs, replace(options, outline="free", scale=scale))
-    except CrowdingError as exc:
-        return None, f"{exc.share:.1%} of it is crowded", flat
-    except WorkbenchError as exc:
-        return None, str(exc).split(": ", 1)[-1], flat
-    return FilmFit(faces=faces, flat=final, scale=scale, within=within), "", flat
+    scale, within, why, flat = probe_film(V, F, faces, max_stretch, options)
+    if scale is None:
+        return None, why, flat
+    fit, why = final_film(V, F, faces, scale, within, options)
+    return fit, why, flat
 
 
 def split_in_two(
@@ -460,6 +492,8 @@ def split_films(
     [MIN_STRETCH, max_stretch] on more than 1 % of it at its best scale, an outline
     over itself, or crowded) is split: first along the borders between views (a seam
     there crosses no view's image), then by straight cuts across its flat layout.
+    Bisection cuts more than it must; :func:`merge_films` then joins adjacent films
+    again while their union is a disc that fits, seams inside a view first.
 
     Parameters
     ----------
@@ -555,6 +589,7 @@ def split_films(
         say(f"{len(faces)} faces do not fit one film ({why}): split in two")
         queue.extend((h, False) for h in halves)
     done = _absorb_small_films(V, F, done, graph, area, max_stretch, options, say)
+    done = merge_films(V, F, done, owner_view, max_stretch, options, graph=graph, log=say)
     done.sort(key=lambda f: int(f.faces[0]))
     return done
 
@@ -588,6 +623,162 @@ def _absorb_small_films(V, F, done, graph, area, max_stretch, options, say) -> l
                 say(f"a film of {len(small.faces)} faces joins its neighbour ({len(faces)} faces)")
                 break
     return [f for k, f in enumerate(done) if k not in gone]
+
+
+def is_disc_region(F: np.ndarray, region: np.ndarray, graph=None) -> bool:
+    """Whether some faces of a disc-shaped part form one disc.
+
+    A connected region of a disc is planar: with no pinched vertex (two fans meeting at
+    a point), it is a disc exactly when its Euler characteristic V - E + F is 1 (a
+    region around a hole has 0 or less).
+
+    Parameters
+    ----------
+    F : (#F, 3) int
+        Triangles of the part (a disc).
+    region : (#F,) bool
+        The faces; assumed connected (two adjacent films are).
+    graph : tuple, optional
+        :func:`face_graph` of ``F``.
+
+    Returns
+    -------
+    bool
+    """
+    _, E, edge_faces = graph if graph is not None else face_graph(F)
+    if len(_pinched_vertices(F, region, E, edge_faces)):
+        return False
+    inside = np.where(edge_faces >= 0, region[np.maximum(edge_faces, 0)], False).any(axis=1)
+    return len(np.unique(F[region])) - int(inside.sum()) + int(region.sum()) == 1
+
+
+def _shared_seams(
+    E: np.ndarray, edge_faces: np.ndarray, film_of: np.ndarray, length: np.ndarray, in_view: np.ndarray
+) -> dict[tuple[int, int], tuple[float, float]]:
+    """Seam length (all, and inside one view's region) between every two films that touch, keyed (low, high)."""
+    inner = edge_faces[:, 1] >= 0
+    a = film_of[np.maximum(edge_faces[:, 0], 0)]
+    b = film_of[np.maximum(edge_faces[:, 1], 0)]
+    seam = inner & (a != b) & (a >= 0) & (b >= 0)
+    lo, hi = np.minimum(a[seam], b[seam]), np.maximum(a[seam], b[seam])
+    n = int(film_of.max()) + 1
+    key = lo * n + hi
+    keys, inv = np.unique(key, return_inverse=True)
+    total = np.bincount(inv, weights=length[seam])
+    inside = np.bincount(inv, weights=length[seam] * in_view[seam])
+    return {(int(k // n), int(k % n)): (float(t), float(i)) for k, t, i in zip(keys, total, inside, strict=True)}
+
+
+def merge_films(
+    V: np.ndarray,
+    F: np.ndarray,
+    films: list[FilmFit],
+    owner_view: np.ndarray,
+    max_stretch: float,
+    options: FlattenOptions,
+    graph=None,
+    log: Callable[[str], None] | None = None,
+) -> list[FilmFit]:
+    """Join adjacent films whose union is one disc that still fits the material.
+
+    Greedy: the two films with the longest seam inside a view's region (a seam a view's
+    image crosses), then the longest seam overall, are tried first; their union must be
+    a disc (:func:`is_disc_region`) and fit as :func:`fit_film` asks (within
+    [MIN_STRETCH, max_stretch] on 99 % of it at its best scale, no overlap of its
+    outline, every face printed). A joined film's seams with its neighbours are tried
+    again; a pair that does not fit is tried again only once one of them has grown. The map at
+    the final scale (:func:`final_film`, which checks that every face prints) is made
+    once per resulting film, not per join: should it crowd, the film falls back to the
+    two it was joined from.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        The part, mm.
+    F : (#F, 3) int
+        Its triangles (a disc).
+    films : list of FilmFit
+        Films that each fit, on disjoint faces.
+    owner_view : (#F,) int
+        First owning view per face, -1 for none.
+    max_stretch : float
+        The material's limit.
+    options : FlattenOptions
+        Solver settings.
+    graph : tuple, optional
+        :func:`face_graph` of ``F``.
+    log : callable, optional
+        Progress lines.
+
+    Returns
+    -------
+    list of FilmFit
+        Fewer films or the same: those not joined in their order, then the joined ones.
+    """
+    say = log or (lambda _m: None)
+    graph = graph if graph is not None else face_graph(F)
+    _, E, edge_faces = graph
+    length = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
+    ov = owner_view[np.maximum(edge_faces, 0)]
+    in_view = (edge_faces[:, 1] >= 0) & (ov[:, 0] == ov[:, 1]) & (ov[:, 0] >= 0)
+    film_of = np.full(len(F), -1, dtype=np.int64)
+    current = dict(enumerate(films))
+    for k, f in current.items():
+        film_of[f.faces] = k
+    # longest seam inside a view first (ties: longest seam, then the films' order)
+    heap = [(-i, -t, a, b) for (a, b), (t, i) in _shared_seams(E, edge_faces, film_of, length, in_view).items()]
+    heapq.heapify(heap)
+    next_id = len(films)
+    while heap:
+        _, _, a, b = heapq.heappop(heap)
+        if a not in current or b not in current:
+            continue  # one of them has joined another film since
+        faces = np.union1d(current[a].faces, current[b].faces)
+        region = np.zeros(len(F), bool)
+        region[faces] = True
+        if not is_disc_region(F, region, graph):
+            continue
+        scale, within, _, _ = probe_film(V, F, faces, max_stretch, options)
+        if scale is None:
+            continue
+        say(f"films of {len(current[a].faces)} and {len(current[b].faces)} faces join ({len(faces)} faces)")
+        current[next_id] = _Joined(faces, scale, within, (current.pop(a), current.pop(b)))
+        film_of[faces] = next_id
+        # the joined film's seams with its neighbours, tried in the same order
+        mine = region[np.maximum(edge_faces, 0)]
+        on = (edge_faces[:, 1] >= 0) & (mine[:, 0] != mine[:, 1])
+        j = film_of[np.where(mine[on, 0], edge_faces[on, 1], edge_faces[on, 0])]
+        for k in np.unique(j[j >= 0]):
+            here = j == k
+            heapq.heappush(
+                heap, (-float(length[on][here & in_view[on]].sum()), -float(length[on][here].sum()), int(k), next_id)
+            )
+        next_id += 1
+    out: list[FilmFit] = []
+    for k in sorted(current):
+        out += _finish(V, F, current[k], options, say)
+    return out
+
+
+@dataclass
+class _Joined:
+    """Two films (or joins) whose union passed :func:`probe_film`, its map not made yet."""
+
+    faces: np.ndarray
+    scale: ScaleMode
+    within: float
+    parts: tuple
+
+
+def _finish(V, F, film, options, say) -> list[FilmFit]:
+    """The films of a join: its own map at its scale, or, if that crowds, its two parts'."""
+    if isinstance(film, FilmFit):
+        return [film]
+    fit, why = final_film(V, F, film.faces, film.scale, film.within, options)
+    if fit is not None:
+        return [fit]
+    say(f"a joined film of {len(film.faces)} faces is refused ({why}): its two parts stay apart")
+    return _finish(V, F, film.parts[0], options, say) + _finish(V, F, film.parts[1], options, say)
 
 
 def seams(F: np.ndarray, V: np.ndarray, film_of_face: np.ndarray, owner_view: np.ndarray) -> dict:

@@ -24,7 +24,7 @@ from workbench.export import png_bytes
 from workbench.jsonfile import recorded_path
 from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
-from workbench.validate.films import fit_per_film
+from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.score import TILE, _bilinear, score, view_surface, warp_photo
 
@@ -301,7 +301,14 @@ def validate_photo(
     )
     if design.info.get("films"):
         # several films: each film's placement from its own tiles
-        entry["films"] = fit_per_film(sc, surface, design.info["films"], p["dpi"] / 25.4)
+        films = design.info["films"]
+        entry["films"] = fit_per_film(sc, surface, films, p["dpi"] / 25.4)
+        # the seams this photo shows: how far apart the two films' inks land there
+        if "seams" not in cache:
+            cache["seams"] = film_seams(design.V, design.F, design.flat, p["height_mm"], films)
+        edges = cache["seams"]
+        seen = seams_seen(edges.X, design.view_camera(name), surface, valid)
+        entry["seams"] = seam_misregistration(edges, entry["films"], films, p["dpi"] / 25.4, seen)
     clock.append(time.perf_counter())  # dense analysis
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)

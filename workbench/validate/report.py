@@ -156,10 +156,52 @@ def film_pages(c, report: dict, W: float, H: float) -> None:
         c.showPage()
 
 
+def seam_page(c, report: dict, W: float, H: float) -> None:
+    """With several films, a page of the seams each photo shows and the misregistration across them."""
+    from reportlab.lib.units import mm
+
+    rows = [(e, s) for e in report["photos"] for s in e.get("seams") or []]
+    if not rows:
+        return
+    c.setFont("Helvetica-Bold", 14)
+    c.drawString(20 * mm, H - 20 * mm, "seams between films")
+    c.setFont("Helvetica", 8)
+    c.drawString(
+        20 * mm,
+        H - 27 * mm,
+        "how far apart the two films' inks land along the seam, from each film's fitted placement "
+        "(mm on the part; mean weighted by length)",
+    )
+    cols = [20, 70, 125, 150, 168]
+    heads = ["photo", "films", "seen / seam mm", "mean mm", "max mm"]
+    y = H - 36 * mm
+    c.setFont("Helvetica-Bold", 8)
+    for x, h in zip(cols, heads, strict=True):
+        c.drawString(x * mm, y, h)
+    c.setFont("Helvetica", 8)
+    for e, s in rows:
+        y -= 5 * mm
+        mis = s.get("misregistration_mm")
+        row = [
+            e["photo"].rsplit("/", 1)[-1][:30],
+            " | ".join(s["films"])[:34],
+            f"{s['seen_mm']:.0f} / {s['length_mm']:.0f}",
+            f"{mis['mean']:.3f}" if mis else "not measured: " + ", ".join(s.get("unmeasured", [])),
+            f"{mis['max']:.3f}" if mis else "",
+        ]
+        for x, v in zip(cols, row, strict=True):
+            c.drawString(x * mm, y, v)
+        if y < 30 * mm:
+            c.showPage()
+            c.setFont("Helvetica", 8)
+            y = H - 20 * mm
+    c.showPage()
+
+
 def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
     """PDF: a first page (is the part good, where is it wrong), a summary page (verdicts, figures,
-    identifiers and hashes), with several films a page per film (its placement per photo),
-    then one page per scored photo.
+    identifiers and hashes), with several films a page per film (its placement per photo)
+    and one of the seams (misregistration across each), then one page per scored photo.
 
     Parameters
     ----------
@@ -236,6 +278,7 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
             y = H - 20 * mm
     c.showPage()
     film_pages(c, report, W, H)
+    seam_page(c, report, W, H)
     for e in report["photos"]:
         if e["verdict"] == "INVALID":
             continue

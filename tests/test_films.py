@@ -410,8 +410,10 @@ def test_validate_measures_the_misregistration_across_seams(tmp_path):
         args = ["render", str(out), "--orbit", "10,55,330", "--size", "2000x1500", "-o", str(photos[-1]), "-q"]
         assert main(args + extra) == 0
     v = tmp_path / "v"
-    main(["validate", str(out), *map(str, photos), "--camera", str(tmp_path / "p0.json"), "--view", "logo"]
-         + ["--out", str(v), "-q"])
+    main(
+        ["validate", str(out), *map(str, photos), "--camera", str(tmp_path / "p0.json"), "--view", "logo"]
+        + ["--out", str(v), "-q"]
+    )
     perfect, moved = json.loads((v / "validation.json").read_text())["photos"]
     fits = {f["name"]: f for f in moved["films"]}
     assert all(f["measured"] and f["tiles"] >= 8 for f in fits.values())
@@ -457,8 +459,10 @@ def test_face_mask_film_moved_is_measured_and_the_others_stay(tmp_path):
         args = ["render", str(out), "--camera", str(tmp_path / "front2.json"), "-o", str(photo), "-q", *extra]
         assert main(args) == 0
         v = tmp_path / f"v-{name}"
-        main(["validate", str(out), str(photo), "--camera", str(tmp_path / "front2.json"), "--view", "front"]
-             + ["--out", str(v), "-q"])
+        main(
+            ["validate", str(out), str(photo), "--camera", str(tmp_path / "front2.json"), "--view", "front"]
+            + ["--out", str(v), "-q"]
+        )
         (entry,) = json.loads((v / "validation.json").read_text())["photos"]
         return entry
 

@@ -463,14 +463,88 @@ def _centre(view: dict) -> list:
 _WORKER: dict = {}
 
 
-def _init_worker(design_dir: str, camera: str) -> None:
+def _one_thread() -> None:
     # one process per core, each on one thread: with their own thread pools too, two photos
     # at once oversubscribe the cores (measured here: every stage two to three times slower)
     import numba
 
     cv2.setNumThreads(1)
     numba.set_num_threads(1)
+
+
+def _init_worker(design_dir: str, camera: str) -> None:
+    """A spawned worker: loads the design and the camera profile itself."""
+    _one_thread()
     _WORKER.update(design=Design(Path(design_dir)), profile=usable_profile(Path(camera)), cache={})
+
+
+def _adopt(design: Design, profile, cache: dict) -> None:
+    """A forked worker: keeps the parent's design, profile and print grid (shared, copy on write).
+
+    OpenCV is on one thread already (see :func:`validate_in_pool`): reconfiguring its pool here
+    would wait forever for the parent's pool threads, which a fork does not copy.
+    """
+    import numba
+
+    numba.set_num_threads(1)
+    _WORKER.update(design=design, profile=profile, cache=cache)
+
+
+def validate_in_pool(jobs: int, work: list[tuple], design: Design, profile, profile_path: Path, cache: dict) -> list:
+    """Photos scored by ``jobs`` worker processes, each on one thread; results in the photos' order.
+
+    Processes, not threads: most of the work holds the GIL between numpy calls. The results
+    come back in the order of ``work``, so the outputs do not depend on the scheduling.
+    Where :func:`fork_is_safe`, the workers are forked once this process has what every photo
+    needs (the print grid, which the part's summary needs here too, and matplotlib for the heat
+    maps), and ``cache`` then holds the grid; elsewhere they are spawned and load the design.
+    """
+    if not fork_is_safe():
+        init = (_init_worker, (str(design.dir), str(profile_path)))
+        with ProcessPoolExecutor(jobs, mp_context=get_context("spawn"), initializer=init[0], initargs=init[1]) as pool:
+            return list(pool.map(_validate_in_worker, work))
+    p = design.info["print"]
+    cache["grid"] = dense.print_grid(
+        design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
+    )
+    from workbench.figures import _figure
+
+    _figure()
+    # OpenCV's thread pool stopped before the fork (the workers inherit one thread): a forked
+    # worker that reconfigured it hung, waiting on a condition variable of pool threads that
+    # exist only here
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with ProcessPoolExecutor(
+            jobs, mp_context=get_context("fork"), initializer=_adopt, initargs=(design, profile, cache)
+        ) as pool:
+            return list(pool.map(_validate_in_worker, work))
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def fork_is_safe() -> bool:
+    """Whether worker processes may be forked from this one (else they are spawned).
+
+    Forking saves each worker its start-up (Python, NumPy, OpenCV, numba, matplotlib, the
+    design and the print grid: about 4 CPU s each) but needs every thread pool the parent
+    has started to survive a fork. OpenCV's does once stopped (:func:`validate_in_pool`);
+    numba's OpenMP layer (GNU libgomp) does not: forked workers hung in their first parallel
+    loop. So fork only on Linux (macOS frameworks are not fork-safe either), and only where
+    numba has not started a layer yet (it is then told to pick a fork-safe one: TBB, or its
+    own work queue) or started a fork-safe one.
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    import numba
+
+    try:
+        layer = numba.threading_layer()
+    except ValueError:  # no parallel loop has run in this process yet
+        numba.config.THREADING_LAYER = "forksafe"
+        return True
+    return layer in ("tbb", "workqueue")
 
 
 def usable_profile(path: Path):
@@ -593,16 +667,7 @@ def run(args) -> int:
     stems = output_stems(photos)
     work = [(p, stem, args.view, args.tolerance_mm, args.max_defect_mm2) for p, stem in zip(photos, stems, strict=True)]
     if jobs > 1:
-        # processes, not threads: most of the work holds the GIL between numpy calls; results
-        # come back in the photos' order, so the outputs do not depend on the scheduling.
-        # Spawned, not forked: forked workers hung here in their first OpenCV/numba call.
-        with ProcessPoolExecutor(
-            jobs,
-            mp_context=get_context("spawn"),
-            initializer=_init_worker,
-            initargs=(str(design.dir), str(profile_path)),
-        ) as pool:
-            results = list(pool.map(_validate_in_worker, work))
+        results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
         results = (_timed(Path(p), design, profile, v, t, cache, stem, m) for p, stem, v, t, m in work)
     for photo, (entry, pics, state) in zip(photos, results, strict=True):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import sys
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from workbench import __version__
 from workbench.atomic import check_output_dir, check_outputs, safe_name, write_folder
@@ -26,6 +28,7 @@ from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
 from workbench.validate.films import fit_per_film
 from workbench.validate.pose import PoseError, estimate_pose
+from workbench.validate.report import page_names, page_picture, qa_report
 from workbench.validate.score import TILE, _bilinear, score, view_surface, warp_photo
 
 MAX_RMS_PX = 1.0
@@ -191,7 +194,7 @@ def validate_photo(
     cache,
     stem: str | None = None,
     max_defect_mm2: float = MAX_DEFECT_MM2,
-) -> tuple[dict, dict, np.ndarray | None]:
+) -> tuple[dict, dict, np.ndarray | None, dict]:
     """Score one photo; never raises for a bad photo (its verdict says why).
 
     ``profile`` is the camera profile, or the reason it cannot be used (every photo is then INVALID).
@@ -205,6 +208,10 @@ def validate_photo(
     state : (rows, cols) uint8 or None
         The photo's state per print grid pixel (:mod:`workbench.validate.dense`), None
         when the photo was not scored.
+    pages : dict
+        Picture file name to the JPEG bytes its page of the QA report shows
+        (:func:`workbench.validate.report.page_picture`): made here, where the pictures are,
+        rather than by the report, which waits for every photo.
     """
     entry: dict = {"photo": str(path), "verdict": "INVALID", "reason": None}  # made relative by run()
     files: dict = {}
@@ -215,23 +222,23 @@ def validate_photo(
         photo = read_image(path, "photo")
     except (OSError, WorkbenchError) as exc:
         entry["reason"] = f"unreadable image: {exc}"
-        return entry, files, None
+        return entry, files, None, {}
     if isinstance(profile, str):
         entry["reason"] = f"unusable camera profile: {profile}"
-        return entry, files, None
+        return entry, files, None, {}
     if photo.shape[1] != profile.width or photo.shape[0] != profile.height:
         entry["reason"] = (
             f"photo is {photo.shape[1]} x {photo.shape[0]} px, the camera profile is for "
             f"{profile.width} x {profile.height}"
         )
-        return entry, files, None
+        return entry, files, None, {}
     clock = [time.perf_counter()]  # stage timings, for the benchmark
     gray = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY)
     try:
         pose = estimate_pose(gray, design.fixture, profile.K, profile.dist)
     except PoseError as exc:
         entry["reason"] = str(exc)
-        return entry, files, None
+        return entry, files, None, {}
     entry["pose"] = {
         "R": pose.camera.R.tolist(),
         "t": pose.camera.t.tolist(),
@@ -243,7 +250,7 @@ def validate_photo(
         entry["reason"] = (
             f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"
         )
-        return entry, files, None
+        return entry, files, None, {}
     # one z-buffer of the part in the photo: for this check and for both warps
     face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
     hidden = markers_under_the_part(pose, design, face_buffer)
@@ -252,7 +259,7 @@ def validate_photo(
             f"the object is not where the fixture says: marker {hidden[0]} is visible where the part "
             f"should hide it ({len(hidden)} such markers)"
         )
-        return entry, files, None
+        return entry, files, None, {}
     views = design.info["views"]
     if view_name is None:
         dists = [np.linalg.norm(np.asarray(_centre(v)) - pose.camera.center) for v in views]
@@ -350,7 +357,7 @@ def validate_photo(
     files[f"{stem}_defects_print.png"] = png_bytes(
         pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm), compression=1
     )
-    files[f"{stem}_dense_print.png"] = pictures.dense_heatmap(
+    dense_png = pictures.dense_heatmap(
         grid.reference,
         dr.shift_mm,
         dr.labels,
@@ -358,17 +365,19 @@ def validate_photo(
         2 * tolerance_mm,
         f"{path.name} on the print: dense misregistration (the tolerance is mid-scale), defects outlined",
     )
-    files[f"{stem}_defects_{name}.png"] = png_bytes(
-        pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm)),
-        compression=1,
-    )
+    in_view = pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm))
     centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
     radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
-    files[f"{stem}_defects_photo.png"] = png_bytes(pictures.photo_circled(photo, centres, radii), compression=1)
+    circled = pictures.photo_circled(photo, centres, radii)
+    files[f"{stem}_dense_print.png"] = dense_png
+    files[f"{stem}_defects_{name}.png"] = png_bytes(in_view, compression=1)
+    files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
+    shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
+    pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
     clock.append(time.perf_counter())  # pictures
     stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "figures and verdict", "pictures")
     entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
-    return entry, files, dr.state
+    return entry, files, dr.state, pages
 
 
 def dense_summary(dr, grid, design: Design, sc, surface) -> dict:
@@ -555,7 +564,7 @@ def usable_profile(path: Path):
         return str(exc)
 
 
-def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None]:
+def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None, dict]:
     photo, stem, view, tolerance_mm, max_defect_mm2 = job
     return _timed(
         Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, max_defect_mm2
@@ -564,9 +573,9 @@ def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None]:
 
 def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2):
     t0 = time.perf_counter()
-    entry, pics, state = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2)
+    entry, pics, state, pages = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2)
     entry["seconds"] = round(time.perf_counter() - t0, 3)
-    return entry, pics, state
+    return entry, pics, state, pages
 
 
 def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> tuple[dict, np.ndarray, list]:
@@ -670,11 +679,13 @@ def run(args) -> int:
         results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
         results = (_timed(Path(p), design, profile, v, t, cache, stem, m) for p, stem, v, t, m in work)
-    for photo, (entry, pics, state) in zip(photos, results, strict=True):
+    pages: dict = {}
+    for photo, (entry, pics, state, shown) in zip(photos, results, strict=True):
         entry["photo"] = recorded_path(photo, out)  # relative to the report's folder, beside its sha256
         entries.append(entry)
         states.append(state)
         files.update({out / k: v for k, v in pics.items()})
+        pages.update(shown)
         mm = entry.get("misregistration_mm", {}) or {}
         log(
             f"{Path(photo).name}: {entry['verdict']}"
@@ -708,10 +719,8 @@ def run(args) -> int:
         "part": part,
         "photos": entries,
     }
-    from workbench.validate.report import qa_report
-
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
-    files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"})
+    files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"}, pages)
     write_folder(out, files)
     log(
         f"{len(entries)} photo(s), part: {part['verdict']}; wrote {out / 'validation.json'} and {out / 'qa_report.pdf'}"

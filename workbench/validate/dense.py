@@ -29,7 +29,7 @@ import numba
 import numpy as np
 
 from workbench.camera import Camera
-from workbench.raster import depth_buffer, rasterize_triangles
+from workbench.raster import depth_buffer, interpolate, rasterize_triangles
 from workbench.render.defects import FILM_RGB
 from workbench.views.visibility import _unoccluded_many
 
@@ -126,11 +126,8 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
     # grid pixel centre (j, i) is at ((j + 0.5) / ppm, (i + 0.5) / ppm) mm
     P = np.stack([flat_uv_mm[:, 0] * ppm - 0.5, (rect_height_mm - flat_uv_mm[:, 1]) * ppm - 0.5], axis=1)
     face, bary = rasterize_triangles(P, F, gc, gr)
-    X = np.full((gr, gc, 3), np.nan)
+    X = interpolate(face, bary, F, V)
     on = face >= 0
-    f = face[on]
-    b = bary[on]
-    X[on] = b[:, :1] * V[F[f, 0]] + b[:, 1:2] * V[F[f, 1]] + b[:, 2:] * V[F[f, 2]]
     # stretch: |∂X/∂x| and |∂X/∂y| per grid pixel, in mm per mm
     with np.errstate(invalid="ignore"):
         dx = np.linalg.norm(np.gradient(X, axis=1), axis=2) * ppm

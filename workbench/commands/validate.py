@@ -19,8 +19,7 @@ from PIL import Image
 from workbench import __version__
 from workbench.atomic import check_output_dir, check_outputs, safe_name, write_folder
 from workbench.camera import Camera, load_camera_profile
-from workbench.design import read_image
-from workbench.design_dir import Design
+from workbench.design_dir import Design, read_image
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_bytes
 from workbench.jsonfile import recorded_path

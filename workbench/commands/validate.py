@@ -508,8 +508,8 @@ def validate_in_pool(jobs: int, work: list[tuple], design: Design, profile, prof
     maps), and ``cache`` then holds the grid; elsewhere they are spawned and load the design.
     """
     if not fork_is_safe():
-        init = (_init_worker, (str(design.dir), str(profile_path)))
-        with ProcessPoolExecutor(jobs, mp_context=get_context("spawn"), initializer=init[0], initargs=init[1]) as pool:
+        context, initargs = get_context("spawn"), (str(design.dir), str(profile_path))
+        with ProcessPoolExecutor(jobs, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
             return list(pool.map(_validate_in_worker, work))
     p = design.info["print"]
     cache["grid"] = dense.print_grid(

@@ -9,6 +9,8 @@ area (within 25 %), make the photo FAIL, and nothing else may be reported.
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -165,16 +167,28 @@ def test_the_dense_field_agrees_with_the_tiles_on_a_moved_film(design, tmp_path)
 def test_parallel_photos_give_the_same_report(design, four_defects, tmp_path):
     p, serial = four_defects
     perfect = render(design, tmp_path / "perfect.png", "2000x1500")
+    # here numba's OpenMP threads already run, so this pool's workers are spawned; a command of
+    # its own forks them (below): both must give what one process gives
     both = validate(design, [p, perfect], tmp_path / "pool", "--jobs", "2")
     one = validate(design, [perfect], tmp_path / "one", "--jobs", "1")
+    args = [str(design.dir), str(p), str(perfect), "--camera", str(p.with_suffix(".json")), *TOL, "-q"]
+    cmd = [sys.executable, "-m", "workbench", "validate", *args, "--jobs", "2", "--out", str(tmp_path / "fork")]
+    subprocess.run(cmd, check=True, timeout=600)
+    forked = json.loads((tmp_path / "fork" / "validation.json").read_text())
 
     def strip(e):
         # the photo's path is recorded relative to each report's own folder; its sha256 stays
         return {k: v for k, v in e.items() if k not in ("seconds", "timings_s", "photo")}
 
-    assert strip(both["photos"][0]) == strip(serial["photos"][0])
-    assert strip(both["photos"][1]) == strip(one["photos"][0])
-    assert both["part"]["verdict"] == "FAIL" and both["part"]["photos_scored"] == 2
+    for report in (both, forked):
+        assert strip(report["photos"][0]) == strip(serial["photos"][0])
+        assert strip(report["photos"][1]) == strip(one["photos"][0])
+        assert report["part"]["verdict"] == "FAIL" and report["part"]["photos_scored"] == 2
+    assert forked["part"] == both["part"]
+    for picture in sorted((tmp_path / "one").glob("perfect_*.png")):
+        for folder in ("pool", "fork"):
+            assert (tmp_path / folder / picture.name).read_bytes() == picture.read_bytes(), (folder, picture.name)
+    assert (tmp_path / "fork" / "qa_report.pdf").read_bytes() == (tmp_path / "pool" / "qa_report.pdf").read_bytes()
 
 
 @pytest.mark.slow

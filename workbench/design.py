@@ -6,9 +6,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
-import cv2
 import numpy as np
 
 from workbench.camera import Camera
@@ -22,6 +20,7 @@ from workbench.conformal.flatten import (
     flatten_auto_corners,
 )
 from workbench.conformal.layout import signed_areas
+from workbench.design_dir import read_image as read_image  # lives with the design folder's reading
 from workbench.errors import WorkbenchError
 from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, seams, split_films, submesh
 from workbench.job import Job, Material
@@ -314,20 +313,6 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
         films=films,
         seams=seam,
     )
-
-
-def read_image(path, what: str) -> np.ndarray:
-    """An image file as RGB uint8, or a WorkbenchError naming it."""
-    if Path(path).is_dir():
-        raise WorkbenchError(f"{what}: {path} is a directory, not an image")
-    try:
-        data = np.fromfile(str(path), dtype=np.uint8)
-    except OSError:
-        data = np.zeros(0, np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    if img is None:
-        raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
 def physical_memory() -> int:

@@ -128,3 +128,17 @@ class Design:
         if intrinsics is not None:
             cam = Camera(intrinsics.K, cam.R, cam.t, intrinsics.width, intrinsics.height, intrinsics.dist)
         return cam
+
+
+def read_image(path, what: str) -> np.ndarray:
+    """An image file as RGB uint8, or a WorkbenchError naming it."""
+    if Path(path).is_dir():
+        raise WorkbenchError(f"{what}: {path} is a directory, not an image")
+    try:
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except OSError:
+        data = np.zeros(0, np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    if img is None:
+        raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)

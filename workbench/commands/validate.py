@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import sys
@@ -13,12 +14,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from workbench import __version__
 from workbench.atomic import check_output_dir, check_outputs, safe_name, write_folder
 from workbench.camera import Camera, load_camera_profile
-from workbench.design import read_image
-from workbench.design_dir import Design
+from workbench.design_dir import Design, read_image
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_bytes
 from workbench.jsonfile import recorded_path
@@ -26,6 +27,7 @@ from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
 from workbench.validate.pose import PoseError, estimate_pose
+from workbench.validate.report import page_names, page_picture, qa_report
 from workbench.validate.score import TILE, _bilinear, score, view_surface, warp_photo
 
 MAX_RMS_PX = 1.0
@@ -191,7 +193,7 @@ def validate_photo(
     cache,
     stem: str | None = None,
     max_defect_mm2: float = MAX_DEFECT_MM2,
-) -> tuple[dict, dict, np.ndarray | None]:
+) -> tuple[dict, dict, np.ndarray | None, dict]:
     """Score one photo; never raises for a bad photo (its verdict says why).
 
     ``profile`` is the camera profile, or the reason it cannot be used (every photo is then INVALID).
@@ -205,6 +207,10 @@ def validate_photo(
     state : (rows, cols) uint8 or None
         The photo's state per print grid pixel (:mod:`workbench.validate.dense`), None
         when the photo was not scored.
+    pages : dict
+        Picture file name to the JPEG bytes its page of the QA report shows
+        (:func:`workbench.validate.report.page_picture`): made here, where the pictures are,
+        rather than by the report, which waits for every photo.
     """
     entry: dict = {"photo": str(path), "verdict": "INVALID", "reason": None}  # made relative by run()
     files: dict = {}
@@ -215,23 +221,23 @@ def validate_photo(
         photo = read_image(path, "photo")
     except (OSError, WorkbenchError) as exc:
         entry["reason"] = f"unreadable image: {exc}"
-        return entry, files, None
+        return entry, files, None, {}
     if isinstance(profile, str):
         entry["reason"] = f"unusable camera profile: {profile}"
-        return entry, files, None
+        return entry, files, None, {}
     if photo.shape[1] != profile.width or photo.shape[0] != profile.height:
         entry["reason"] = (
             f"photo is {photo.shape[1]} x {photo.shape[0]} px, the camera profile is for "
             f"{profile.width} x {profile.height}"
         )
-        return entry, files, None
+        return entry, files, None, {}
     clock = [time.perf_counter()]  # stage timings, for the benchmark
     gray = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY)
     try:
         pose = estimate_pose(gray, design.fixture, profile.K, profile.dist)
     except PoseError as exc:
         entry["reason"] = str(exc)
-        return entry, files, None
+        return entry, files, None, {}
     entry["pose"] = {
         "R": pose.camera.R.tolist(),
         "t": pose.camera.t.tolist(),
@@ -243,7 +249,7 @@ def validate_photo(
         entry["reason"] = (
             f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"
         )
-        return entry, files, None
+        return entry, files, None, {}
     # one z-buffer of the part in the photo: for this check and for both warps
     face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
     hidden = markers_under_the_part(pose, design, face_buffer)
@@ -252,7 +258,7 @@ def validate_photo(
             f"the object is not where the fixture says: marker {hidden[0]} is visible where the part "
             f"should hide it ({len(hidden)} such markers)"
         )
-        return entry, files, None
+        return entry, files, None, {}
     views = design.info["views"]
     if view_name is None:
         dists = [np.linalg.norm(np.asarray(_centre(v)) - pose.camera.center) for v in views]
@@ -357,7 +363,7 @@ def validate_photo(
     files[f"{stem}_defects_print.png"] = png_bytes(
         pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm), compression=1
     )
-    files[f"{stem}_dense_print.png"] = pictures.dense_heatmap(
+    dense_png = pictures.dense_heatmap(
         grid.reference,
         dr.shift_mm,
         dr.labels,
@@ -365,17 +371,19 @@ def validate_photo(
         2 * tolerance_mm,
         f"{path.name} on the print: dense misregistration (the tolerance is mid-scale), defects outlined",
     )
-    files[f"{stem}_defects_{name}.png"] = png_bytes(
-        pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm)),
-        compression=1,
-    )
+    in_view = pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm))
     centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
     radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
-    files[f"{stem}_defects_photo.png"] = png_bytes(pictures.photo_circled(photo, centres, radii), compression=1)
+    circled = pictures.photo_circled(photo, centres, radii)
+    files[f"{stem}_dense_print.png"] = dense_png
+    files[f"{stem}_defects_{name}.png"] = png_bytes(in_view, compression=1)
+    files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
+    shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
+    pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
     clock.append(time.perf_counter())  # pictures
     stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "figures and verdict", "pictures")
     entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
-    return entry, files, dr.state
+    return entry, files, dr.state, pages
 
 
 def dense_summary(dr, grid, design: Design, sc, surface) -> dict:
@@ -470,14 +478,88 @@ def _centre(view: dict) -> list:
 _WORKER: dict = {}
 
 
-def _init_worker(design_dir: str, camera: str) -> None:
+def _one_thread() -> None:
     # one process per core, each on one thread: with their own thread pools too, two photos
     # at once oversubscribe the cores (measured here: every stage two to three times slower)
     import numba
 
     cv2.setNumThreads(1)
     numba.set_num_threads(1)
+
+
+def _init_worker(design_dir: str, camera: str) -> None:
+    """A spawned worker: loads the design and the camera profile itself."""
+    _one_thread()
     _WORKER.update(design=Design(Path(design_dir)), profile=usable_profile(Path(camera)), cache={})
+
+
+def _adopt(design: Design, profile, cache: dict) -> None:
+    """A forked worker: keeps the parent's design, profile and print grid (shared, copy on write).
+
+    OpenCV is on one thread already (see :func:`validate_in_pool`): reconfiguring its pool here
+    would wait forever for the parent's pool threads, which a fork does not copy.
+    """
+    import numba
+
+    numba.set_num_threads(1)
+    _WORKER.update(design=design, profile=profile, cache=cache)
+
+
+def validate_in_pool(jobs: int, work: list[tuple], design: Design, profile, profile_path: Path, cache: dict) -> list:
+    """Photos scored by ``jobs`` worker processes, each on one thread; results in the photos' order.
+
+    Processes, not threads: most of the work holds the GIL between numpy calls. The results
+    come back in the order of ``work``, so the outputs do not depend on the scheduling.
+    Where :func:`fork_is_safe`, the workers are forked once this process has what every photo
+    needs (the print grid, which the part's summary needs here too, and matplotlib for the heat
+    maps), and ``cache`` then holds the grid; elsewhere they are spawned and load the design.
+    """
+    if not fork_is_safe():
+        context, initargs = get_context("spawn"), (str(design.dir), str(profile_path))
+        with ProcessPoolExecutor(jobs, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
+            return list(pool.map(_validate_in_worker, work))
+    p = design.info["print"]
+    cache["grid"] = dense.print_grid(
+        design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
+    )
+    from workbench.figures import _figure
+
+    _figure()
+    # OpenCV's thread pool stopped before the fork (the workers inherit one thread): a forked
+    # worker that reconfigured it hung, waiting on a condition variable of pool threads that
+    # exist only here
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with ProcessPoolExecutor(
+            jobs, mp_context=get_context("fork"), initializer=_adopt, initargs=(design, profile, cache)
+        ) as pool:
+            return list(pool.map(_validate_in_worker, work))
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def fork_is_safe() -> bool:
+    """Whether worker processes may be forked from this one (else they are spawned).
+
+    Forking saves each worker its start-up (Python, NumPy, OpenCV, numba, matplotlib, the
+    design and the print grid: about 4 CPU s each) but needs every thread pool the parent
+    has started to survive a fork. OpenCV's does once stopped (:func:`validate_in_pool`);
+    numba's OpenMP layer (GNU libgomp) does not: forked workers hung in their first parallel
+    loop. So fork only on Linux (macOS frameworks are not fork-safe either), and only where
+    numba has not started a layer yet (it is then told to pick a fork-safe one: TBB, or its
+    own work queue) or started a fork-safe one.
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    import numba
+
+    try:
+        layer = numba.threading_layer()
+    except ValueError:  # no parallel loop has run in this process yet
+        numba.config.THREADING_LAYER = "forksafe"
+        return True
+    return layer in ("tbb", "workqueue")
 
 
 def usable_profile(path: Path):
@@ -488,7 +570,7 @@ def usable_profile(path: Path):
         return str(exc)
 
 
-def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None]:
+def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None, dict]:
     photo, stem, view, tolerance_mm, max_defect_mm2 = job
     return _timed(
         Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, max_defect_mm2
@@ -497,9 +579,9 @@ def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None]:
 
 def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2):
     t0 = time.perf_counter()
-    entry, pics, state = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2)
+    entry, pics, state, pages = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2)
     entry["seconds"] = round(time.perf_counter() - t0, 3)
-    return entry, pics, state
+    return entry, pics, state, pages
 
 
 def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> tuple[dict, np.ndarray, list]:
@@ -600,23 +682,16 @@ def run(args) -> int:
     stems = output_stems(photos)
     work = [(p, stem, args.view, args.tolerance_mm, args.max_defect_mm2) for p, stem in zip(photos, stems, strict=True)]
     if jobs > 1:
-        # processes, not threads: most of the work holds the GIL between numpy calls; results
-        # come back in the photos' order, so the outputs do not depend on the scheduling.
-        # Spawned, not forked: forked workers hung here in their first OpenCV/numba call.
-        with ProcessPoolExecutor(
-            jobs,
-            mp_context=get_context("spawn"),
-            initializer=_init_worker,
-            initargs=(str(design.dir), str(profile_path)),
-        ) as pool:
-            results = list(pool.map(_validate_in_worker, work))
+        results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
         results = (_timed(Path(p), design, profile, v, t, cache, stem, m) for p, stem, v, t, m in work)
-    for photo, (entry, pics, state) in zip(photos, results, strict=True):
+    pages: dict = {}
+    for photo, (entry, pics, state, shown) in zip(photos, results, strict=True):
         entry["photo"] = recorded_path(photo, out)  # relative to the report's folder, beside its sha256
         entries.append(entry)
         states.append(state)
         files.update({out / k: v for k, v in pics.items()})
+        pages.update(shown)
         mm = entry.get("misregistration_mm", {}) or {}
         log(
             f"{Path(photo).name}: {entry['verdict']}"
@@ -650,10 +725,8 @@ def run(args) -> int:
         "part": part,
         "photos": entries,
     }
-    from workbench.validate.report import qa_report
-
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
-    files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"})
+    files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"}, pages)
     write_folder(out, files)
     log(
         f"{len(entries)} photo(s), part: {part['verdict']}; wrote {out / 'validation.json'} and {out / 'qa_report.pdf'}"

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 
 def half_edges(F: np.ndarray) -> np.ndarray:
@@ -128,6 +126,11 @@ def face_components(F: np.ndarray, FE: np.ndarray | None = None) -> np.ndarray:
     labels : (#F,) int
         Component label of each face, numbered by first appearance.
     """
+    # SciPy here, not at the top: commands that only read meshes and images (validate) start
+    # a tenth of a second sooner without it
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
     if FE is None:
         _, FE, _ = unique_edges(F)
     nF = len(F)

@@ -10,15 +10,37 @@ REPORT_IMAGE_PX = 1200  # widest picture embedded in the report
 VERDICT_COLOURS = {"PASS": (0.1, 0.55, 0.2), "FAIL": (0.8, 0.1, 0.1), "INVALID": (0.55, 0.45, 0.1)}
 
 
-def _jpeg(img):
-    """A picture as a JPEG for the PDF: ReportLab embeds JPEG data as it is, where it encodes every
-    pixel of any other image in Python (a second per full-size picture)."""
-    from reportlab.lib.utils import ImageReader
+def page_names(stem: str, view: str) -> list[str]:
+    """The pictures on a photo's page, by file name, top to bottom."""
+    return [f"{stem}_dense_print.png", f"{stem}_defects_photo.png", f"{stem}_defects_{view}.png"]
 
+
+def page_picture(img) -> bytes:
+    """A picture as a photo's page embeds it: JPEG, at most :data:`REPORT_IMAGE_PX` wide.
+
+    A third of an A4 page needs no more, and ReportLab embeds JPEG data as it is, where it
+    encodes every pixel of any other image in Python (a second per full-size picture).
+    Made where the picture is made (one worker per photo), not by the report.
+
+    Parameters
+    ----------
+    img : PIL.Image.Image
+        The picture (RGB or RGBA; the alpha channel is dropped).
+
+    Returns
+    -------
+    bytes
+        JPEG, quality 90.
+    """
+    from PIL import Image
+
+    if img.width > REPORT_IMAGE_PX:
+        img = img.convert("RGB").resize(
+            (REPORT_IMAGE_PX, max(1, round(img.height * REPORT_IMAGE_PX / img.width))), Image.LANCZOS
+        )
     buf = io.BytesIO()
     img.convert("RGB").save(buf, format="JPEG", quality=90, optimize=False)
-    buf.seek(0)
-    return ImageReader(buf)
+    return buf.getvalue()
 
 
 def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
@@ -198,7 +220,7 @@ def seam_page(c, report: dict, W: float, H: float) -> None:
     c.showPage()
 
 
-def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
+def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] | None = None) -> bytes:
     """PDF: a first page (is the part good, where is it wrong), a summary page (verdicts, figures,
     identifiers and hashes), with several films a page per film (its placement per photo)
     and one of the seams (misregistration across each), then one page per scored photo.
@@ -209,6 +231,9 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
         The content of validation.json.
     pictures : dict of name to PNG bytes
         The warped photos, overlays and heat maps, by file name.
+    pages : dict of name to JPEG bytes, optional
+        The photos' pages' pictures made already (:func:`page_picture`), by the name of the
+        picture they show; the others are made here from ``pictures``.
 
     Returns
     -------
@@ -218,8 +243,10 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
     from PIL import Image
     from reportlab.lib.pagesizes import A4
     from reportlab.lib.units import mm
+    from reportlab.lib.utils import ImageReader
     from reportlab.pdfgen import canvas as rl_canvas
 
+    pages = pages or {}
     buf = io.BytesIO()
     c = rl_canvas.Canvas(buf, pagesize=A4, invariant=1, pageCompression=1)
     W, H = A4
@@ -283,7 +310,7 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
         if e["verdict"] == "INVALID":
             continue
         stem = e.get("pictures") or e["photo"].rsplit("/", 1)[-1].rsplit(".", 1)[0]
-        names = [f"{stem}_dense_print.png", f"{stem}_defects_photo.png", f"{stem}_defects_{e['view']}.png"]
+        names = page_names(stem, e["view"])
         c.setFont("Helvetica-Bold", 11)
         c.setFillColorRGB(*VERDICT_COLOURS[e["verdict"]])
         c.drawString(20 * mm, H - 20 * mm, f"{stem}: {e['verdict']} in view {e['view']}")
@@ -312,20 +339,19 @@ def qa_report(report: dict, pictures: dict[str, bytes]) -> bytes:
             top -= 3.8 * mm
         top -= 2 * mm
         for name in names:
-            if name not in pictures:
+            if name in pages:
+                jpeg = pages[name]
+            elif name in pictures:
+                jpeg = page_picture(Image.open(io.BytesIO(pictures[name])))
+            else:
                 continue
-            img = Image.open(io.BytesIO(pictures[name]))
-            # a third of an A4 page needs no more: ReportLab encodes every pixel in Python, and
-            # full-size pictures made the report the longest serial step of a batch
-            if img.width > REPORT_IMAGE_PX:
-                img = img.convert("RGB").resize(
-                    (REPORT_IMAGE_PX, max(1, round(img.height * REPORT_IMAGE_PX / img.width))), Image.LANCZOS
-                )
+            img = ImageReader(io.BytesIO(jpeg))
+            iw, ih = img.getSize()
             w = W - 40 * mm
-            h = w * img.height / img.width
+            h = w * ih / iw
             h = min(h, (H - 60 * mm) / 3)
-            w = h * img.width / img.height
-            c.drawImage(_jpeg(img), 20 * mm, top - h, width=w, height=h)
+            w = h * iw / ih
+            c.drawImage(img, 20 * mm, top - h, width=w, height=h)
             top -= h + 6 * mm
         c.showPage()
     c.save()

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from workbench.camera import Camera
 from workbench.raster import _JIT, depth_buffer
@@ -18,6 +17,9 @@ from workbench.raster import _JIT, depth_buffer
 # up to a footprint times the slope away from them.
 DEPTH_TOLERANCE_REL = 0.005
 DEPTH_TOLERANCE_PX = 2.0
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 
 @numba.njit(inline="always", **_JIT)
@@ -123,6 +125,10 @@ def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera) -> ViewVisibil
 
 def face_adjacency(FE: np.ndarray) -> sp.csr_matrix:
     """Faces sharing an edge; (#F, #F) sparse bool, from ``FE`` (#F, 3) of unique_edges."""
+    # SciPy here, not at the top: validate needs this module's visibility kernel only, and
+    # importing scipy.sparse took a quarter of its start-up
+    import scipy.sparse as sp
+
     nF = len(FE)
     inc = sp.csr_matrix((np.ones(3 * nF), (np.repeat(np.arange(nF), 3), FE.ravel())))
     A = (inc @ inc.T).tocsr()
@@ -158,6 +164,8 @@ def assign_views(
         0: the view does not claim the face; 1: it claims the whole face; 2: it
         claims the face where it sees it (per-pixel test).
     """
+    from scipy.sparse.csgraph import connected_components
+
     nF = len(face_area)
     status = np.zeros((nF, len(visibilities)), dtype=np.int8)
     taken = np.zeros(nF, dtype=bool)

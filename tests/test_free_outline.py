@@ -341,3 +341,34 @@ def test_polygon_self_intersections_finds_every_crossing():
     assert np.abs(eight[pairs.ravel()]).max() < 0.01
     bow = np.array([[0, 0], [1, 1], [1, 0], [0, 1]], float)
     assert polygon_self_intersections(bow).tolist() == [[0, 2]]
+
+
+def test_renders_see_the_films_bleed_not_the_transparent_pixels(tmp_path):
+    # a texture lookup at a film's cut samples pixels on both sides of it: the film as
+    # printed carries a bleed there (see workbench pdf), so the render's texture repeats
+    # the nearest film pixel out to 2 mm; the design's own print (validate's reference) is
+    # left as it is
+    import cv2
+
+    from workbench.design_dir import Design
+    from workbench.render.imperfections import Imperfections
+
+    job = tmp_path / "job.toml"
+    for name in ("part.obj", "logo.png", "front.png"):
+        (tmp_path / name).write_bytes((FIXTURES / "default" / name).read_bytes())
+    text = (FIXTURES / "default" / "job.toml").read_text().replace('scale = "isometric"', 'outline = "free"')
+    job.write_text(text.replace("dpi = 300", "dpi = 100"))
+    assert main(["design", str(job), "--out", str(tmp_path / "d"), "-q"]) == 0
+    design = Design(tmp_path / "d")
+    film = design.alpha > 0
+    texture = design.scene(Imperfections(), fixture=False).textures[0]
+    np.testing.assert_array_equal(texture[film], design.rgb[film])
+    dist, labels = cv2.distanceTransformWithLabels(
+        (~film).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE, labelType=cv2.DIST_LABEL_PIXEL
+    )
+    ring = ~film & (dist <= 2.0 * 100 / 25.4)
+    nearest = np.flatnonzero(film.ravel())[labels[ring] - 1]
+    assert ring.sum() > 100
+    np.testing.assert_array_equal(texture[ring], design.rgb.reshape(-1, 3)[nearest])
+    beyond = ~film & (dist > 2.0 * 100 / 25.4)
+    np.testing.assert_array_equal(texture[beyond], design.rgb[beyond])

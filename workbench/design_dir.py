@@ -52,10 +52,12 @@ class Design:
             if not np.isfinite(arr).all():
                 raise WorkbenchError(f"{directory / name}: vertices have NaN or infinite coordinates")
         self.flat = flat[:, :2]
-        img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_COLOR)
-        if img is None:
-            raise WorkbenchError(f"{directory / 'print.png'}: cannot read")
-        self.rgb = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+        img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_UNCHANGED)
+        if img is None or img.ndim != 3 or img.shape[2] not in (3, 4):
+            raise WorkbenchError(f"{directory / 'print.png'}: cannot read (an RGB or RGBA image expected)")
+        # a free outline's print is RGBA: transparent beyond the film
+        self.alpha = img[..., 3] if img.shape[2] == 4 else None
+        self.rgb = cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2RGB)
         p = self.info["print"]
         if self.rgb.shape[:2] != (p["height_px"], p["width_px"]):
             raise WorkbenchError(
@@ -87,12 +89,21 @@ class Design:
         from workbench.render.photo import build_scene  # numba kernels: loaded by the commands that render
 
         p = self.info["print"]
+        rgb = self.rgb
+        if self.alpha is not None and (self.alpha > 0).any():
+            # the film as printed carries a bleed beyond its outline (see workbench pdf): a
+            # texture lookup at the cut then shows the film's own colours, not the transparent
+            # pixels' (which drew a hairline along every seam); 2 mm stays within half the gap
+            # between films in the atlas
+            from workbench.texture.outline import bleed_beyond_outline
+
+            rgb, _ = bleed_beyond_outline(self.rgb, self.alpha > 0, 2.0 * p["dpi"] / 25.4)
         return build_scene(
             self.V,
             self.F,
             self.flat,
             p["height_mm"],
-            self.rgb,
+            rgb,
             p["dpi"],
             imp,
             self.fixture if fixture else None,

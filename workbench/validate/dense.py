@@ -47,6 +47,8 @@ SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
 MIN_DEFECT_MM2 = 1.0  # smaller regions are noise, not defects
 SHIFT_CLOSE_MM = 1.0  # gaps between textured parts of a shifted region that are closed when sizing it
 EDGE_PX = 6  # band along the edge of what a photo sees (the film's rim included) that is not scored
+DEPTH_STEP = 0.05  # relative depth jump between neighbouring photo pixels that is an outline or a fold
+DEPTH_STEP_BAND_PX = 3.0  # photo pixels not scored on each side of such a step, plus twice the pre-blur
 MAX_GRAZING = 3.0  # a photo pixel covering more print pixels than this (along its long axis) is too oblique
 
 # states of a print pixel in one photo, in increasing order of what it says (the combined map keeps the highest)
@@ -85,6 +87,8 @@ class PrintGrid:
         Surface mm per print mm (the film's local stretch, geometric mean of both axes).
     reference : (rows, cols, 3) uint8
         The print on this grid.
+    normal : (rows, cols, 3) float32
+        Outward unit normal of the surface's triangle under each pixel (NaN: off the part).
     """
 
     X: np.ndarray
@@ -93,6 +97,7 @@ class PrintGrid:
     factor: int
     surface_per_print: np.ndarray
     reference: np.ndarray
+    normal: np.ndarray
 
 
 def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> PrintGrid:
@@ -141,7 +146,11 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
     if owner is not None:
         own = owner[factor // 2 :: factor, factor // 2 :: factor][:gr, :gc].astype(np.int16)
     own[~on] = -1
-    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref))
+    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    unit = (cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)).astype(np.float32)
+    normal = np.full((gr, gc, 3), np.nan, np.float32)
+    normal[on] = unit[face[on]]
+    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref), normal)
 
 
 def warp_to_print(
@@ -182,6 +191,10 @@ def warp_to_print(
     _unoccluded_many(
         pdepth, ideal.width, ideal.height, ideal.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), seen
     )
+    # a point whose triangle turns its back to the camera is hidden by the part itself, even
+    # where the depth test's tolerance lets it through (just behind a fold, the surface
+    # seen in front of it is within that tolerance)
+    facing = ((ideal.center - pts) * grid.normal[on]).sum(axis=1) > 0
     in_front = z > 0
     inside_ideal = (
         in_front & (xy[:, 0] >= 0) & (xy[:, 1] >= 0) & (xy[:, 0] <= cam.width - 1) & (xy[:, 1] <= cam.height - 1)
@@ -209,14 +222,49 @@ def warp_to_print(
     warped = cv2.remap(src, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     state = np.full((rows, cols), OFF_PART, dtype=np.uint8)
     st = np.full(len(pts), NOT_SEEN, dtype=np.uint8)
-    st[inside & inside_ideal & ~seen] = OCCLUDED
-    st[inside & seen] = FULL
+    st[inside & inside_ideal & ~(seen & facing)] = OCCLUDED
+    st[inside & seen & facing] = FULL
+    # where the photo's pixels mix two surfaces (the part's outline against the background,
+    # a fold in front of what lies behind it), the blur spreads the nearer surface's colour
+    # over the other: a band there, measured in the photo, is not scored
+    pre_blur = 0.5 * np.sqrt(scale * scale - 1.0) if scale > 1.5 else 0.0
+    steps = depth_steps(pdepth, DEPTH_STEP_BAND_PX + 2.0 * pre_blur)
+    at = inside_ideal & (st == FULL)
+    ix = np.clip(np.rint(xy[at, 0]).astype(np.int64), 0, ideal.width - 1)
+    iy = np.clip(np.rint(xy[at, 1]).astype(np.int64), 0, ideal.height - 1)
+    st[np.flatnonzero(at)[steps[iy, ix]]] = EDGE
     state[on] = st
     with np.errstate(divide="ignore", invalid="ignore"):
         # a grid pixel whose photo footprint is much thinner along one axis than the other
         oblique = np.maximum(along_x, along_y) / np.minimum(along_x, along_y) > MAX_GRAZING
     state[(state == FULL) & oblique] = GRAZING
     return warped, state, scale
+
+
+def depth_steps(depth: np.ndarray, radius_px: float) -> np.ndarray:
+    """Photo pixels near a step in depth: the part's outline, or one surface in front of another.
+
+    Parameters
+    ----------
+    depth : (h, w) float
+        Depth buffer of the part in the undistorted photo camera, mm (+inf where no part).
+    radius_px : float
+        Width of the band on each side of a step, photo pixels.
+
+    Returns
+    -------
+    (h, w) bool
+        True within ``radius_px`` of a step.
+    """
+    d = np.where(np.isfinite(depth), depth, 1e30).astype(np.float32)
+    k = np.ones((3, 3), np.uint8)
+    near, far = cv2.erode(d, k), cv2.dilate(d, k)
+    # a smooth surface changes depth by a fraction of a percent per pixel up to grazing
+    # angles that are not scored anyway; the background, or a surface behind a fold,
+    # by far more
+    step = (far - near > DEPTH_STEP * near).astype(np.uint8)
+    r = max(int(np.ceil(radius_px)), 1)
+    return cv2.dilate(step, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
 
 
 def project_through_lens(cam: Camera, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

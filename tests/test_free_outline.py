@@ -266,18 +266,24 @@ def test_bleed_follows_a_free_outline_and_the_cut_line_has_its_own_layer():
     assert "/OCProperties" not in pypdf.PdfReader(io.BytesIO(bare)).trailer["/Root"]
 
 
+def default_design_with_free_outline(tmp_path, dpi: int):
+    """The default job with outline = "free" at ``dpi``, designed into tmp_path/d."""
+    job = tmp_path / "job.toml"
+    for name in ("part.obj", "logo.png", "front.png"):
+        (tmp_path / name).write_bytes((FIXTURES / "default" / name).read_bytes())
+    text = (FIXTURES / "default" / "job.toml").read_text().replace('scale = "isometric"', 'outline = "free"')
+    job.write_text(text.replace("dpi = 300", f"dpi = {dpi}"))
+    d = tmp_path / "d"
+    assert main(["design", str(job), "--out", str(d), "-q"]) == 0
+    return d
+
+
 def test_render_and_validate_work_unchanged_on_a_free_outline(tmp_path):
     # the default job on a free outline (RGBA print.png): a perfect photo passes at
     # p95 below 0.05 mm, a film moved 0.8 mm in x is measured to 0.03 mm and fails
     import json
 
-    job = tmp_path / "job.toml"
-    for name in ("part.obj", "logo.png", "front.png"):
-        (tmp_path / name).write_bytes((FIXTURES / "default" / name).read_bytes())
-    text = (FIXTURES / "default" / "job.toml").read_text().replace('scale = "isometric"', 'outline = "free"')
-    job.write_text(text.replace("dpi = 300", "dpi = 200"))
-    d = tmp_path / "d"
-    assert main(["design", str(job), "--out", str(d), "-q"]) == 0
+    d = default_design_with_free_outline(tmp_path, 200)
     photos = []
     for k, offset in enumerate(([], ["--film-offset-mm", "0.8,0"])):
         photos.append(tmp_path / f"p{k}.jpg")
@@ -353,13 +359,7 @@ def test_renders_see_the_films_bleed_not_the_transparent_pixels(tmp_path):
     from workbench.design_dir import Design
     from workbench.render.imperfections import Imperfections
 
-    job = tmp_path / "job.toml"
-    for name in ("part.obj", "logo.png", "front.png"):
-        (tmp_path / name).write_bytes((FIXTURES / "default" / name).read_bytes())
-    text = (FIXTURES / "default" / "job.toml").read_text().replace('scale = "isometric"', 'outline = "free"')
-    job.write_text(text.replace("dpi = 300", "dpi = 100"))
-    assert main(["design", str(job), "--out", str(tmp_path / "d"), "-q"]) == 0
-    design = Design(tmp_path / "d")
+    design = Design(default_design_with_free_outline(tmp_path, 100))
     film = design.alpha > 0
     texture = design.scene(Imperfections(), fixture=False).textures[0]
     np.testing.assert_array_equal(texture[film], design.rgb[film])

@@ -50,7 +50,8 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
             "view's textured tiles match); otherwise PASS. A defect is a connected region of "
             f"at least {dense.MIN_DEFECT_MM2:g} mm² where the dense misregistration exceeds {tolerance_mm:g} mm, "
             f"or where the colour differs from the design by more than {dense.COLOUR_TOL:g} grey levels after a "
-            "local gain and offset fit per channel and a blur matched to the photo. Highlights and deep shadows "
+            "local gain and offset fit per channel and a blur matched to the photo. Highlights, deep shadows, "
+            "surface turned away from the camera and the photo's pixels along the part's outline and its folds "
             "are masked, not scored."
         ),
         "tolerance_mm": tolerance_mm,

@@ -110,9 +110,10 @@ def batch(tmp: Path, design: Path, n: int) -> None:
         f"  one command per photo, one after the other: {singles:.2f} s "
         f"(the batch on every core: {parallel / singles:.2f} of it)"
     )
+    cores = os.cpu_count() or 1
     print(
-        f"  bound on two cores: the serial run's CPU / 2 = {(cpu1 - cpu0) / 2:.1f} s, "
-        f"{(cpu1 - cpu0) / 2 / serial:.2f} of its wall time"
+        f"  bound on {cores} cores: the serial run's CPU / {cores} = {(cpu1 - cpu0) / cores:.1f} s, "
+        f"{(cpu1 - cpu0) / cores / serial:.2f} of its wall time"
     )
     print(f"  ratio {ratio:.2f} (target <= {TARGET_RATIO}): {'PASS' if ratio <= TARGET_RATIO else 'FAIL'}")
     print(f"  same verdicts, defects and figures both ways: {same}")

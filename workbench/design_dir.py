@@ -53,7 +53,11 @@ class Design:
                 raise WorkbenchError(f"{directory / name}: vertices have NaN or infinite coordinates")
         self.flat = flat[:, :2]
         img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_UNCHANGED)
-        if img is None or img.ndim != 3 or img.shape[2] not in (3, 4):
+        if img is not None and img.dtype == np.uint16:  # as IMREAD_COLOR would: 8 bits
+            img = (img // 257).astype(np.uint8)
+        if img is not None and img.ndim == 2:
+            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+        if img is None or img.dtype != np.uint8 or img.shape[2] not in (3, 4):
             raise WorkbenchError(f"{directory / 'print.png'}: cannot read (an RGB or RGBA image expected)")
         # a free outline's print is RGBA: transparent beyond the film
         self.alpha = img[..., 3] if img.shape[2] == 4 else None

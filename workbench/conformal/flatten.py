@@ -765,6 +765,7 @@ def flatten_auto_corners(
         Not a clean disc, or no candidate prints every face.
     """
     say = log or (lambda _m: None)
+    options = dataclasses.replace(options, outline="rectangle")  # corners belong to a rectangle
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     loop, E, FE = check_disc(V, F, name)
@@ -787,7 +788,7 @@ def flatten_auto_corners(
     while i < len(candidates):
         c, prediction = candidates[i]
         i += 1
-        opts = dataclasses.replace(options, corners=tuple(int(x) for x in c), outline="rectangle")
+        opts = dataclasses.replace(options, corners=tuple(int(x) for x in c))
         row = {"corners": [int(x) for x in c], "outcome": "ok", "area_distortion": None, "reason": ""}
         if prediction is not None:
             row["predicted"] = prediction

@@ -13,7 +13,9 @@ surface point), so one grid serves every view and every photo of a part. There:
   is not also a colour error). Residuals beyond what noise and the fit explain are colour
   defects; where the photo shows the bare film's colour, ink is missing.
 - **Masks**: highlights (saturated, or a broad additive glare) and deep shadows are not
-  scored; they are reported as unmeasured with that reason.
+  scored; neither is surface that turns its back to the camera (occluded), nor what the photo
+  sees next to a step in depth (the part's outline, a fold: its pixels mix two surfaces),
+  nor a band along the edge of what is seen; each is reported as unmeasured with its reason.
 
 All functions here are numeric (arrays in, arrays out); the command does the I/O.
 Conventions: print pixel (i, j) of the analysis grid has its centre at
@@ -88,7 +90,8 @@ class PrintGrid:
     reference : (rows, cols, 3) uint8
         The print on this grid.
     normal : (rows, cols, 3) float32
-        Outward unit normal of the surface's triangle under each pixel (NaN: off the part).
+        Unit normal of the surface's triangle under each pixel, by its winding (towards the
+        decorated side; NaN: off the part).
     """
 
     X: np.ndarray
@@ -176,8 +179,10 @@ def warp_to_print(
         0 where the photo does not see the point.
     state : (rows, cols) uint8
         OFF_PART, NOT_SEEN (outside the photo or behind the camera), OCCLUDED (hidden
-        by another part of the mesh), GRAZING (seen too obliquely to measure) or FULL
-        (seen: to be scored).
+        by another part of the mesh, or on a triangle that turns its back to the camera),
+        EDGE (seen within a few photo pixels of a step in depth: the part's outline or a
+        fold, where the photo's pixels mix two surfaces), GRAZING (seen too obliquely to
+        measure) or FULL (seen: to be scored).
     scale : float
         Photo pixels per grid pixel (median over the part; below 1 the photo is coarser).
     """

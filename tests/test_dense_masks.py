@@ -56,3 +56,17 @@ def test_depth_steps_mark_outlines_and_folds_only():
     assert steps[10, 30] and steps[49, 30] and steps[30, 10]  # the outline
     assert steps[20, 30] and steps[25, 40]  # the fold's edge
     assert not steps[40, 55] and not steps[25, 30]  # the slope and the front surface's inside
+
+
+def test_the_view_warp_takes_no_point_from_the_back_of_the_part():
+    # the tiles' warp into a designed view (the photo's camera as the view) takes the whole
+    # square seen from its decorated side, and nothing of it turned over
+    from workbench.validate.score import view_surface, warp_photo
+
+    for flip, expected in ((False, True), (True, False)):
+        V, F, grid, cam, photo = quad_scene(flip)
+        owner = np.zeros((79, 79), np.int16)
+        surface = view_surface(cam, V, F, V[:, :2] + 50.0, 100.0, owner, 0, 20.0 / 25.4)
+        _, valid = warp_photo(photo, cam, surface, V, F)
+        on = np.isfinite(surface.X[..., 0])
+        assert on.sum() > 1000 and (valid[on] == expected).all()

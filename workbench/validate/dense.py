@@ -33,7 +33,7 @@ import numpy as np
 from workbench.camera import Camera
 from workbench.raster import depth_buffer, interpolate, rasterize_triangles
 from workbench.render.defects import FILM_RGB
-from workbench.views.visibility import _unoccluded_many
+from workbench.views.visibility import _unoccluded_many, faces_facing
 
 MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at most this many pixels
 REGISTRATION_BLUR_PX = 1.0  # both images smoothed alike before the flow (as the tiles are)
@@ -89,9 +89,8 @@ class PrintGrid:
         Surface mm per print mm (the film's local stretch, geometric mean of both axes).
     reference : (rows, cols, 3) uint8
         The print on this grid.
-    normal : (rows, cols, 3) float32
-        Unit normal of the surface's triangle under each pixel, by its winding (towards the
-        decorated side; NaN: off the part).
+    face : (rows, cols) int
+        Triangle under each pixel (-1: off the part).
     """
 
     X: np.ndarray
@@ -100,7 +99,7 @@ class PrintGrid:
     factor: int
     surface_per_print: np.ndarray
     reference: np.ndarray
-    normal: np.ndarray
+    face: np.ndarray
 
 
 def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> PrintGrid:
@@ -149,11 +148,7 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
     if owner is not None:
         own = owner[factor // 2 :: factor, factor // 2 :: factor][:gr, :gc].astype(np.int16)
     own[~on] = -1
-    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    unit = (cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)).astype(np.float32)
-    normal = np.full((gr, gc, 3), np.nan, np.float32)
-    normal[on] = unit[face[on]]
-    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref), normal)
+    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref), face)
 
 
 def warp_to_print(
@@ -199,7 +194,7 @@ def warp_to_print(
     # a point whose triangle turns its back to the camera is hidden by the part itself, even
     # where the depth test's tolerance lets it through (just behind a fold, the surface
     # seen in front of it is within that tolerance)
-    facing = ((ideal.center - pts) * grid.normal[on]).sum(axis=1) > 0
+    facing = faces_facing(V, F, ideal.center)[grid.face[on]]
     in_front = z > 0
     inside_ideal = (
         in_front & (xy[:, 0] >= 0) & (xy[:, 1] >= 0) & (xy[:, 0] <= cam.width - 1) & (xy[:, 1] <= cam.height - 1)

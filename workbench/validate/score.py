@@ -10,7 +10,7 @@ import numpy as np
 
 from workbench.camera import Camera
 from workbench.raster import depth_buffer
-from workbench.views.visibility import _unoccluded_many
+from workbench.views.visibility import _unoccluded_many, faces_facing
 
 TILE = 64
 MIN_TEXTURE = 50.0  # smallest structure-tensor eigenvalue of a usable tile (grey levels² per px²)
@@ -31,11 +31,14 @@ class ViewSurface:
         Its design print coordinates (x right, y down from the trim's top-left), mm.
     owned : (H, W) bool
         Pixels whose surface point the print gives to this view.
+    face : (H, W) int
+        Triangle seen at each pixel (-1: none).
     """
 
     X: np.ndarray
     print_mm: np.ndarray
     owned: np.ndarray
+    face: np.ndarray
 
 
 def view_surface(
@@ -89,7 +92,7 @@ def view_surface(
         pm,
         owned,
     )
-    return ViewSurface(X, pm, owned)
+    return ViewSurface(X, pm, owned, face)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -133,8 +136,8 @@ def warp_photo(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The photo seen from the designed view: each view pixel takes the photo's colour of its surface point.
 
-    Only surface points the photo's camera sees (in front, inside the photo, not hidden
-    behind another part of the mesh) are taken. ``depth``: the part's depth buffer in the
+    Only surface points the photo's camera sees (in front, inside the photo, on a triangle
+    that faces it, not hidden behind another part of the mesh) are taken. ``depth``: the part's depth buffer in the
     undistorted photo camera, when the caller has it already.
 
     Returns
@@ -170,7 +173,9 @@ def warp_photo(
     mapx[finite], mapy[finite] = proj[:, 0], proj[:, 1]
     warped = cv2.remap(photo, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     valid = np.zeros((H, W), dtype=bool)
-    valid[finite] = seen & inside
+    # just behind a fold, the surface that turns its back to the photo is within the depth
+    # test's tolerance of the surface in front of it
+    valid[finite] = seen & inside & faces_facing(V, F, ideal.center)[surface.face[finite]]
     return warped, valid
 
 

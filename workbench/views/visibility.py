@@ -91,6 +91,29 @@ def points_unoccluded(vis: ViewVisibility, X: np.ndarray) -> np.ndarray:
     return out
 
 
+def faces_facing(V: np.ndarray, F: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """Triangles whose decorated side faces a camera centre.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions, mm.
+    F : (#F, 3) int
+        Triangles, counter-clockwise seen from the decorated side.
+    center : (3,) float
+        Camera centre, mm.
+
+    Returns
+    -------
+    (#F,) bool
+        True where the camera lies on the decorated side of the triangle's plane (every
+        point of a triangle then faces it: the test is the same at any point of the plane).
+    """
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    normal = np.cross(b - a, c - a)
+    return np.einsum("ij,ij->i", normal, np.asarray(center) - (a + b + c) / 3.0) > 0
+
+
 def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera) -> ViewVisibility:
     """Depth buffer of a view and the faces it sees fully or in part.
 
@@ -112,8 +135,7 @@ def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera) -> ViewVisibil
     vis = ViewVisibility(camera, depth, face_buffer, np.zeros(len(F), bool), np.zeros(len(F), bool))
     a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
     centroid = (a + b + c) / 3.0
-    normal = np.cross(b - a, c - a)
-    front = np.einsum("ij,ij->i", normal, camera.center - centroid) > 0
+    front = faces_facing(V, F, camera.center)
     samples = np.stack([a, b, c, centroid], axis=1).reshape(-1, 3)
     seen = points_unoccluded(vis, samples).reshape(-1, 4)
     in_buffer = np.zeros(len(F), dtype=bool)

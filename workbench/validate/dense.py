@@ -186,26 +186,7 @@ def warp_to_print(
     pts = grid.X[on]
     ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
     pdepth = photo_buffers(cam, V, F)[1] if depth is None else depth
-    xy, z, proj = project_through_lens(cam, pts)
-    seen = np.zeros(len(pts), dtype=np.bool_)
-    _unoccluded_many(
-        pdepth, ideal.width, ideal.height, ideal.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), seen
-    )
-    # a point whose triangle turns its back to the camera is hidden by the part itself, even
-    # where the depth test's tolerance lets it through (just behind a fold, the surface
-    # seen in front of it is within that tolerance)
-    facing = faces_facing(V, F, ideal.center)[grid.face[on]]
-    in_front = z > 0
-    inside_ideal = (
-        in_front & (xy[:, 0] >= 0) & (xy[:, 1] >= 0) & (xy[:, 0] <= cam.width - 1) & (xy[:, 1] <= cam.height - 1)
-    )
-    inside = (
-        in_front
-        & (proj[:, 0] >= 0)
-        & (proj[:, 1] >= 0)
-        & (proj[:, 0] <= cam.width - 1)
-        & (proj[:, 1] <= cam.height - 1)
-    )
+    xy, proj, inside, inside_ideal, shown = surface_in_photo(cam, pts, grid.face[on], V, F, pdepth)
     mapx = np.full((rows, cols), -1e4, dtype=np.float32)
     mapy = np.full((rows, cols), -1e4, dtype=np.float32)
     mapx[on], mapy[on] = proj[:, 0], proj[:, 1]
@@ -222,8 +203,8 @@ def warp_to_print(
     warped = cv2.remap(src, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     state = np.full((rows, cols), OFF_PART, dtype=np.uint8)
     st = np.full(len(pts), NOT_SEEN, dtype=np.uint8)
-    st[inside & inside_ideal & ~(seen & facing)] = OCCLUDED
-    st[inside & seen & facing] = FULL
+    st[inside & inside_ideal & ~shown] = OCCLUDED
+    st[inside & shown] = FULL
     # where the photo's pixels mix two surfaces (the part's outline against the background,
     # a fold in front of what lies behind it), the blur spreads the nearer surface's colour
     # over the other: a band there, measured in the photo, is not scored
@@ -239,6 +220,52 @@ def warp_to_print(
         oblique = np.maximum(along_x, along_y) / np.minimum(along_x, along_y) > MAX_GRAZING
     state[(state == FULL) & oblique] = GRAZING
     return warped, state, scale
+
+
+def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth: np.ndarray):
+    """Where surface points fall in a photo, and which of them the photo shows.
+
+    Parameters
+    ----------
+    cam : Camera
+        The photo's posed camera, with its lens.
+    X : (n, 3) float
+        Surface points, mm.
+    faces : (n,) int
+        The triangle of ``F`` each point lies on.
+    V, F : arrays
+        The part.
+    depth : (h, w) float
+        Depth buffer of the part in the undistorted photo camera (:func:`photo_buffers`).
+
+    Returns
+    -------
+    xy : (n, 2) float
+        Pixel positions through the ideal (undistorted) camera.
+    lens : (n, 2) float
+        Pixel positions through the lens: where to read the photo.
+    inside : (n,) bool
+        In front of the camera and inside the photo, through the lens.
+    inside_ideal : (n,) bool
+        The same through the ideal camera (where the depth buffer can say what hides them).
+    shown : (n,) bool
+        Not hidden by another part of the mesh and on a triangle that faces the camera: just
+        behind a fold, the surface that turns its back is within the depth test's tolerance of
+        the surface in front of it.
+    """
+    ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
+    xy, z, lens = project_through_lens(cam, X)
+    seen = np.zeros(len(X), dtype=np.bool_)
+    _unoccluded_many(
+        depth, ideal.width, ideal.height, ideal.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), seen
+    )
+    in_front = z > 0
+
+    def framed(p):
+        return in_front & (p[:, 0] >= 0) & (p[:, 1] >= 0) & (p[:, 0] <= cam.width - 1) & (p[:, 1] <= cam.height - 1)
+
+    shown = seen & faces_facing(V, F, ideal.center)[faces]
+    return xy, lens, framed(lens), framed(xy), shown
 
 
 def depth_steps(depth: np.ndarray, radius_px: float) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 
 from workbench.camera import Camera
 from workbench.raster import depth_buffer
-from workbench.views.visibility import _unoccluded_many, faces_facing
+from workbench.validate.dense import photo_buffers, surface_in_photo
 
 TILE = 64
 MIN_TEXTURE = 50.0  # smallest structure-tensor eigenvalue of a usable tile (grey levels² per px²)
@@ -148,34 +148,15 @@ def warp_photo(
     H, W = surface.owned.shape
     finite = np.isfinite(surface.X[..., 0])
     pts = surface.X[finite]
-    # visibility from the photo: a z-buffer of the ideal (undistorted) photo camera
-    ideal = Camera(photo_cam.K, photo_cam.R, photo_cam.t, photo_cam.width, photo_cam.height)
     if depth is None:
-        pxy, pz = ideal.project(V)
-        _, depth = depth_buffer(pxy, pz, F, ideal.width, ideal.height)
-    pdepth = depth
-    xy, z = ideal.project(pts)
-    seen = np.zeros(len(pts), dtype=np.bool_)
-    _unoccluded_many(
-        pdepth, ideal.width, ideal.height, ideal.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), seen
-    )
-    rvec = cv2.Rodrigues(photo_cam.R)[0]
-    proj, _ = cv2.projectPoints(pts, rvec, photo_cam.t, photo_cam.K, photo_cam.dist)
-    proj = proj.reshape(-1, 2)
-    inside = (
-        (proj[:, 0] >= 0)
-        & (proj[:, 1] >= 0)
-        & (proj[:, 0] <= photo_cam.width - 1)
-        & (proj[:, 1] <= photo_cam.height - 1)
-    )
+        _, depth = photo_buffers(photo_cam, V, F)
+    _, proj, inside, _, shown = surface_in_photo(photo_cam, pts, surface.face[finite], V, F, depth)
     mapx = np.full((H, W), -1e4, dtype=np.float32)
     mapy = np.full((H, W), -1e4, dtype=np.float32)
     mapx[finite], mapy[finite] = proj[:, 0], proj[:, 1]
     warped = cv2.remap(photo, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     valid = np.zeros((H, W), dtype=bool)
-    # just behind a fold, the surface that turns its back to the photo is within the depth
-    # test's tolerance of the surface in front of it
-    valid[finite] = seen & inside & faces_facing(V, F, ideal.center)[surface.face[finite]]
+    valid[finite] = inside & shown
     return warped, valid
 
 

@@ -22,7 +22,7 @@ from workbench.validate.films import film_seams, fit_per_film, seam_misregistrat
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
 from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, photo_verdict
-from workbench.validate.score import TILE, _bilinear, score, view_surface, warp_photo
+from workbench.validate.score import TILE, _bilinear, printed_view, score, view_surface, warp_photo
 
 
 def sha256(path: Path) -> str:
@@ -155,21 +155,24 @@ def validate_photo(
             view_surface(cam, design.V, design.F, design.flat, p["height_mm"], design.owner, vi, p["dpi"] / 25.4),
             design.view_image(vi),
         )
-    surface, view_rgb = cache[vi]
+        cache[vi] += (printed_view(cache[vi][0], design.rgb, p["dpi"] / 25.4, cache[vi][1]),)
+    surface, view_rgb = cache[vi][:2]
     clock.append(time.perf_counter())  # pose
     warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
     p = design.info["print"]
     clock.append(time.perf_counter())  # warps
-    sc = score(view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]))
+    sc = score(
+        view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]), tolerance_mm, cache[vi][2]
+    )
     if "grid" not in cache:
         cache["grid"] = dense.print_grid(
             design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
         )
     grid = cache["grid"]
     clock.append(time.perf_counter())  # tiles
-    on_print, state, scale = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
+    on_print, state, scale, footprint = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
-    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale)
+    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint)
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
     entry.update(
         {
@@ -256,6 +259,11 @@ def dense_summary(dr, grid, design: Design, sc, surface) -> dict:
     return {
         "grid_px_per_mm": grid.px_per_mm,
         "blur_px": dr.blur_px,
+        "noise_grey_levels": dr.noise,
+        "uncertainty_mm": stats(dr.sigma_mm[np.isfinite(dr.sigma_mm)]),
+        "significance_z": dense.SIGNIFICANCE_Z,
+        "resolution": dr.resolution,
+        "detection_limit": dr.detection_limit,
         "misregistration_mm": stats(dr.shift_mm[measured_shift]),
         "misregistration_full_vector_mm": stats(dr.shift_mm[full & measured_shift]),
         "note": (

@@ -1309,3 +1309,36 @@ def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> 
             },
         }
     return out
+
+
+def placement_samples(dr: DenseResult, grid: PrintGrid, max_sigma_mm: float, stride: int = 4):
+    """Print points the dense field measures accurately, and where the photo shows their content.
+
+    Parameters
+    ----------
+    dr : DenseResult
+    grid : PrintGrid
+    max_sigma_mm : float
+        Largest uncertainty (mm on the surface) of a pixel taken.
+    stride : int
+        Every ``stride``-th pixel along each axis (neighbours share their flow window).
+
+    Returns
+    -------
+    p_design, p_shown : (n, 2) float
+        Print mm (x right, y down): the content designed at p_design shows at p_shown.
+    shift_mm : (n,) float
+        The misregistration there, mm on the surface.
+    windows : float
+        How many independent flow windows the accurate pixels hold (all of them, not only
+        the ``stride`` samples).
+    """
+    ok = (dr.texture == 2) & np.isfinite(dr.sigma_mm) & (dr.sigma_mm <= max_sigma_mm)
+    windows = float(ok.sum()) / (4.0 * np.pi * TENSOR_SIGMA_PX**2)
+    sub = np.zeros_like(ok)
+    sub[::stride, ::stride] = True
+    ii, jj = np.nonzero(ok & sub)
+    # the photo's pixel y shows the content designed at y - m (grid px; centres at + 0.5)
+    y = np.stack([jj + 0.5, ii + 0.5], axis=1) / grid.px_per_mm
+    m = dr.flow_px[ii, jj].astype(np.float64) / grid.px_per_mm
+    return y - m, y, dr.shift_mm[ii, jj].astype(np.float64), windows

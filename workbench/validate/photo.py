@@ -21,8 +21,17 @@ from workbench.validate import dense, pictures
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
-from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, photo_verdict
-from workbench.validate.score import TILE, _bilinear, printed_view, score, view_surface, warp_photo
+from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, MIN_DENSE_WINDOWS, MIN_TILES, photo_verdict
+from workbench.validate.score import (
+    TILE,
+    TILE_SIGMA_SHARE,
+    _bilinear,
+    fit_film,
+    printed_view,
+    score,
+    view_surface,
+    warp_photo,
+)
 
 
 def sha256(path: Path) -> str:
@@ -199,6 +208,25 @@ def validate_photo(
         edges = cache["seams"]
         seen = seams_seen(edges.X, design.view_camera(name), surface, valid)
         entry["seams"] = seam_misregistration(edges, entry["films"], films, p["dpi"] / 25.4, seen)
+    entry["misregistration_source"] = "tiles"
+    if len(sc.shift_mm) < MIN_TILES:
+        # too few tiles: where the dense field measures enough accurately, it measures placement
+        pd_, ps_, smm, windows = dense.placement_samples(dr, grid, TILE_SIGMA_SHARE * tolerance_mm)
+        entry["dense_windows"] = round(windows, 1)
+        if windows >= MIN_DENSE_WINDOWS and len(smm) >= 4:
+            film = fit_film(pd_, ps_, (p["image_width_mm"], p["image_height_mm"]))
+            entry.update(
+                {
+                    "misregistration_source": "dense",
+                    "misregistration_mm": stats(smm),
+                    "film_offset_mm": film["offset_mm"],
+                    "film_rotation_deg": film["rotation_deg"],
+                    "film_scale_pct": film["scale_pct"],
+                    "film_fit_rms_mm": film["rms_mm"],
+                }
+            )
+        else:
+            entry["misregistration_source"] = None
     clock.append(time.perf_counter())  # dense analysis
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)

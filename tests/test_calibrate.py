@@ -12,6 +12,7 @@ from conftest import ROOT
 from workbench.camera import Camera
 from workbench.cli import main
 from workbench.export import png_bytes
+from workbench.jsonfile import resolve_recorded
 from workbench.printing.boards import CharucoSpec, definition
 from workbench.render.imperfections import Imperfections
 from workbench.render.photo import board_scene, render_photo
@@ -47,11 +48,22 @@ def calibration_photos(tmp_path, board, n=15, size=(1600, 1200), seed=0):
     return paths
 
 
-def test_camera_calibration_recovers_the_intrinsics(tmp_path):
-    board, board_path = board_definition(tmp_path)
-    photos = calibration_photos(tmp_path, board)
-    out = tmp_path / "cam.json"
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    """A profile made from 15 renders, and 8 other renders of the same camera (not used to make it)."""
+    tmp = tmp_path_factory.mktemp("synthetic")
+    board, board_path = board_definition(tmp)
+    photos = calibration_photos(tmp, board)
+    other = tmp / "other"
+    other.mkdir()
+    new = calibration_photos(other, board, n=8, seed=1)
+    out = tmp / "cam.json"
     assert main(["calibrate", "camera", *map(str, photos), "--board", str(board_path), "-o", str(out), "-q"]) == 0
+    return out, photos, new
+
+
+def test_camera_calibration_recovers_the_intrinsics(synthetic):
+    out, photos, _ = synthetic
     prof = json.loads(out.read_text())
     K = np.asarray(prof["K"])
     assert prof["rms_px"] <= 0.1
@@ -59,8 +71,59 @@ def test_camera_calibration_recovers_the_intrinsics(tmp_path):
     assert abs(K[0, 2] - 803.2) <= 0.5 and abs(K[1, 2] - 597.6) <= 0.5
     assert prof["dist"][0] == pytest.approx(-0.12, abs=0.01)
     assert all(v["used"] for v in prof["views"]) and out.with_suffix(".png").read_bytes().startswith(b"\x89PNG")
+    # the uncertainty the check measures drift against: the true values lie within 3 of its deviations
+    std = prof["intrinsics_std"]
+    assert 0 < std["fx"] < 1.0 and 0 < std["cx"] < 1.0
+    assert abs(K[0, 0] - 1400.0) < 3 * std["fx"] and abs(K[0, 2] - 803.2) < 3 * std["cx"]
+    assert prof["view_rms_limit_px"] == 0.5 and not prof["warnings"]
     # the weekly check: the same camera's photos are within tolerance with these intrinsics
     assert main(["calibrate", "check", str(out), *map(str, photos[:3]), "-q"]) == 0
+
+
+def drifted(profile, tmp_path, fx=1.0, cx=0.0):
+    """The profile with its focal lengths scaled by ``fx`` and its principal point moved by ``cx`` px."""
+    prof = json.loads(profile.read_text())
+    K = np.asarray(prof["K"])
+    K[0, 0] *= fx
+    K[1, 1] *= fx
+    K[0, 2] += cx
+    prof["K"] = K.tolist()
+    prof["board"]["file"] = str(resolve_recorded(prof["board"]["file"], profile))
+    path = tmp_path / f"drifted-{fx}-{cx}.json"
+    path.write_text(json.dumps(prof))
+    return path
+
+
+def test_check_measures_the_intrinsics_on_new_photos(synthetic, tmp_path, capsys):
+    out, _, new = synthetic
+    photos = list(map(str, new))
+    assert main(["calibrate", "check", str(out), *photos]) == 0
+    err = capsys.readouterr().err
+    assert "re-measured on 8 photos" in err and "within tolerance on 8 photos" in err
+    # a pose absorbs these (every photo's RMS stays below 0.5 px): the re-measured intrinsics do not
+    for fx, cx, what in ((1.01, 0.0, "fx"), (1.0, 8.0, "cx")):
+        assert main(["calibrate", "check", str(drifted(out, tmp_path, fx, cx)), *photos]) == 1
+        err = capsys.readouterr().err
+        assert "DRIFT" not in err.split("re-measured")[0]  # no photo's RMS gave it away
+        assert f"the camera drifted: re-measured {what} " in err.splitlines()[-1], err
+
+
+def test_check_refuses_another_size_and_leaves_out_photos_without_the_board(synthetic, tmp_path, capsys):
+    out, _, new = synthetic
+    small = tmp_path / "small.png"
+    small.write_bytes(png_bytes(cv2.resize(cv2.imread(str(new[0])), (640, 480))))
+    assert main(["calibrate", "check", str(out), str(new[1]), str(small), "-q"]) == 1
+    line = capsys.readouterr().err.strip()
+    assert line.endswith(
+        f"{small}: 640 x 480 pixels, but the profile is for 1600 x 1200: another camera or another video mode"
+    )
+    blank = tmp_path / "blank.png"
+    blank.write_bytes(png_bytes(np.full((1200, 1600, 3), 128, np.uint8)))
+    assert main(["calibrate", "check", str(out), str(blank), *map(str, new[:5])]) == 0
+    err = capsys.readouterr().err
+    assert f"left out {blank}: no markers of the board" in err and "re-measured on 5 photos" in err
+    assert main(["calibrate", "check", str(out), str(blank), "-q"]) == 1
+    assert "no photo shows the board: " in capsys.readouterr().err
 
 
 def test_camera_bad_input(tmp_path, capsys):

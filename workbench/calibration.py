@@ -74,6 +74,11 @@ class CameraCalibration:
         Share of the image's 8 x 6 grid cells holding corners.
     residuals : list of (points (n, 2), residual vectors (n, 2))
         Per used view, for the residual picture.
+    std, std_opencv : (4,) float
+        Standard deviations of fx, fy, cx, cy (px): the larger of OpenCV's and the
+        views' scatter, and OpenCV's alone.
+    view_limit_px : float
+        The largest reprojection RMS of a view that agrees with the others.
     """
 
     K: np.ndarray
@@ -86,6 +91,9 @@ class CameraCalibration:
     residuals: list = field(default_factory=list)
     tilt_spread_deg: float = 0.0
     warnings: list = field(default_factory=list)
+    std: np.ndarray | None = None  # (4,) fx, fy, cx, cy standard deviations (px): the larger of the two below
+    std_opencv: np.ndarray | None = None  # (4,) OpenCV's, from the corner noise alone
+    view_limit_px: float = 0.5  # largest RMS of a view that agrees with the others (calibrate check's limit)
 
 
 def collinear(board_points: np.ndarray) -> bool:
@@ -129,38 +137,47 @@ def tilt_spread_deg(views: list, width: int, height: int) -> float:
     return float(np.degrees(np.arccos(cos.min())))
 
 
-def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> CameraCalibration:
-    """Camera intrinsics from photos of a ChArUco board (``cv2.calibrateCamera``).
+def name_list(names: list[str], most: int = 3) -> str:
+    """Names for a one-line message: the first ``most``, then how many more."""
+    shown = ", ".join(names[:most])
+    return shown + (f" and {len(names) - most} more" if len(names) > most else "")
 
-    Views with fewer than MIN_CORNERS corners are left out with the reason; after a
-    first calibration, views whose RMS exceeds three times the median (and 0.5 px) are
-    left out as outliers and the calibration is redone. k3 is fitted only when the
-    corners reach at least 70 % of the image (8 x 6 cells): otherwise it is
-    unconstrained at the borders and only trades off against k1 and k2.
+
+def check_sizes(images: list[tuple[str, np.ndarray]], expected: tuple[int, int] | None = None) -> tuple[int, int]:
+    """The photos' common size (W, H); refuses, naming it, the first photo of another size.
 
     Parameters
     ----------
     images : list of (name, (H, W) uint8)
-        The photos, all of one size.
-    definition : dict
-        Board definition (ChArUco corners in the board frame, mm).
+    expected : (W, H), optional
+        The size the photos must have (a profile's image size); default the first photo's.
+    """
+    H0, W0 = images[0][1].shape[:2]
+    W, H = expected if expected is not None else (W0, H0)
+    for name, img in images:
+        h, w = img.shape[:2]
+        if (w, h) != (W, H):
+            whose = "the profile is for" if expected is not None else f"{images[0][0]} (the first photo) is"
+            raise WorkbenchError(
+                f"{name}: {w} x {h} pixels, but {whose} {W} x {H}: another camera or another video mode"
+            )
+    return int(W), int(H)
+
+
+def board_views(images: list[tuple[str, np.ndarray]], definition: dict) -> tuple[list, list]:
+    """The board's corners in each photo, and why a photo cannot serve as a view.
+
+    A photo is left out (with its reason) when it shows no board, too few corners,
+    corners on one line of the board, or the same pose as an earlier photo.
 
     Returns
     -------
-    CameraCalibration
-
-    Raises
-    ------
-    WorkbenchError
-        Images of different sizes, or fewer than MIN_VIEWS usable views.
+    views : list of (name, (n, 3) float32 board points in mm, (n, 2) float32 pixels)
+    per_view : list of dict
+        name, corners, used, and reason when not used; in the photos' order.
     """
-    sizes = {img.shape[:2] for _, img in images}
-    if len(sizes) != 1:
-        raise WorkbenchError(f"the photos have different sizes: {sorted((w, h) for h, w in sizes)}")
-    H, W = sizes.pop()
     board_mm = np.asarray(definition["charuco_corners"]["board_mm"], dtype=np.float64)
-    views, per_view = [], []
-    seen: list = []
+    views, per_view, seen = [], [], []
     for name, img in images:
         px, ids, problem = detect_corners(img, definition)
         if not problem and len(ids) < MIN_CORNERS:
@@ -178,38 +195,147 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
         obj = np.column_stack([board_mm[ids], np.zeros(len(ids))]).astype(np.float32)
         views.append((name, obj, px.astype(np.float32)))
         per_view.append({"name": name, "corners": int(len(ids)), "used": True})
-    usable = [v for v in per_view if v["used"]]
-    if len(usable) < MIN_VIEWS:
-        reasons = "; ".join(f"{v['name']}: {v['reason']}" for v in per_view if not v["used"])
-        raise WorkbenchError(
-            f"{len(usable)} usable views of the board, need at least {MIN_VIEWS}" + (f" ({reasons})" if reasons else "")
-        )
-    check_views_vary(views, W, H)
+    return views, per_view
+
+
+def corner_coverage(views: list, width: int, height: int) -> float:
+    """Share of the image's 8 x 6 grid cells that hold at least one corner of some view."""
     cells = np.zeros((6, 8), dtype=bool)
     for _, _, px in views:
-        cells[np.clip((px[:, 1] / H * 6).astype(int), 0, 5), np.clip((px[:, 0] / W * 8).astype(int), 0, 7)] = True
-    coverage = float(cells.mean())
-    flags = 0 if coverage >= K3_COVERAGE else cv2.CALIB_FIX_K3
-    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    for _round in range(2):
-        used = [v for v in views]
+        rows = np.clip((px[:, 1] / height * 6).astype(int), 0, 5)
+        cols = np.clip((px[:, 0] / width * 8).astype(int), 0, 7)
+        cells[rows, cols] = True
+    return float(cells.mean())
+
+
+CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+
+
+def fit_intrinsics(views: list, width: int, height: int, flags: int) -> tuple:
+    """``cv2.calibrateCameraExtended`` over the views.
+
+    Returns
+    -------
+    rms : float
+        Reprojection RMS over all corners, px.
+    K : (3, 3) float
+    dist : (5,) float
+    rvecs, tvecs : list of (3, 1) float
+        Each view's pose.
+    std : (4,) float
+        OpenCV's standard deviations of fx, fy, cx, cy (px), which assume independent
+        corner errors of the RMS's size.
+    errs : (n,) float
+        Each view's reprojection RMS, px.
+
+    Raises
+    ------
+    WorkbenchError
+        OpenCV could not calibrate.
+    """
+    try:
+        rms, K, dist, rvecs, tvecs, std, _, _ = cv2.calibrateCameraExtended(
+            [v[1] for v in views], [v[2] for v in views], (width, height), None, None, flags=flags, criteria=CRITERIA
+        )
+    except cv2.error as exc:
+        detail = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
+        raise WorkbenchError(f"the calibration of {len(views)} views failed ({detail})") from None
+    errs = []
+    for (_name, obj, px), r, t in zip(views, rvecs, tvecs, strict=True):
+        proj, _ = cv2.projectPoints(obj, r, t, K, dist)
+        errs.append(float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - px) ** 2, axis=1)))))
+    return float(rms), K, dist.ravel()[:5], rvecs, tvecs, std.ravel()[:4].astype(np.float64), np.array(errs)
+
+
+JACKKNIFE_GROUPS = 10
+
+
+def jackknife_std(views: list, width: int, height: int, flags: int) -> np.ndarray | None:
+    """Standard deviations of fx, fy, cx, cy (px) from the views' own scatter (grouped jackknife).
+
+    The views are dealt into G = min(n, JACKKNIFE_GROUPS) groups; each group is left out
+    in turn and the intrinsics refitted; the spread of the G refits, scaled by
+    sqrt((G - 1) / G · Σ(θ_g - θ̄)²), estimates the standard error of the full fit. Unlike
+    OpenCV's figures it includes what real photos add to the corner noise (a board not
+    flat, corner errors that repeat within a photo): on real photos OpenCV's figures fall
+    short by a factor 2 to 8.
+
+    Returns
+    -------
+    (4,) float or None
+        None when fewer than 3 refits succeed.
+    """
+    n = len(views)
+    G = min(n, JACKKNIFE_GROUPS)
+    if G < 3:
+        return None
+    thetas = []
+    for g in range(G):
+        rest = [v for k, v in enumerate(views) if k % G != g]
         try:
-            rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(
-                [v[1] for v in used], [v[2] for v in used], (W, H), None, None, flags=flags, criteria=crit
-            )
-        except cv2.error as exc:
-            detail = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
-            raise WorkbenchError(f"the calibration of {len(used)} views failed ({detail})") from None
-        errs = []
-        for (_name, obj, px), r, t in zip(used, rvecs, tvecs, strict=True):
-            proj, _ = cv2.projectPoints(obj, r, t, K, dist)
-            errs.append(float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - px) ** 2, axis=1)))))
-        limit = max(3.0 * float(np.median(errs)), 0.5)
+            _, K, *_ = fit_intrinsics(rest, width, height, flags)
+        except WorkbenchError:
+            continue
+        thetas.append([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+    if len(thetas) < 3:
+        return None
+    t = np.asarray(thetas)
+    m = len(t)
+    return np.sqrt((m - 1) / m * np.sum((t - t.mean(axis=0)) ** 2, axis=0))
+
+
+def view_rms_limit(errs: np.ndarray) -> float:
+    """Largest reprojection RMS (px) of a view that agrees with the others: 3 x the median, at least 0.5."""
+    return max(3.0 * float(np.median(errs)), 0.5)
+
+
+def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> CameraCalibration:
+    """Camera intrinsics from photos of a board (``cv2.calibrateCameraExtended``).
+
+    Views with fewer than MIN_CORNERS corners are left out with the reason; after a
+    first calibration, views whose RMS exceeds three times the median (and 0.5 px) are
+    left out as outliers and the calibration is redone. k3 is fitted only when the
+    corners reach at least 70 % of the image (8 x 6 cells): otherwise it is
+    unconstrained at the borders and only trades off against k1 and k2. The
+    uncertainty of fx, fy, cx, cy is the larger of OpenCV's and the views' own scatter
+    (:func:`jackknife_std`): what ``calibrate check`` measures drift against.
+
+    Parameters
+    ----------
+    images : list of (name, (H, W) uint8)
+        The photos, all of one size.
+    definition : dict
+        Board definition (corners in the board frame, mm).
+
+    Returns
+    -------
+    CameraCalibration
+
+    Raises
+    ------
+    WorkbenchError
+        Images of different sizes (naming the first odd one), or fewer than MIN_VIEWS
+        usable views.
+    """
+    W, H = check_sizes(images)
+    views, per_view = board_views(images, definition)
+    if len(views) < MIN_VIEWS:
+        reasons = [f"{v['name']}: {v['reason']}" for v in per_view if not v["used"]]
+        raise WorkbenchError(
+            f"{len(views)} usable views of the board, need at least {MIN_VIEWS}"
+            + (f" ({name_list(reasons)})" if reasons else "")
+        )
+    check_views_vary(views, W, H)
+    coverage = corner_coverage(views, W, H)
+    flags = 0 if coverage >= K3_COVERAGE else cv2.CALIB_FIX_K3
+    for _round in range(2):
+        rms, K, dist, rvecs, tvecs, std, errs = fit_intrinsics(views, W, H, flags)
+        limit = view_rms_limit(errs)
         bad = [k for k, e in enumerate(errs) if e > limit]
-        if _round == 1 or not bad or len(used) - len(bad) < MIN_VIEWS:
+        if _round == 1 or not bad or len(views) - len(bad) < MIN_VIEWS:
             break
         for k in sorted(bad, reverse=True):
-            name = used[k][0]
+            name = views[k][0]
             for v in per_view:
                 if v["name"] == name:
                     v.update(used=False, reason=f"outlier: reprojection RMS {errs[k]:.2f} px > {limit:.2f} px")
@@ -220,10 +346,192 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
         residuals.append((px, proj.reshape(-1, 2) - px))
         for v in per_view:
             if v["name"] == name:
-                v["rms_px"] = e
-    cal = CameraCalibration(K, dist.ravel()[:5], (W, H), float(rms), per_view, bool(flags), coverage, residuals)
+                v["rms_px"] = float(e)
+    cal = CameraCalibration(K, dist, (W, H), rms, per_view, bool(flags), coverage, residuals)
+    cal.std_opencv = std
+    jack = jackknife_std(views, W, H, flags)
+    cal.std = std if jack is None else np.maximum(std, jack)
+    cal.view_limit_px = view_rms_limit(errs)
     check_camera_calibration(cal, tilt_spread_deg(views, W, H))
+    over = [v["name"] for v in per_view if v["used"] and v["rms_px"] > cal.view_limit_px]
+    if over:
+        cal.warnings.append(
+            f"{len(over)} of {len(views)} views would fail calibrate check (reprojection RMS above "
+            f"{cal.view_limit_px:.2f} px): {name_list(over)}"
+        )
     return cal
+
+
+INTRINSICS = ("fx", "fy", "cx", "cy")
+TOLERANCE_SIGMA = 3.0  # a re-measured intrinsic this many standard deviations from the profile's has drifted
+
+
+def pose_rms(obj: np.ndarray, px: np.ndarray, K: np.ndarray, dist: np.ndarray) -> float | None:
+    """Reprojection RMS (px) of one view posed with fixed intrinsics (SQPnP, then LM); None without a pose."""
+    obj, px = obj.astype(np.float64), px.astype(np.float64)
+    try:
+        _, rvec, tvec = cv2.solvePnP(obj, px, K, dist, flags=cv2.SOLVEPNP_SQPNP)
+        rvec, tvec = cv2.solvePnPRefineLM(obj, px, K, dist, rvec, tvec)
+        proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    except cv2.error:
+        return None
+    return float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - px) ** 2, axis=1))))
+
+
+def ray_shift_px(K0, dist0, K1, dist1, width: int, height: int, n: int = 17) -> float:
+    """Largest shift (px) across the image between two lens models seeing the same rays.
+
+    Each point of an n x n grid over the image is taken back to its ray through the first
+    model and projected again through the second: a focal length error shows as a shift
+    growing towards the borders, a principal point error as a shift everywhere.
+    """
+    xs, ys = np.meshgrid(np.linspace(0, width - 1, n), np.linspace(0, height - 1, n))
+    px = np.stack([xs.ravel(), ys.ravel()], axis=1).reshape(-1, 1, 2)
+    rays = cv2.undistortPoints(px, K0, dist0, None, None, None, CRITERIA).reshape(-1, 2)
+    obj = np.column_stack([rays, np.ones(len(rays))])
+    back, _ = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K1, dist1)
+    return float(np.linalg.norm(back.reshape(-1, 2) - px.reshape(-1, 2), axis=1).max())
+
+
+@dataclass
+class CameraCheck:
+    """A camera profile re-measured on new photos of its board.
+
+    Attributes
+    ----------
+    per_photo : list of dict
+        name, corners, used, reason (left out), rms_px (posed with the stored
+        intrinsics), ok.
+    limit_px : float
+        The per-photo RMS limit.
+    remeasured : dict or None
+        When the photos allow it: for each of fx, fy, cx, cy, ``value``, ``profile``,
+        ``delta`` (px), ``sigma`` (combined standard deviation, px), ``z``; and
+        ``views``, ``rms_px``, ``ray_shift_px`` (largest shift across the image).
+    why_not : str or None
+        Why the intrinsics were not re-measured.
+    tolerance_sigma : float
+    drift : list of str
+        What drifted (empty: within tolerance).
+    """
+
+    per_photo: list
+    limit_px: float
+    remeasured: dict | None
+    why_not: str | None
+    tolerance_sigma: float
+    drift: list
+
+
+def check_camera(
+    images: list[tuple[str, np.ndarray]],
+    definition: dict,
+    profile: dict,
+    tolerance_px: float | None = None,
+    tolerance_sigma: float = TOLERANCE_SIGMA,
+) -> CameraCheck:
+    """Re-measure a camera profile on photos of its board.
+
+    Two tests. Each photo is posed with the stored intrinsics and its reprojection RMS
+    must stay within ``tolerance_px`` (default: the profile's own limit for a view that
+    agrees with the others). A pose absorbs most of an intrinsics error (a focal length
+    5 % off moves the RMS from 0.25 to below 0.5 px), so where the photos allow it
+    (MIN_VIEWS usable views whose board normals turn at least MIN_TILT_SPREAD_DEG) the
+    intrinsics are also re-measured from the photos alone and compared with the
+    profile's: each of fx, fy, cx, cy must lie within ``tolerance_sigma`` combined
+    standard deviations (the profile's and the re-measurement's, each from its views'
+    scatter) of the stored value.
+
+    Parameters
+    ----------
+    images : list of (name, (H, W) uint8)
+    definition : dict
+        The profile's board.
+    profile : dict
+        A camera profile (``calibrate camera``'s JSON).
+    tolerance_px, tolerance_sigma : float, optional
+
+    Returns
+    -------
+    CameraCheck
+
+    Raises
+    ------
+    WorkbenchError
+        A photo of another size than the profile's (naming it), or no photo showing the board.
+    """
+    W, H = (int(v) for v in profile["image_size"])
+    check_sizes(images, (W, H))
+    K0 = np.asarray(profile["K"], dtype=np.float64)
+    dist0 = np.zeros(5)
+    d = np.asarray(profile.get("dist") or [], dtype=np.float64).ravel()[:5]
+    dist0[: len(d)] = d
+    views, per_photo = board_views(images, definition)
+    if not views:
+        raise WorkbenchError(
+            "no photo shows the board: "
+            + name_list([f"{v['name']}: {v['reason']}" for v in per_photo if not v["used"]])
+        )
+    if tolerance_px is None:
+        stored_limit = profile.get("view_rms_limit_px")
+        tolerance_px = float(stored_limit or view_rms_limit(np.array([float(profile.get("rms_px") or 0.0)])))
+    drift = []
+    by_name = {v["name"]: v for v in per_photo}
+    for name, obj, px in views:
+        e = pose_rms(obj, px, K0, dist0)
+        entry = by_name[name]
+        entry["rms_px"] = e
+        entry["ok"] = e is not None and e <= tolerance_px
+    bad = [v["name"] for v in per_photo if v["used"] and not v["ok"]]
+    if bad:
+        drift.append(
+            f"reprojection RMS above {tolerance_px:.2f} px in {len(bad)} of {len(views)} photos ({name_list(bad)})"
+        )
+    remeasured, why_not = None, None
+    spread = tilt_spread_deg(views, W, H)
+    if len(views) < MIN_VIEWS:
+        why_not = f"{len(views)} usable photos, re-measuring the intrinsics needs {MIN_VIEWS}"
+    elif spread < MIN_TILT_SPREAD_DEG:
+        why_not = f"the board's normal turns {spread:.1f} degrees at most between photos, need {MIN_TILT_SPREAD_DEG:g}"
+    else:
+        flags = cv2.CALIB_FIX_K3 if profile.get("k3_fixed", True) else 0
+        try:
+            rms, K, dist, _, _, std, _ = fit_intrinsics(views, W, H, flags)
+        except WorkbenchError as exc:
+            why_not = str(exc)
+        else:
+            jack = jackknife_std(views, W, H, flags)
+            std = std if jack is None else np.maximum(std, jack)
+            stored = profile.get("intrinsics_std") or {}
+            std0 = np.array([float(stored.get(k, 0.0)) for k in INTRINSICS])
+            theta = np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+            theta0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2]])
+            sigma = np.sqrt(std**2 + std0**2)
+            z = (theta - theta0) / sigma
+            remeasured = {
+                k: {
+                    "value": float(theta[i]),
+                    "profile": float(theta0[i]),
+                    "delta": float(theta[i] - theta0[i]),
+                    "sigma": float(sigma[i]),
+                    "z": float(z[i]),
+                }
+                for i, k in enumerate(INTRINSICS)
+            }
+            remeasured.update(
+                views=len(views),
+                rms_px=rms,
+                ray_shift_px=ray_shift_px(K0, dist0, K, dist, W, H),
+                profile_uncertainty=bool(stored),
+            )
+            off = [
+                f"{k} {theta[i]:.2f} against {theta0[i]:.2f} px ({z[i]:+.1f} sigma)"
+                for i, k in enumerate(INTRINSICS)
+                if abs(z[i]) > tolerance_sigma
+            ]
+            if off:
+                drift.append("re-measured " + ", ".join(off) + f" (tolerance {tolerance_sigma:g} sigma)")
+    return CameraCheck(per_photo, float(tolerance_px), remeasured, why_not, float(tolerance_sigma), drift)
 
 
 def check_views_vary(views: list, width: int, height: int) -> float:

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.printing.boards import CharucoSpec
+from workbench.printing.boards import CharucoSpec, ChessboardSpec, board_points_mm, is_chessboard
 
 MIN_CORNERS = 8
 MIN_VIEWS = 5
@@ -28,19 +28,22 @@ COMMON_DPI = (72, 96, 100, 150, 200, 240, 300, 360, 400, 600, 720, 800, 1200, 16
 
 
 def detect_corners(gray: np.ndarray, definition: dict) -> tuple[np.ndarray, np.ndarray, str | None]:
-    """ChArUco corners of a board in an image.
+    """Corners of a board in an image: ChArUco corners, or a chessboard's inner corners.
 
     Returns
     -------
     pixels : (n, 2) float
         Sub-pixel corner positions (OpenCV pixel centres).
     ids : (n,) int
-        Their ids (rows of ``charuco_corners`` in the definition).
+        Their ids (rows of the definition's corners).
     problem : str or None
-        Why there are none: no markers, or markers of another board.
+        Why there are none: no markers, markers of another board, markers but no
+        corners (the layout or the square count may not match), no chessboard.
     """
-    det = cv2.aruco.CharucoDetector(CharucoSpec.from_definition(definition).opencv())
-    corners, ids, _, mids = det.detectBoard(gray)
+    if is_chessboard(definition):
+        return detect_chessboard(gray, definition)
+    spec = CharucoSpec.from_definition(definition)
+    corners, ids, _, mids = cv2.aruco.CharucoDetector(spec.opencv()).detectBoard(gray)
     ours = set(int(i) for i in definition["markers"]["ids"])
     if mids is None or len(mids) == 0:
         return np.zeros((0, 2)), np.zeros(0, int), "no markers of the board"
@@ -51,8 +54,74 @@ def detect_corners(gray: np.ndarray, definition: dict) -> tuple[np.ndarray, np.n
             f"markers of another board (ids {int(mids.min())} to {int(mids.max())})",
         )
     if ids is None:
-        return np.zeros((0, 2)), np.zeros(0, int), "no ChArUco corners"
+        return np.zeros((0, 2)), np.zeros(0, int), no_corners_reason(gray, spec, len(mids))
     return corners.reshape(-1, 2).astype(np.float64), ids.ravel(), None
+
+
+def no_corners_reason(gray: np.ndarray, spec: CharucoSpec, n_markers: int) -> str:
+    """Why a photo shows markers of a ChArUco board but none of its corners; tries the other layout."""
+    other = replace(spec, legacy=not spec.legacy)
+    _, ids, _, _ = cv2.aruco.CharucoDetector(other.opencv()).detectBoard(gray)
+    if ids is not None and len(ids):
+        which = "the legacy (pre-4.6 OpenCV) layout" if other.legacy else "today's layout (OpenCV 4.6 and later)"
+        return (
+            f"{n_markers} markers found but no ChArUco corners: the board is printed in {which}; "
+            f'set "legacy": {"true" if other.legacy else "false"} in the board definition'
+        )
+    return (
+        f"{n_markers} markers found but no ChArUco corners: the board's layout (legacy, pre-4.6 OpenCV, for an "
+        f"even number of rows) or its square count ({spec.squares[0]} x {spec.squares[1]}) may not match the definition"
+    )
+
+
+def detect_chessboard(gray: np.ndarray, definition: dict) -> tuple[np.ndarray, np.ndarray, str | None]:
+    """A chessboard's inner corners (``cv2.findChessboardCornersSB``): all of them, or none.
+
+    The board has no markers, so the whole board must be in the photo; a board whose
+    inner corners are odd by even may be numbered from either end (a half turn), which
+    changes each view's pose, not the intrinsics.
+    """
+    spec = ChessboardSpec.from_definition(definition)
+    flags = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    ok, corners = cv2.findChessboardCornersSB(gray, spec.inner, flags=flags)
+    if not ok or corners is None:
+        nx, ny = spec.inner
+        return (
+            np.zeros((0, 2)),
+            np.zeros(0, int),
+            f"no chessboard of {nx} x {ny} inner corners (the whole board must be in the photo)",
+        )
+    px = corners.reshape(-1, 2).astype(np.float64)
+    return top_left_first(gray, px, spec.inner[0]), np.arange(len(px)), None
+
+
+def top_left_first(gray: np.ndarray, px: np.ndarray, across: int) -> np.ndarray:
+    """A chessboard's corners numbered from its black top-left square.
+
+    The detector numbers the inner corners from either end. The square diagonally
+    outside corner 0 is the board's top-left one, black; where the square outside the
+    last corner is the darker, the numbering runs from the other end (a half turn) and
+    is reversed. A board whose two outer squares are both black (odd by odd squares) is
+    the same after a half turn: either numbering is right.
+    """
+
+    def outer_square(a, b, c):  # centre of the square diagonally outside corner a, away from b (row) and c (column)
+        return a - 0.5 * (b - a) - 0.5 * (c - a)
+
+    first = outer_square(px[0], px[1], px[across])
+    last = outer_square(px[-1], px[-2], px[-1 - across])
+    H, W = gray.shape[:2]
+
+    def level(p):
+        x, y = int(round(p[0])), int(round(p[1]))
+        if not (0 <= x < W and 0 <= y < H):
+            return None
+        return float(gray[max(y - 1, 0) : y + 2, max(x - 1, 0) : x + 2].mean())
+
+    a, b = level(first), level(last)
+    if a is not None and b is not None and b < a - 20:
+        return px[::-1].copy()
+    return px
 
 
 @dataclass
@@ -176,7 +245,7 @@ def board_views(images: list[tuple[str, np.ndarray]], definition: dict) -> tuple
     per_view : list of dict
         name, corners, used, and reason when not used; in the photos' order.
     """
-    board_mm = np.asarray(definition["charuco_corners"]["board_mm"], dtype=np.float64)
+    board_mm = board_points_mm(definition)
     views, per_view, seen = [], [], []
     for name, img in images:
         px, ids, problem = detect_corners(img, definition)
@@ -211,8 +280,11 @@ def corner_coverage(views: list, width: int, height: int) -> float:
 CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 
 
-def fit_intrinsics(views: list, width: int, height: int, flags: int) -> tuple:
+def fit_intrinsics(views: list, width: int, height: int, flags: int, guess: tuple | None = None) -> tuple:
     """``cv2.calibrateCameraExtended`` over the views.
+
+    ``guess`` (K, dist) starts the fit from known intrinsics (with
+    ``cv2.CALIB_USE_INTRINSIC_GUESS`` in ``flags``; distortion held with the FIX flags).
 
     Returns
     -------
@@ -234,8 +306,9 @@ def fit_intrinsics(views: list, width: int, height: int, flags: int) -> tuple:
         OpenCV could not calibrate.
     """
     try:
+        K0, d0 = (None, None) if guess is None else (guess[0].copy(), guess[1].copy())
         rms, K, dist, rvecs, tvecs, std, _, _ = cv2.calibrateCameraExtended(
-            [v[1] for v in views], [v[2] for v in views], (width, height), None, None, flags=flags, criteria=CRITERIA
+            [v[1] for v in views], [v[2] for v in views], (width, height), K0, d0, flags=flags, criteria=CRITERIA
         )
     except cv2.error as exc:
         detail = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
@@ -250,7 +323,7 @@ def fit_intrinsics(views: list, width: int, height: int, flags: int) -> tuple:
 JACKKNIFE_GROUPS = 10
 
 
-def jackknife_std(views: list, width: int, height: int, flags: int) -> np.ndarray | None:
+def jackknife_std(views: list, width: int, height: int, flags: int, guess: tuple | None = None) -> np.ndarray | None:
     """Standard deviations of fx, fy, cx, cy (px) from the views' own scatter (grouped jackknife).
 
     The views are dealt into G = min(n, JACKKNIFE_GROUPS) groups; each group is left out
@@ -273,7 +346,7 @@ def jackknife_std(views: list, width: int, height: int, flags: int) -> np.ndarra
     for g in range(G):
         rest = [v for k, v in enumerate(views) if k % G != g]
         try:
-            _, K, *_ = fit_intrinsics(rest, width, height, flags)
+            _, K, *_ = fit_intrinsics(rest, width, height, flags, guess)
         except WorkbenchError:
             continue
         thetas.append([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
@@ -363,6 +436,9 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
 
 
 INTRINSICS = ("fx", "fy", "cx", "cy")
+HOLD_DISTORTION = (
+    cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_FIX_TANGENT_DIST
+)
 TOLERANCE_SIGMA = 3.0  # a re-measured intrinsic this many standard deviations from the profile's has drifted
 
 
@@ -436,9 +512,9 @@ def check_camera(
     must stay within ``tolerance_px`` (default: the profile's own limit for a view that
     agrees with the others). A pose absorbs most of an intrinsics error (a focal length
     5 % off moves the RMS from 0.25 to below 0.5 px), so where the photos allow it
-    (MIN_VIEWS usable views whose board normals turn at least MIN_TILT_SPREAD_DEG) the
-    intrinsics are also re-measured from the photos alone and compared with the
-    profile's: each of fx, fy, cx, cy must lie within ``tolerance_sigma`` combined
+    (MIN_VIEWS usable views whose board normals turn at least MIN_TILT_SPREAD_DEG) fx,
+    fy, cx, cy are also re-measured from the photos (the profile's distortion held) and
+    compared with the profile's: each of fx, fy, cx, cy must lie within ``tolerance_sigma`` combined
     standard deviations (the profile's and the re-measurement's, each from its views'
     scatter) of the stored value.
 
@@ -494,13 +570,15 @@ def check_camera(
     elif spread < MIN_TILT_SPREAD_DEG:
         why_not = f"the board's normal turns {spread:.1f} degrees at most between photos, need {MIN_TILT_SPREAD_DEG:g}"
     else:
-        flags = cv2.CALIB_FIX_K3 if profile.get("k3_fixed", True) else 0
+        # the profile's distortion held: the errors it shares with the profile's fx, fy, cx, cy
+        # cancel in the difference, and a few photos need not reach the borders
+        flags = HOLD_DISTORTION
         try:
-            rms, K, dist, _, _, std, _ = fit_intrinsics(views, W, H, flags)
+            rms, K, dist, _, _, std, _ = fit_intrinsics(views, W, H, flags, (K0, dist0))
         except WorkbenchError as exc:
             why_not = str(exc)
         else:
-            jack = jackknife_std(views, W, H, flags)
+            jack = jackknife_std(views, W, H, flags, (K0, dist0))
             std = std if jack is None else np.maximum(std, jack)
             stored = profile.get("intrinsics_std") or {}
             std0 = np.array([float(stored.get(k, 0.0)) for k in INTRINSICS])
@@ -670,7 +748,7 @@ def measure_printer(scan: np.ndarray, definition: dict, dpi: float) -> PrinterSc
         raise WorkbenchError(f"the scan shows {problem}")
     if len(ids) < MIN_CORNERS:
         raise WorkbenchError(f"too few corners of the target in the scan ({len(ids)}, need {MIN_CORNERS})")
-    board = np.asarray(definition["charuco_corners"]["board_mm"], dtype=np.float64)[ids]
+    board = board_points_mm(definition)[ids]
     mm = (px + 0.5) * 25.4 / dpi
     A = np.column_stack([board, np.ones(len(board))])
     sol, *_ = np.linalg.lstsq(A, mm, rcond=None)  # mm = board @ M + t, M = sol[:2]

@@ -36,6 +36,14 @@ BOARD = {
     "first_id": Field("integer", required=False, default=0, lo=0),
     "charuco_corners": Field("object", fields={"board_mm": Field("array", shape=(None, 2), min_len=4)}),
     "markers": Field("object", fields={"ids": Field("array", shape=(None,), integer=True, lo=0, min_len=1)}),
+    "legacy": Field("bool", required=False, default=False, hint="the pre-4.6 OpenCV layout (even rows differ)"),
+}
+
+# a chessboard definition (workbench board chessboard): "board": "chessboard", inner corners only
+CHESSBOARD = {
+    "squares": Field("array", shape=(2,), integer=True, lo=3, hi=1000, hint="[nx, ny] squares"),
+    "square_mm": Field("number", lo=1e-3, hi=10_000),
+    "corners": Field("object", fields={"board_mm": Field("array", shape=(None, 2), min_len=4)}),
 }
 
 # the [fixture] table of a job file (TOML): every key optional

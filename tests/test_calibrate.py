@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -31,7 +32,8 @@ def board_definition(tmp_path):
 def calibration_photos(tmp_path, board, n=15, size=(1600, 1200), seed=0):
     """Views of the board lying flat, from 50 to 80 degrees of elevation, 260 to 320 mm away."""
     scene = board_scene(board)
-    centre = np.array([112.5, -87.5, 0.0])
+    nx, ny = board["squares"]
+    centre = np.array([nx * board["square_mm"] / 2, -ny * board["square_mm"] / 2, 0.0])
     rng = np.random.default_rng(seed)
     paths = []
     for k in range(n):
@@ -201,3 +203,121 @@ def test_the_stored_regression_passes():
     prof = ROOT / "calib" / "printers" / "reference-laser.json"
     scan = ROOT / "calib" / "regression" / "printer-target-scan-300dpi.png"
     assert main(["calibrate", "check", str(prof), str(scan), "-q"]) == 0
+
+
+def opencv_calibration(object_points, image_points, size):
+    """OpenCV's own pipeline: ``cv2.calibrateCamera`` with its default flags; (fx, fy, cx, cy)."""
+    _, K, *_ = cv2.calibrateCamera(object_points, image_points, size, None, None)
+    return np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+
+
+def profile_intrinsics(path):
+    K = np.asarray(json.loads(path.read_text())["K"])
+    return np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+
+
+def test_a_legacy_layout_board_calibrates_like_opencv(tmp_path, capsys):
+    # an even number of rows: the pre-4.6 layout, as many printed boards have it
+    spec = CharucoSpec((8, 6), 25.0, 18.0, "DICT_5X5_250", legacy=True)
+    board = definition(spec, "charuco")
+    legacy = tmp_path / "legacy.json"
+    legacy.write_text(json.dumps(board))
+    photos = calibration_photos(tmp_path, board, n=8)
+    out = tmp_path / "cam.json"
+    assert main(["calibrate", "camera", *map(str, photos), "--board", str(legacy), "-o", str(out), "-q"]) == 0
+    ours = profile_intrinsics(out)
+    # OpenCV's detector given the legacy layout, and calibrateCamera, on the same photos
+    cv_board = cv2.aruco.CharucoBoard((8, 6), 25.0, 18.0, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_250))
+    cv_board.setLegacyPattern(True)
+    obj, img = [], []
+    for p in photos:
+        corners, ids, _, _ = cv2.aruco.CharucoDetector(cv_board).detectBoard(cv2.imread(str(p), cv2.IMREAD_GRAYSCALE))
+        o, i = cv_board.matchImagePoints(corners, ids)
+        obj.append(o)
+        img.append(i)
+    theirs = opencv_calibration(obj, img, (1600, 1200))
+    assert np.abs(ours[:2] / theirs[:2] - 1).max() < 0.005 and np.abs(ours[2:] - theirs[2:]).max() < 0.005 * 1600
+    assert np.abs(ours[:2] / 1400.0 - 1).max() < 1e-3  # and the truth
+    # the same photos against today's layout: markers, no corners, and the message names the layout
+    today = tmp_path / "today.json"
+    today.write_text(json.dumps(definition(CharucoSpec((8, 6), 25.0, 18.0, "DICT_5X5_250"), "charuco")))
+    assert main(["calibrate", "camera", *map(str, photos), "--board", str(today), "-o", str(out), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "markers found but no ChArUco corners: the board is printed in the legacy (pre-4.6 OpenCV) layout" in err
+    assert 'set "legacy": true in the board definition' in err and len(err) < 1000
+
+
+REAL = ROOT / "calib" / "regression" / "opencv-chessboard"  # OpenCV's sample photos (README beside them)
+CHESSBOARD = ROOT / "calib" / "boards" / "chessboard-10x7-25mm.json"
+LEFT_PROFILE = ROOT / "calib" / "cameras" / "opencv-left.json"  # made from left01-04 and left06-08
+HELD_OUT = [REAL / f"left{k:02d}.jpg" for k in (9, 11, 12, 13, 14)]
+
+
+def test_real_chessboard_photos_calibrate_like_opencv(tmp_path):
+    photos = sorted(REAL.glob("left*.jpg"))
+    out = tmp_path / "left.json"
+    assert main(["calibrate", "camera", *map(str, photos), "--board", str(CHESSBOARD), "-o", str(out), "-q"]) == 0
+    ours = profile_intrinsics(out)
+    views = {Path(v["name"]).name: v for v in json.loads(out.read_text())["views"]}
+    assert sum(v["used"] for v in views.values()) == 12 and not views["left05.jpg"]["used"]  # board cut off
+    # OpenCV's own pipeline on the same photos
+    grid = np.zeros((54, 3), np.float32)
+    grid[:, :2] = np.mgrid[0:9, 0:6].T.reshape(-1, 2) * 25.0
+    obj, img = [], []
+    for p in photos:
+        gray = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+        ok, corners = cv2.findChessboardCornersSB(gray, (9, 6), flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+        if ok:
+            obj.append(grid)
+            img.append(corners)
+    theirs = opencv_calibration(obj, img, (640, 480))
+    assert len(img) == 12
+    assert np.abs(ours[:2] / theirs[:2] - 1).max() < 0.005 and np.abs(ours[2:] - theirs[2:]).max() < 0.005 * 640
+    # the camera the OpenCV sample reports (its own calibration, fx = fy forced): within 1 %
+    assert np.abs(ours[:2] / 535.9157 - 1).max() < 0.01
+
+
+def test_the_stored_camera_regression_on_real_photos(tmp_path, capsys):
+    # photos of the same camera not used to make the profile: within tolerance
+    assert main(["calibrate", "check", str(LEFT_PROFILE), *map(str, HELD_OUT)]) == 0
+    err = capsys.readouterr().err
+    assert "re-measured on 5 photos" in err and "within tolerance on 5 photos" in err
+    # the other camera of the stereo pair, same model and image size: its principal point is elsewhere
+    right = sorted(REAL.glob("right*.jpg"))
+    assert main(["calibrate", "check", str(LEFT_PROFILE), *map(str, right), "-q"]) == 1
+    line = capsys.readouterr().err.strip()
+    assert "the camera drifted: " in line and "re-measured cx " in line and ", cy " in line
+    # drifts these photos resolve: the profile knows fx to 0.75 % (7 photos of 640 x 480), so 4 % and 20 px
+    for fx, cx, what in ((1.04, 0.0, "fx"), (0.96, 0.0, "fx"), (1.0, 20.0, "cx")):
+        assert (
+            main(["calibrate", "check", str(drifted(LEFT_PROFILE, tmp_path, fx, cx)), *map(str, HELD_OUT), "-q"]) == 1
+        )
+        assert f"re-measured {what} " in capsys.readouterr().err
+    # a photo of another size is refused, by name
+    small = tmp_path / "left09-small.png"
+    small.write_bytes(png_bytes(cv2.resize(cv2.imread(str(HELD_OUT[0])), (320, 240))))
+    assert main(["calibrate", "check", str(LEFT_PROFILE), *map(str, HELD_OUT[1:]), str(small), "-q"]) == 1
+    assert f"{small}: 320 x 240 pixels, but the profile is for 640 x 480" in capsys.readouterr().err
+
+
+def test_camera_warns_when_its_views_would_fail_its_own_check(synthetic, tmp_path, capsys, monkeypatch):
+    from workbench import calibration
+
+    _, photos, _ = synthetic
+    board, board_path = board_definition(tmp_path)
+    five = photos[:5]  # too few to leave the bad one out
+    detect = calibration.detect_corners
+
+    def shaken(gray, definition):
+        px, ids, problem = detect(gray, definition)
+        if gray is images[-1]:  # the last photo's corners 1.5 px off at random: a blurred, moved shot
+            px = px + np.random.default_rng(0).normal(0, 1.5, px.shape)
+        return px, ids, problem
+
+    images = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in five]
+    monkeypatch.setattr(calibration, "detect_corners", shaken)
+    cal = calibration.calibrate_camera(list(zip(map(str, five), images, strict=True)), board)
+    assert all(v["used"] for v in cal.per_view)
+    last = cal.per_view[-1]
+    assert last["rms_px"] > cal.view_limit_px
+    assert any(w.startswith("1 of 5 views would fail calibrate check") and five[-1].name in w for w in cal.warnings)

@@ -110,6 +110,20 @@ def test_check_measures_the_intrinsics_on_new_photos(synthetic, tmp_path, capsys
         assert f"the camera drifted: re-measured {what} " in err.splitlines()[-1], err
 
 
+def test_check_with_three_photos_measures_the_focal_length(synthetic, tmp_path, capsys):
+    out, _, new = synthetic
+    three = list(map(str, new[:3]))
+    assert main(["calibrate", "check", str(out), *three]) == 0
+    err = capsys.readouterr().err
+    assert "fx, fy, cx, cy not all re-measured (3 usable photos" in err
+    assert "re-measured on 3 photos, principal point and aspect held" in err
+    assert main(["calibrate", "check", str(drifted(out, tmp_path, 1.01)), *three, "-q"]) == 1
+    assert "the camera drifted: re-measured fx " in capsys.readouterr().err
+    # two photos cannot tell their own scatter: the per-photo test alone, and the check says so
+    assert main(["calibrate", "check", str(drifted(out, tmp_path, 1.01)), *three[:2]]) == 0
+    assert "2 usable photos: re-measuring the focal length needs 3" in capsys.readouterr().err
+
+
 def test_check_refuses_another_size_and_leaves_out_photos_without_the_board(synthetic, tmp_path, capsys):
     out, _, new = synthetic
     small = tmp_path / "small.png"

@@ -439,6 +439,8 @@ INTRINSICS = ("fx", "fy", "cx", "cy")
 HOLD_DISTORTION = (
     cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_FIX_TANGENT_DIST
 )
+# fewer photos than this cannot tell their own scatter (one photo's focal length hangs on its tilt)
+MIN_FOCAL_VIEWS = 3
 TOLERANCE_SIGMA = 3.0  # a re-measured intrinsic this many standard deviations from the profile's has drifted
 
 
@@ -481,11 +483,12 @@ class CameraCheck:
     limit_px : float
         The per-photo RMS limit.
     remeasured : dict or None
-        When the photos allow it: for each of fx, fy, cx, cy, ``value``, ``profile``,
-        ``delta`` (px), ``sigma`` (combined standard deviation, px), ``z``; and
-        ``views``, ``rms_px``, ``ray_shift_px`` (largest shift across the image).
+        For each re-measured intrinsic (fx, fy, cx, cy; fx alone with few photos),
+        ``value``, ``profile``, ``delta`` (px), ``sigma`` (combined standard deviation,
+        px), ``z``; and ``views``, ``rms_px``, ``ray_shift_px`` (largest shift across the
+        image), ``measured`` (the names). None when even a focal length could not be fitted.
     why_not : str or None
-        Why the intrinsics were not re-measured.
+        Why fx, fy, cx, cy were not all re-measured.
     tolerance_sigma : float
     drift : list of str
         What drifted (empty: within tolerance).
@@ -565,50 +568,68 @@ def check_camera(
         )
     remeasured, why_not = None, None
     spread = tilt_spread_deg(views, W, H)
-    if len(views) < MIN_VIEWS:
-        why_not = f"{len(views)} usable photos, re-measuring the intrinsics needs {MIN_VIEWS}"
-    elif spread < MIN_TILT_SPREAD_DEG:
-        why_not = f"the board's normal turns {spread:.1f} degrees at most between photos, need {MIN_TILT_SPREAD_DEG:g}"
-    else:
-        # the profile's distortion held: the errors it shares with the profile's fx, fy, cx, cy
-        # cancel in the difference, and a few photos need not reach the borders
-        flags = HOLD_DISTORTION
-        try:
-            rms, K, dist, _, _, std, _ = fit_intrinsics(views, W, H, flags, (K0, dist0))
-        except WorkbenchError as exc:
-            why_not = str(exc)
-        else:
-            jack = jackknife_std(views, W, H, flags, (K0, dist0))
-            std = std if jack is None else np.maximum(std, jack)
-            stored = profile.get("intrinsics_std") or {}
-            std0 = np.array([float(stored.get(k, 0.0)) for k in INTRINSICS])
-            theta = np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
-            theta0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2]])
-            sigma = np.sqrt(std**2 + std0**2)
-            z = (theta - theta0) / sigma
-            remeasured = {
-                k: {
-                    "value": float(theta[i]),
-                    "profile": float(theta0[i]),
-                    "delta": float(theta[i] - theta0[i]),
-                    "sigma": float(sigma[i]),
-                    "z": float(z[i]),
-                }
-                for i, k in enumerate(INTRINSICS)
-            }
-            remeasured.update(
-                views=len(views),
-                rms_px=rms,
-                ray_shift_px=ray_shift_px(K0, dist0, K, dist, W, H),
-                profile_uncertainty=bool(stored),
-            )
-            off = [
-                f"{k} {theta[i]:.2f} against {theta0[i]:.2f} px ({z[i]:+.1f} sigma)"
-                for i, k in enumerate(INTRINSICS)
-                if abs(z[i]) > tolerance_sigma
-            ]
-            if off:
-                drift.append("re-measured " + ", ".join(off) + f" (tolerance {tolerance_sigma:g} sigma)")
+    # the profile's distortion held: the errors it shares with the profile's fx, fy, cx, cy
+    # cancel in the difference, and a few photos need not reach the borders
+    flags, names = HOLD_DISTORTION, INTRINSICS
+    if len(views) < MIN_FOCAL_VIEWS:
+        why_not = (
+            f"{len(views)} usable photos: re-measuring the focal length needs {MIN_FOCAL_VIEWS}, "
+            f"fx, fy, cx, cy {MIN_VIEWS}"
+        )
+        return CameraCheck(per_photo, float(tolerance_px), None, why_not, float(tolerance_sigma), drift)
+    if len(views) < MIN_VIEWS or spread < MIN_TILT_SPREAD_DEG:
+        why_not = (
+            f"{len(views)} usable photos, re-measuring fx, fy, cx, cy needs {MIN_VIEWS}"
+            if len(views) < MIN_VIEWS
+            else f"the board's normal turns {spread:.1f} degrees at most between photos, need {MIN_TILT_SPREAD_DEG:g}"
+        )
+        # fewer photos still fix one focal length (each tilted view gives two of Zhang's
+        # constraints): the principal point and the aspect held, a pose cannot absorb it
+        flags, names = HOLD_DISTORTION | cv2.CALIB_FIX_PRINCIPAL_POINT | cv2.CALIB_FIX_ASPECT_RATIO, ("fx",)
+    try:
+        rms, K, dist, _, _, std, _ = fit_intrinsics(views, W, H, flags, (K0, dist0))
+    except WorkbenchError as exc:
+        why_not = f"{why_not}; {exc}" if why_not else str(exc)
+        return CameraCheck(per_photo, float(tolerance_px), None, why_not, float(tolerance_sigma), drift)
+    stored = profile.get("intrinsics_std") or {}
+    std0 = np.array([float(stored.get(k, 0.0)) for k in INTRINSICS])
+    jack = jackknife_std(views, W, H, flags, (K0, dist0))
+    if jack is not None:
+        std = np.maximum(std, jack)
+    n_profile = sum(1 for v in profile.get("views") or [] if v.get("used"))
+    if stored and n_profile and (jack is None or len(names) < len(INTRINSICS)):
+        # too few photos for their own scatter to be trusted: at least what the profile's photos
+        # showed, for as many photos as these (a standard deviation shrinks as 1 / sqrt(views))
+        std = np.maximum(std, std0 * np.sqrt(n_profile / len(views)))
+    theta = np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+    theta0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2]])
+    sigma = np.sqrt(std**2 + std0**2)
+    z = (theta - theta0) / np.maximum(sigma, 1e-12)
+    remeasured = {
+        k: {
+            "value": float(theta[i]),
+            "profile": float(theta0[i]),
+            "delta": float(theta[i] - theta0[i]),
+            "sigma": float(sigma[i]),
+            "z": float(z[i]),
+        }
+        for i, k in enumerate(INTRINSICS)
+        if k in names
+    }
+    remeasured.update(
+        views=len(views),
+        rms_px=rms,
+        ray_shift_px=ray_shift_px(K0, dist0, K, dist, W, H),
+        profile_uncertainty=bool(stored),
+        measured=list(names),
+    )
+    off = [
+        f"{k} {theta[i]:.2f} against {theta0[i]:.2f} px ({z[i]:+.1f} sigma)"
+        for i, k in enumerate(INTRINSICS)
+        if k in names and abs(z[i]) > tolerance_sigma
+    ]
+    if off:
+        drift.append("re-measured " + ", ".join(off) + f" (tolerance {tolerance_sigma:g} sigma)")
     return CameraCheck(per_photo, float(tolerance_px), remeasured, why_not, float(tolerance_sigma), drift)
 
 

@@ -256,12 +256,14 @@ def _check_camera(args, path: Path, prof: dict, board: dict, log) -> list[str]:
                 f"(limit {c.limit_px:.2f} px): {'OK' if v['ok'] else 'DRIFT'}"
             )
     r = c.remeasured
-    if r is None:
-        log(f"intrinsics not re-measured ({c.why_not}): only the per-photo test, which a pose partly absorbs")
-    else:
-        parts = [f"{k} {r[k]['value']:.2f} ({r[k]['delta']:+.2f} px, {r[k]['z']:+.1f} sigma)" for k in INTRINSICS]
+    if c.why_not:
+        log(f"fx, fy, cx, cy not all re-measured ({c.why_not})")
+    if r is not None:
+        names = r["measured"]
+        parts = [f"{k} {r[k]['value']:.2f} ({r[k]['delta']:+.2f} px, {r[k]['z']:+.1f} sigma)" for k in names]
+        held = "" if len(names) == len(INTRINSICS) else ", principal point and aspect held"
         log(
-            f"re-measured on {r['views']} photos (RMS {r['rms_px']:.3f} px): {', '.join(parts)}; "
+            f"re-measured on {r['views']} photos{held} (RMS {r['rms_px']:.3f} px): {', '.join(parts)}; "
             f"largest shift across the image {r['ray_shift_px']:.2f} px "
             f"(tolerance {c.tolerance_sigma:g} sigma): {'DRIFT' if any('re-measured' in d for d in c.drift) else 'OK'}"
         )

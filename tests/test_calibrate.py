@@ -335,3 +335,31 @@ def test_camera_warns_when_its_views_would_fail_its_own_check(synthetic, tmp_pat
     last = cal.per_view[-1]
     assert last["rms_px"] > cal.view_limit_px
     assert any(w.startswith("1 of 5 views would fail calibrate check") and five[-1].name in w for w in cal.warnings)
+
+
+def test_when_every_photo_fails_the_error_stays_one_short_line(tmp_path, capsys):
+    _, board_path = board_definition(tmp_path)
+    blanks = []
+    for k in range(40):
+        p = tmp_path / f"a-rather-long-photo-file-name-{k:03d}.png"
+        p.write_bytes(png_bytes(np.full((48, 64), 128, np.uint8)))
+        blanks.append(str(p))
+    out = tmp_path / "cam.json"
+    assert main(["calibrate", "camera", *blanks, "--board", str(board_path), "-o", str(out), "-q"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and len(err) < 600, err
+    assert "0 usable views of the board, need at least 5" in err and "and 37 more)" in err
+
+
+def test_residual_arrows_scale_with_the_residuals():
+    from workbench.commands.calibrate import MAX_ARROWS, arrow_layout
+
+    # 4,686 corners of a 0.69 px calibration at 1280 px: every 4th drawn, x20 (95th percentile 1.2 px: 24 px long)
+    mags = np.random.default_rng(0).rayleigh(0.69 / np.sqrt(2), 4686)
+    gain, step = arrow_layout(mags, 1280)
+    assert step == 4 and len(mags[::step]) <= MAX_ARROWS
+    p95 = np.percentile(mags, 95)
+    assert gain * p95 <= 0.03 * 1280 < 2.5 * gain * p95 and gain in (10.0, 20.0, 50.0)
+    # a synthetic calibration (0.09 px) gets larger arrows, and few corners are all drawn
+    gain, step = arrow_layout(np.full(300, 0.09), 1600)
+    assert (gain, step) == (500.0, 1)

@@ -104,12 +104,37 @@ def _sha(path: Path) -> str:
 MAX_ARROWS = 1500
 
 
+def arrow_layout(magnitudes: np.ndarray, width: int) -> tuple[float, int]:
+    """How to draw residual arrows: magnification and stride.
+
+    Parameters
+    ----------
+    magnitudes : (n,) float
+        Residual lengths, px.
+    width : int
+        Image width, px.
+
+    Returns
+    -------
+    gain : float
+        A round 1, 2 or 5 x 10^k, the largest that draws the 95th percentile residual at
+        most 3 % of the width long (between 1 and 100,000).
+    step : int
+        Draw every step-th arrow: at most MAX_ARROWS.
+    """
+    p95 = float(np.percentile(magnitudes, 95)) if len(magnitudes) else 0.0
+    raw = float(np.clip(0.03 * width / max(p95, 1e-6), 1, 1e5))
+    decade = 10 ** np.floor(np.log10(raw))
+    gain = float(decade * max(m for m in (1, 2, 5) if decade * m <= raw))
+    return gain, max(1, int(np.ceil(len(magnitudes) / MAX_ARROWS)))
+
+
 def residual_picture(cal, title: str) -> bytes:
     """Corner residuals over the image, coloured by size.
 
-    The arrows are magnified so that the 95th percentile residual is drawn 3 % of the
-    image width long, and at most MAX_ARROWS of them are drawn (every k-th corner), so
-    that thousands of corners stay readable.
+    The arrows are magnified so that the 95th percentile residual is drawn at most 3 % of
+    the image width long, and at most MAX_ARROWS of them are drawn (every k-th corner),
+    so that thousands of corners stay readable (:func:`arrow_layout`).
     """
     from workbench.figures import _figure, figure_png
 
@@ -119,11 +144,7 @@ def residual_picture(cal, title: str) -> bytes:
     pts = np.concatenate([p for p, _ in cal.residuals])
     res = np.concatenate([r for _, r in cal.residuals])
     mag = np.linalg.norm(res, axis=1)
-    p95 = float(np.percentile(mag, 95)) if len(mag) else 0.0
-    raw = float(np.clip(0.03 * W / max(p95, 1e-6), 1, 1e5))
-    decade = 10 ** np.floor(np.log10(raw))
-    gain = float(decade * max(m for m in (1, 2, 5) if decade * m <= raw))  # a round figure for the legend
-    step = int(np.ceil(len(pts) / MAX_ARROWS))
+    gain, step = arrow_layout(mag, W)
     sel = slice(None, None, step)
     q = ax.quiver(
         pts[sel, 0],

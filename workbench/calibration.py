@@ -514,12 +514,14 @@ def check_camera(
     Two tests. Each photo is posed with the stored intrinsics and its reprojection RMS
     must stay within ``tolerance_px`` (default: the profile's own limit for a view that
     agrees with the others). A pose absorbs most of an intrinsics error (a focal length
-    5 % off moves the RMS from 0.25 to below 0.5 px), so where the photos allow it
-    (MIN_VIEWS usable views whose board normals turn at least MIN_TILT_SPREAD_DEG) fx,
-    fy, cx, cy are also re-measured from the photos (the profile's distortion held) and
-    compared with the profile's: each of fx, fy, cx, cy must lie within ``tolerance_sigma`` combined
-    standard deviations (the profile's and the re-measurement's, each from its views'
-    scatter) of the stored value.
+    5 % off moves the RMS from 0.25 to below 0.5 px), so the intrinsics are also
+    re-measured from the photos, the profile's distortion held, and each must lie within
+    ``tolerance_sigma`` combined standard deviations (the profile's and the
+    re-measurement's, each from its views' scatter) of the stored value. With MIN_VIEWS
+    usable photos whose board normals turn at least MIN_TILT_SPREAD_DEG, fx, fy, cx and cy
+    are re-measured; with MIN_FOCAL_VIEWS or more, or too little tilt, the focal length
+    alone (principal point and aspect held): the intrinsic a pose absorbs by moving closer
+    or farther, which each tilted photo still fixes. With fewer, the per-photo test alone.
 
     Parameters
     ----------

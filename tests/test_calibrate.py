@@ -385,3 +385,17 @@ def test_a_noisy_profile_passes_its_own_photos(synthetic, tmp_path, capsys, monk
     assert main(["calibrate", "check", str(out), *map(str, photos)]) == 0
     err = capsys.readouterr().err
     assert "DRIFT" not in err and "re-measured on 15 photos" in err
+
+
+def test_check_names_a_malformed_key_of_the_profile(synthetic, tmp_path, capsys):
+    out, _, new = synthetic
+    prof = json.loads(drifted(out, tmp_path).read_text())
+    prof["intrinsics_std"]["fx"] = "large"
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(prof))
+    assert main(["calibrate", "check", str(bad), str(new[0]), "-q"]) == 1
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith(f"{bad}: intrinsics_std.fx: must be a number from 0 to 1e+06 (standard deviation, px), got 'large'")
+    )

@@ -138,6 +138,7 @@ def test_check_refuses_another_size_and_leaves_out_photos_without_the_board(synt
     assert main(["calibrate", "check", str(out), str(blank), *map(str, new[:5])]) == 0
     err = capsys.readouterr().err
     assert f"left out {blank}: no markers of the board" in err and "re-measured on 5 photos" in err
+    assert "within tolerance on 5 photos (1 left out)" in err
     assert main(["calibrate", "check", str(out), str(blank), "-q"]) == 1
     assert "no photo shows the board: " in capsys.readouterr().err
 

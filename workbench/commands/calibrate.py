@@ -157,7 +157,7 @@ def residual_picture(cal, title: str) -> bytes:
         scale_units="xy",
         scale=1 / gain,
     )
-    shown = f"; every {step}th of {len(pts)} corners" if step > 1 else ""
+    shown = f"; 1 in {step} of {len(pts)} corners" if step > 1 else ""
     fig.colorbar(q, ax=ax, fraction=0.046, pad=0.04).set_label(f"residual (px); arrows x{gain:g}{shown}")
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
@@ -257,14 +257,15 @@ def _measure(scan: Path, board: dict, dpi: float):
         raise WorkbenchError(str(exc) if str(exc).startswith(str(scan)) else f"{scan}: {exc}") from None
 
 
-def _check_camera(args, path: Path, prof: dict, board: dict, log) -> list[str]:
-    """The camera half of ``calibrate check``: what drifted (empty when within tolerance)."""
+def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[str], str]:
+    """The camera half of ``calibrate check``: what drifted (empty when within tolerance), and on what."""
     K = np.asarray(prof["K"], dtype=np.float64)
     problem = intrinsics_problem(K, *prof["image_size"])
     if problem:
         raise WorkbenchError(f"{path}: {problem}")
     images = [(str(p), _gray(Path(p))) for p in args.inputs]
     c = check_camera(images, board, prof, args.tolerance_px, args.tolerance_sigma)
+    used = sum(v["used"] for v in c.per_photo)
     for v in c.per_photo:
         name = Path(v["name"]).name
         if not v["used"]:
@@ -289,8 +290,9 @@ def _check_camera(args, path: Path, prof: dict, board: dict, log) -> list[str]:
             f"(tolerance {c.tolerance_sigma:g} sigma): {'DRIFT' if any('re-measured' in d for d in c.drift) else 'OK'}"
         )
         if not r["profile_uncertainty"]:
-            log("the profile records no uncertainty of its intrinsics (made before it did): only the photos' counts")
-    return c.drift
+            log("the profile records no uncertainty of its intrinsics (made before it did): the photos' alone counts")
+    left_out = len(c.per_photo) - used
+    return c.drift, f"{used} photos" + (f" ({left_out} left out)" if left_out else "")
 
 
 def run_check(args) -> int:
@@ -310,10 +312,10 @@ def run_check(args) -> int:
     board_path = resolve_recorded(prof["board"]["file"], path)
     board = load_board(board_path)
     if kind == "camera-profile":
-        drift = _check_camera(args, path, prof, board, log)
+        drift, on = _check_camera(args, path, prof, board, log)
         if drift:
             raise WorkbenchError(f"{path.name}: the camera drifted: {'; '.join(drift)}: recalibrate")
-        log(f"{path.name}: within tolerance on {len(args.inputs)} photos")
+        log(f"{path.name}: within tolerance on {on}")
         return 0
     failures = []
     for item in args.inputs:

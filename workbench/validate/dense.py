@@ -821,8 +821,12 @@ def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """
     levels = np.asarray(BLUR_LEVELS)
     k = np.abs(sigma[..., None] - levels).argmin(axis=-1)
+    present = np.unique(k)
+    if len(present) == 1:
+        s = float(levels[present[0]])
+        return cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
     out = np.empty_like(img)
-    for i in np.unique(k):
+    for i in present:
         s = float(levels[i])
         b = cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
         out[k == i] = b[k == i]
@@ -939,7 +943,8 @@ def analyse(
     # blur on the grid grows in proportion (one blur for a whole photo of a deep part made
     # the creases seen at a slant "colour defects": the print's detail the photo cannot show)
     fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
-    local_blur = local_psf(blur, scale, fp)
+    # (rounded to the level of the median where the photo is not scored: nothing there asks for more)
+    local_blur = np.where(inner, local_psf(blur, scale, fp), np.float32(blur))
     moved = blur_locally(moved, local_blur)
     # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)

@@ -22,9 +22,9 @@ TILE_SIGMA_SHARE = 0.1
 MIN_CORRELATION = 0.8
 NOISE_FLOOR = 0.5  # grey levels: the least noise assumed (8-bit quantisation of photo and design)
 # a tile whose correlation has a second peak (beyond an eighth of a tile from the first)
-# within this of the first is ambiguous: the correlation of a 60² px tile varies by a few
-# hundredths with noise and blur, so a closer second peak may be its real place
-AMBIGUITY = 0.05
+# within this many standard errors of the correlation of the first is ambiguous: a periodic
+# pattern, rings, lines of text (a lily's rings registered 1.9 mm off without the test)
+AMBIGUITY_Z = 3.0
 ECC_MAX_PX = 250_000  # pixels of the similarity's alignment
 MAX_TILES = 160  # tiles registered per photo at most, spread evenly over the view (about 40 ms each)
 REGISTRATION_BLUR_PX = 1.0
@@ -253,7 +253,12 @@ def register_tile(template: np.ndarray, image: np.ndarray, x0: int, y0: int) -> 
     far = res.copy()
     r = TILE // 8
     far[max(iy - r, 0) : iy + r + 1, max(ix - r, 0) : ix + r + 1] = -1.0
-    if float(far.max()) > float(res[iy, ix]) - AMBIGUITY:
+    # (the correlation's standard error over N independent samples is about (1 - cc²) / √N;
+    # the tile's smoothed pixels hold N = T² / (4π s²) of them: a second peak within three
+    # of those of the first is not told apart from it)
+    best = float(res[iy, ix])
+    n_ind = T * T / (4.0 * np.pi * REGISTRATION_BLUR_PX**2)
+    if float(far.max()) > best - AMBIGUITY_Z * max(1.0 - best * best, 0.0) / np.sqrt(n_ind):
         return None, np.nan, np.inf
     d = np.array([ix - MARGIN, iy - MARGIN], dtype=np.float64)
     jj, ii = np.meshgrid(np.arange(T, dtype=np.float32) + x0, np.arange(T, dtype=np.float32) + y0)

@@ -57,6 +57,11 @@ NOISE_FLOOR = 0.5
 # the gain a pixel may have of its own beyond the exposure fit: shading within a crease (seen
 # on the face mask: 0.63 of the fitted brightness over 8 mm² under the jaw)
 SHADING = 1.6
+# the dense flow's own accuracy floor, grid px: DIS (medium preset) on locally normalised
+# 8-bit images errs by 0.02 to 0.04 px RMS on band-limited textures however low the noise
+# (measured in tests/test_uncertainty.py: 0.040 px for features 1.5 px across, 0.019 px for
+# 3 px, at noise 1, where the least-squares bound is 0.005 px); the larger is taken
+FLOW_FLOOR_PX = 0.04
 UNRESOLVED_KEEP = 0.25  # share of the print's gradient energy a photo must keep to resolve its detail
 EXPOSURE_SIGMA_PX = 40.0  # window of the local gain/offset fit: larger than any defect it must not absorb
 COLOUR_TOL = 40.0  # grey levels (0-255) beyond the exposure model that make a colour defect
@@ -699,7 +704,8 @@ def flow_uncertainty(
     is correlated over the photo's blur c, so the window holds only M = s² / c² independent
     samples of it (at least 1). So, along an eigenvector of T with eigenvalue λ,
     var = σ_n² / (N λ) + max(r² - σ_n², 0) / (M λ), where r² is the window's mean squared
-    residual and σ_n the photo's noise.
+    residual and σ_n the photo's noise; plus the flow's own floor, FLOW_FLOOR_PX², which
+    no texture or noise level goes below.
 
     Parameters
     ----------
@@ -738,9 +744,10 @@ def flow_uncertainty(
     l1, l2, e1 = structure_tensor(pred_s, window_px)
     n_eff = 4.0 * np.pi * window_px * window_px
     m_eff = max(1.0, (window_px / max(correlation_px, 1.0)) ** 2)
+    floor2 = FLOW_FLOOR_PX * FLOW_FLOOR_PX
     with np.errstate(divide="ignore", invalid="ignore"):
-        weak = np.sqrt(noise * noise / (n_eff * l2) + mismatch / (m_eff * l2))
-        strong = np.sqrt(noise * noise / (n_eff * l1) + mismatch / (m_eff * l1))
+        weak = np.sqrt(noise * noise / (n_eff * l2) + mismatch / (m_eff * l2) + floor2)
+        strong = np.sqrt(noise * noise / (n_eff * l1) + mismatch / (m_eff * l1) + floor2)
     weak = np.where(np.isfinite(weak), weak, np.inf).astype(np.float32)
     strong = np.where(np.isfinite(strong), strong, np.inf).astype(np.float32)
     return weak, strong, e1, noise, l1, l2

@@ -1089,20 +1089,23 @@ def analyse(
     # how finely the photo samples the print, and what it cannot resolve
     photo_px_per_mm = np.where(scored, fp / mm_per_px, np.nan)
     median_res = float(np.nanmedian(photo_px_per_mm)) if scored.any() else None
-    needed = None
+    needed, factor = None, None
     if unresolved.any():
         # the photo's blur scales with its pixel: to bring it from ``blur`` down to what the
         # detail needs, the photo needs blur / needed_blur times as many pixels per mm
         k = local_blur[unresolved] / needed_blur[unresolved]
-        needed = float(np.percentile(photo_px_per_mm[unresolved] * k, 90))
+        factor = float(np.percentile(k, 90))
+        needed = median_res * factor if median_res else None
     n_scored = max(int(scored.sum()), 1)
     resolution = {
         "photo_px_per_mm": median_res,
         "unresolved_share": float(unresolved.sum() / n_scored),
+        "needed_resolution_factor": factor,
         "needed_photo_px_per_mm": needed,
         "note": (
             "detail of the print finer than about two photo pixels (strokes of small text) is "
-            "'unresolved': its misregistration is not measured; needed_photo_px_per_mm would resolve 90 % of it"
+            "'unresolved': its misregistration is not measured; a photo needed_resolution_factor times as "
+            "fine (needed_photo_px_per_mm on the median) would resolve 90 % of it"
         ),
     }
     med_sigma = float(np.nanmedian(sigma_mm)) if np.isfinite(sigma_mm).any() else None

@@ -341,7 +341,7 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
                 if res.get("needed_photo_px_per_mm"):
                     line += (
                         f"; {100 * res['unresolved_share']:.1f} % too fine for the photo "
-                        f"(needs {res['needed_photo_px_per_mm']:.0f} px/mm)"
+                        f"(needs {res['needed_photo_px_per_mm']:.0f} px/mm, x{res['needed_resolution_factor']:.1f})"
                     )
                 c.drawString(20 * mm, top, line)
                 top -= 4.2 * mm

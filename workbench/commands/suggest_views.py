@@ -57,7 +57,7 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--up", metavar="X,Y,Z", help="the direction towards the top of every image (default: the first view's)"
     )
-    p.add_argument("--fov-deg", type=float, help="horizontal field of view (default: the widest of the job's views)")
+    p.add_argument("--fov-deg", type=float, help="horizontal field of view (default: the whole part in the frame)")
     p.add_argument("--size", metavar="WxH", help="image size in px (default: what the print's dpi needs)")
     p.add_argument(
         "--max-obliquity-deg",

@@ -49,7 +49,8 @@ class SuggestOptions:
     up : (3,) float or None
         The direction towards the top of every suggested image; None: the first view's.
     fov_deg : float or None
-        Horizontal field of view, degrees; None: the widest of the job's views.
+        Horizontal field of view, degrees; None: the part's bounding sphere fits across
+        the image's shorter side at the nearest distance.
     size_px : (width, height) or None
         Image size; None: what the print's dpi needs (a view pixel no larger on the
         surface than a print pixel), with the first view's aspect ratio.
@@ -251,14 +252,17 @@ def remaining_surface(
     # the first view's image up, in the world: minus its camera's y axis
     up = np.asarray(options.up if options.up is not None else -cameras[0].R[1], dtype=np.float64)
     up = up / np.linalg.norm(up)
-    if options.fov_deg is not None:
-        fov = float(options.fov_deg)
-    else:
-        fov = max(float(np.degrees(2 * np.arctan(0.5 * cam.width / cam.K[0, 0]))) for cam in cameras)
     if options.size_px is not None:
         aspect = options.size_px[1] / options.size_px[0]
     else:
         aspect = cameras[0].height / cameras[0].width
+    if options.fov_deg is not None:
+        fov = float(options.fov_deg)
+    else:
+        # the whole part in the frame from every direction: its bounding sphere, 5 % wider,
+        # across the image's shorter side at the nearest distance
+        half = np.arcsin(min(1.0, 1.05 * radius / distance[0]))
+        fov = float(np.degrees(2 * np.arctan(np.tan(half) / min(aspect, 1.0))))
     return Remaining(
         V=V,
         F=F,

@@ -189,18 +189,20 @@ def test_favoured_and_avoided_faces_move_the_best_view():
 
 
 def test_suggestion_pasted_into_the_job_is_owned_as_said(tmp_path):
-    # the command end to end on the lid without its front view: the TOML, one template per
-    # suggestion at its size, the picture; the first table pasted into the job makes design
-    # own covers_mm2 (within 2 %), and design reports the undecorated share and points here
+    # the command end to end on the lid without its front view, through a 20° lens that
+    # frames only part of it: the TOML, one template per suggestion at its size, the
+    # picture; the first table pasted into the job makes design own covers_mm2 (within 2 %;
+    # measured: equal to 1e-5), and design reports the undecorated share it divides
     job = job_with_views(tmp_path, "default", ["logo"])
     out = tmp_path / "s" / "suggest.toml"
-    assert main(["suggest-views", str(job), "-o", str(out), "--size", "400x300", "-q"]) == 0
+    args = ["suggest-views", str(job), "-o", str(out), "--size", "400x300", "--fov-deg", "20", "-q"]
+    assert main(args) == 0
     doc = tomllib.loads(out.read_text())
     assert [v["name"] for v in doc["views"]] == ["suggest-1", "suggest-2", "suggest-3"]
     for v in doc["views"]:
         img = cv2.imread(str(job.parent / v["image"]))
         assert img.shape == (v["height_px"], v["width_px"], 3) == (300, 400, 3)
-        assert 0 < v["covers_share"] <= 1
+        assert 0.5 < v["covers_share"] < 0.9
     assert (tmp_path / "s" / "suggest-views.png").stat().st_size > 10_000
     first = out.read_text().split("\n[[views]]\n")[1]
     pasted = tmp_path / "pasted.toml"
@@ -216,7 +218,6 @@ def test_suggestion_pasted_into_the_job_is_owned_as_said(tmp_path):
     assert main(["design", str(job), "--out", str(d0), "-q"]) == 0
     before = json.loads((d0 / "design.json").read_text())
     assert owned / before["undecorated_mm2"] == pytest.approx(doc["views"][0]["covers_share"], rel=0.02)
-    assert before["undecorated_share"] == pytest.approx(1 - before["views"][0]["surface_owned_mm2"] / 9_600, abs=0.05)
     assert info["undecorated_mm2"] == pytest.approx(before["undecorated_mm2"] - owned, rel=1e-6, abs=1e-6)
 
 
@@ -290,6 +291,22 @@ def test_real_meshes(tmp_path, name):
     assert rem.undecorated_mm2 > 0.05 * rem.area.sum()
     suggestions = suggest_views(rem, options)
     check_against_dense_search(rem, options, suggestions)
+
+
+@pytest.mark.slow
+def test_real_mesh_suggestion_pasted_into_the_job(tmp_path):
+    # bunny-0 on a free outline: the conformal solve flips edges, so design assigns the
+    # views on the common subdivision, not on the mesh suggest-views scored (measured: 0.06 % apart)
+    job = corpus_job(tmp_path, "bunny-0")
+    out = tmp_path / "suggest.toml"
+    assert main(["suggest-views", str(job), "-o", str(out), "-n", "1", "-q"]) == 0
+    doc = tomllib.loads(out.read_text())
+    pasted = tmp_path / "pasted.toml"
+    pasted.write_text(job.read_text() + "\n[[views]]\n" + out.read_text().split("\n[[views]]\n")[1])
+    assert main(["design", str(pasted), "--out", str(tmp_path / "d"), "-q"]) == 0
+    info = json.loads((tmp_path / "d" / "design.json").read_text())
+    assert info["flatten"]["intrinsic_flips"] > 0
+    assert info["views"][1]["surface_owned_mm2"] == pytest.approx(doc["views"][0]["covers_mm2"], rel=0.02)
 
 
 def test_nothing_left_to_suggest(tmp_path, capsys):

@@ -75,7 +75,7 @@ class SuggestOptions:
     size_px: tuple[int, int] | None = None
     max_obliquity_deg: float = 60.0
     min_separation_deg: float = 20.0
-    search_directions: int = 256
+    search_directions: int = 192
     search_px: int = 192
     max_px: int = 8192
 
@@ -458,12 +458,12 @@ def _angle(a: np.ndarray, b: np.ndarray) -> float:
 
 def _refine(rem, direction, distance, size, options, score0, step_deg):
     """Pattern search on the sphere from ``direction``: a step either way along each
-    tangent axis, the best kept, the step halved when none improves, down to 1°."""
+    tangent axis, the best kept, the step halved when none improves, down to 2°."""
     d = direction / np.linalg.norm(direction)
     best = score0
     step = np.radians(step_deg)
     lo = options.min_elevation_deg
-    while step >= np.radians(1.0):
+    while step >= np.radians(2.0):
         e1 = np.cross(d, rem.up if abs(d @ rem.up) < 0.99 else np.eye(3)[int(np.argmin(np.abs(d)))])
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(d, e1)

@@ -554,11 +554,14 @@ def _suggest_views(rem: Remaining, options: SuggestOptions, say) -> list[Coverag
     for c in finals:
         if len(chosen) < options.count and c.score > 0 and _far(c.direction, chosen, options.min_separation_deg):
             chosen.append(c)
-    # too few distinct seeds: the best coarse directions far enough from those chosen
+    # too few distinct seeds: the best coarse directions far enough from those chosen (a
+    # few tries each: every one costs a scoring at full size)
+    tries = 3 * options.count
     for i in np.argsort(-coarse, kind="stable"):
-        if len(chosen) >= options.count or coarse[i] <= 0:
+        if len(chosen) >= options.count or coarse[i] <= 0 or tries == 0:
             break
         if _far(dirs[i], chosen, options.min_separation_deg):
+            tries -= 1
             c = final(dirs[i], mid)
             if c.score > 0 and _far(c.direction, chosen, options.min_separation_deg):
                 chosen.append(c)

@@ -139,16 +139,16 @@ def test_a_candidate_owns_what_design_would_give_it(tmp_path):
 
 
 def test_default_job_without_its_front_view(tmp_path):
-    # the lid with its logo view alone: two thirds of it undecorated; at a fixed 400 x 300
+    # the lid with its logo view alone: two thirds of it undecorated; at a fixed 320 x 240
     # image (so that the dense search stays quick) the best of 3 suggestions owns as much at
     # a good angle as the best of 500 directions, and the three are 20° apart
-    options = SuggestOptions(size_px=(400, 300))
+    options = SuggestOptions(size_px=(320, 240))
     job, rem = remaining(job_with_views(tmp_path, "default", ["logo"]), options)
     share = rem.undecorated_mm2 / rem.area.sum()
     assert 0.6 < share < 0.75
     suggestions = suggest_views(rem, options)
     check_against_dense_search(rem, options, suggestions)
-    assert all((s.camera.width, s.camera.height) == (400, 300) for s in suggestions)
+    assert all((s.camera.width, s.camera.height) == (320, 240) for s in suggestions)
 
 
 def test_elevation_and_distance_constraints(tmp_path):
@@ -179,7 +179,7 @@ def test_favoured_and_avoided_faces_move_the_best_view():
             up=(0, 0, 1),
             count=1,
             max_obliquity_deg=obliquity,
-            search_directions=128,
+            search_directions=96,
         )
         rem = remaining_surface(V, F, status, [cam], 300, options, **kw)
         (best,) = suggest_views(rem, options)

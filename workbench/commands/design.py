@@ -160,6 +160,9 @@ def run(args) -> int:
             )
         },
         "warnings": warnings,
+        # the surface no view owns (faces no view claims): what `workbench suggest-views` proposes views for
+        "undecorated_mm2": result.undecorated[0],
+        "undecorated_share": result.undecorated[1],
         "views": stats,
         "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
@@ -241,6 +244,11 @@ def run(args) -> int:
         f"print {flat.width_mm:.2f} x {flat.height_mm:.2f} mm, {cols} x {rows} px at {grid.dpi:g} dpi; "
         + "; ".join(f"{s['name']} {100 * s['print_share']:.1f} %" for s in stats)
         + f"; background {100 * info['print']['background_share']:.1f} %"
+    )
+    left_mm2, left_share = result.undecorated
+    log(
+        f"undecorated: {100 * left_share:.1f} % of the surface ({left_mm2:.0f} mm²) no view owns"
+        + (f"; `workbench suggest-views {args.job}` proposes views for it" if left_mm2 > 0 else "")
     )
     if over:
         log(f"warning: {over:.1f} mm² of the surface stretch beyond the material's limit {limit:g}")

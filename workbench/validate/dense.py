@@ -813,6 +813,12 @@ def local_psf(blur: float, scale: float, footprint: np.ndarray) -> np.ndarray:
     return np.clip(np.maximum(b, blur), 0.0, BLUR_LEVELS[-1]).astype(np.float32)
 
 
+def blur_levels(sigma: np.ndarray) -> np.ndarray:
+    """Index into BLUR_LEVELS of the level nearest each sigma; (H, W) int8."""
+    levels = np.asarray(BLUR_LEVELS, np.float32)
+    return np.digitize(sigma, 0.5 * (levels[1:] + levels[:-1])).astype(np.int8)
+
+
 def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """An image blurred by a Gaussian whose sigma varies over it (rounded to BLUR_LEVELS).
 
@@ -826,18 +832,26 @@ def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     -------
     Same shape as ``img``.
     """
-    levels = np.asarray(BLUR_LEVELS)
-    k = np.abs(sigma[..., None] - levels).argmin(axis=-1)
+    k = blur_levels(sigma)
     present = np.unique(k)
-    if len(present) == 1:
-        s = float(levels[present[0]])
-        return cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
-    out = np.empty_like(img)
+    out = None
     for i in present:
-        s = float(levels[i])
+        s = float(BLUR_LEVELS[i])
         b = cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
-        out[k == i] = b[k == i]
+        if out is None:
+            out = b.copy() if len(present) > 1 else b
+        else:
+            m = k == i
+            out[m] = b[m]
     return out
+
+
+def gradient_energy(gray: np.ndarray, blur_px: float) -> np.ndarray:
+    """Local gradient energy of an image blurred by ``blur_px``: the structure tensor's trace, grey levels² per px²."""
+    b = cv2.GaussianBlur(gray, (0, 0), blur_px) if blur_px > 0 else gray
+    gx = cv2.Sobel(b, cv2.CV_32F, 1, 0, ksize=3) / 8
+    gy = cv2.Sobel(b, cv2.CV_32F, 0, 1, ksize=3) / 8
+    return cv2.GaussianBlur(gx * gx + gy * gy, (0, 0), TENSOR_SIGMA_PX)
 
 
 def unresolved_detail(ref_gray: np.ndarray, blur_px: np.ndarray, min_texture: float):
@@ -861,26 +875,29 @@ def unresolved_detail(ref_gray: np.ndarray, blur_px: np.ndarray, min_texture: fl
     -------
     unresolved : (H, W) bool
     needed_blur : (H, W) float32
-        The largest blur (grid px) at which the detail would keep UNRESOLVED_KEEP of its
-        energy (0.5: not even then): the photo's blur must come down to it.
+        Where unresolved, the largest blur (grid px) at which the detail would keep
+        UNRESOLVED_KEEP of its energy (0.5: not even then): the photo's blur must come down to
+        it; 0.5 elsewhere.
     """
-    fine = cv2.GaussianBlur(ref_gray, (0, 0), 0.5)
-    l1, l2, _ = structure_tensor(fine, TENSOR_SIGMA_PX, direction=False)
-    energy = l1 + l2
+    energy = gradient_energy(ref_gray, 0.5)
     H, W = ref_gray.shape
+    k = blur_levels(blur_px)
+    candidates = (energy >= min_texture) & (blur_px > 0.5) & (k > 0)
+    unresolved = np.zeros((H, W), bool)
     needed = np.full((H, W), 0.5, np.float32)
-    kept = np.ones((H, W), np.float32)  # share of the energy the photo's blur keeps
-    levels = np.asarray(BLUR_LEVELS)
-    k = np.abs(blur_px[..., None] - levels).argmin(axis=-1)
-    top = int(k.max())
+    if not candidates.any():
+        return unresolved, needed
+    top = int(k[candidates].max())
+    kept = {}
     for i in range(1, top + 1):
-        s = float(levels[i])
-        a1, a2, _ = structure_tensor(cv2.GaussianBlur(ref_gray, (0, 0), s), TENSOR_SIGMA_PX, direction=False)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            share = np.where(energy > 0, (a1 + a2) / energy, 1.0)
-        needed[share >= UNRESOLVED_KEEP] = s
-        kept[k == i] = share[k == i]
-    unresolved = (energy >= min_texture) & (kept < UNRESOLVED_KEEP) & (blur_px > 0.5)
+        e = gradient_energy(ref_gray, float(BLUR_LEVELS[i]))
+        m = candidates & (k == i)
+        unresolved[m] = e[m] < UNRESOLVED_KEEP * energy[m]
+        kept[i] = e
+    for i in range(1, top + 1):
+        # the detail survives this level's blur: a photo this sharp would resolve it
+        ok = unresolved & (kept[i] >= UNRESOLVED_KEEP * energy)
+        needed[ok] = BLUR_LEVELS[i]
     return unresolved, needed
 
 

@@ -1064,10 +1064,14 @@ def analyse(
     with np.errstate(invalid="ignore", divide="ignore"):
         k_px = (pho * pred).sum(axis=2) / np.maximum((pred * pred).sum(axis=2), 1.0)
     k_px = np.clip(np.nan_to_num(k_px, nan=1.0), 1.0 / SHADING, SHADING)[..., None]
+    res_raw = res
     res = _residual(pho, k_px * pred)
     colour = np.where(colour_scored, res, np.nan).astype(np.float32)
-    colour_bad = colour_scored & (res > colour_limit)
-    missing = colour_bad & (alpha > 0.5)
+    # (a step towards the bare film's colour is ink gone whatever gain might mimic it: film
+    # white over a light ink is a gain of 1.2)
+    gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
+    colour_bad = (colour_scored & (res > colour_limit)) | gone
+    missing = gone
     # a defect's extent from the flow's own vector wherever a window of about a millimetre
     # has texture in two directions: along an edge the normal component of a shift parallel
     # to it is 0, which bounds the shift from below only, and would cut a bubble into stripes

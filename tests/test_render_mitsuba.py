@@ -103,3 +103,90 @@ def test_board_corners_land_where_projectpoints_puts_them(default_design, lens):
     # OpenCV's corners on the project renderer's 16 regular samples per pixel scatter by
     # 0.06 to 0.08 px RMS here; 4 random samples per pixel add about as much again
     assert np.sqrt((e**2).sum(axis=1).mean()) < 0.2
+
+
+def ecc_shift(moving: np.ndarray, fixed: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Translation (x, y) px that best aligns ``moving`` onto ``fixed`` in ``mask`` (ECC); (2,)."""
+    grey = [cv2.cvtColor(im, cv2.COLOR_RGB2GRAY).astype(np.float32) for im in (fixed, moving)]
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 200, 1e-7)
+    _, warp = cv2.findTransformECC(*grey, np.eye(2, 3, dtype=np.float32), cv2.MOTION_TRANSLATION, crit, mask, 1)
+    return warp[:, 2].astype(np.float64)
+
+
+@pytest.mark.parametrize("lens", [(0.0,) * 5, K1], ids=["pinhole", "k1"])
+def test_the_print_lands_where_the_project_renderer_puts_it(default_design, lens):
+    # the lid from above (its flange flat, its dome in the middle), perfect, matte: the two
+    # renderers' prints on the part must coincide; a film moved by 0.05 mm must move both alike
+    from workbench.render.photo import render_ideal, render_photo
+
+    cam = default_design.orbit_camera(0, 90, 200, 800, 600, 40.0, None)
+    perfect, moved = Imperfections(distortion=lens), Imperfections(distortion=lens, film_offset_mm=(0.05, 0.0))
+    _, face = render_ideal(default_design.scene(perfect), cam, perfect)
+    scene = default_design.scene(perfect)
+    mask = cv2.erode(((face >= 0) & (face < scene.n_part_faces)).astype(np.uint8), np.ones((9, 9), np.uint8))
+    ours = render_photo(scene, cam, perfect, supersample=4)
+    ours_moved = render_photo(default_design.scene(moved), cam, moved, supersample=4)
+    theirs = render_photo_mitsuba(scene, cam, perfect, spp=4)
+    theirs_moved = render_photo_mitsuba(default_design.scene(moved), cam, moved, spp=4)
+    # measured: 0.0015 px and below
+    assert np.abs(ecc_shift(theirs, ours, mask)).max() < 0.02
+    step = ecc_shift(ours_moved, ours, mask)
+    assert np.linalg.norm(step) > 0.2  # 0.05 mm is about 0.28 px here
+    assert np.abs(ecc_shift(theirs_moved, ours, mask) - step).max() < 0.02
+    assert np.abs(ecc_shift(theirs_moved, ours_moved, mask)).max() < 0.02
+
+
+def render_cli(design: Design, out, *extra) -> int:
+    argv = ["render", str(design.dir), "--orbit", "10,55,330", "--size", "800x600", "-o", str(out), "-q"]
+    return main([*argv, "--renderer", "mitsuba", *extra])
+
+
+def test_the_command_writes_the_photo_and_its_truth(default_design, tmp_path):
+    import json
+
+    import mitsuba
+
+    out = tmp_path / "photo.png"
+    assert render_cli(default_design, out, "--spp", "4", "--distortion=-0.1,0,0,0,0") == 0
+    truth = json.loads(out.with_suffix(".json").read_text())
+    cam = default_design.orbit_camera(10, 55, 330, 800, 600, 40.0, None)
+    np.testing.assert_allclose(truth["K"], cam.K)
+    np.testing.assert_allclose(truth["R"], cam.R)
+    np.testing.assert_allclose(truth["t"], cam.t)
+    assert truth["dist"] == [-0.1, 0, 0, 0, 0] and truth["image_size"] == [800, 600]
+    assert truth["renderer"] == {
+        "name": "mitsuba",
+        "version": mitsuba.__version__,
+        "variant": "scalar_rgb",
+        "spp": 4,
+        "seed": 0,
+    }
+    rgb = cv2.cvtColor(cv2.imread(str(out)), cv2.COLOR_BGR2RGB)
+    # what the command wrote is the module's photo of that camera and lens
+    imp = Imperfections(distortion=(-0.1, 0, 0, 0, 0))
+    np.testing.assert_array_equal(rgb, render_photo_mitsuba(default_design.scene(imp), cam, imp, spp=4))
+    # a rerun writes the same bytes (the samples do not depend on thread scheduling)
+    again = tmp_path / "again.png"
+    assert render_cli(default_design, again, "--spp", "4", "--distortion=-0.1,0,0,0,0") == 0
+    assert again.read_bytes() == out.read_bytes()
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--supersample", "2"], "--supersample does not apply to --renderer mitsuba"),
+        (["--spp", "0"], "--spp 0: between 1 and 4096"),
+    ],
+)
+def test_options_the_path_tracer_cannot_honour_are_refused(default_design, tmp_path, capsys, extra, message):
+    out = tmp_path / "photo.png"
+    assert render_cli(default_design, out, *extra) == 2
+    assert message in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_spp_is_refused_with_the_project_renderer(default_design, tmp_path, capsys):
+    argv = ["render", str(default_design.dir), "--orbit", "10,55,330", "-o", str(tmp_path / "p.png"), "--spp", "4"]
+    assert main(argv) == 2
+    assert "--spp applies to --renderer mitsuba" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())

@@ -213,8 +213,9 @@ BYTES_PER_SAMPLE = 80
 
 
 # peak bytes per photo pixel of a Mitsuba render with a lens (a 2 x 2 times larger ideal RGBA film,
-# its copies, the resampling maps and samples): 1.5 GB measured for 4000 x 3000 px, with a margin
-BYTES_PER_PIXEL_MITSUBA = 250
+# its copies, the resampling maps and samples): 4.2 GB peak RSS measured for 4000 x 3000 px
+# (benchmarks/bench_render_mitsuba.py), with a margin
+BYTES_PER_PIXEL_MITSUBA = 400
 
 
 def check_render_fits(width: int, height: int, supersample: int | None, renderer: str = "workbench") -> None:

@@ -3,7 +3,7 @@
 The same :class:`~workbench.render.photo.Scene` (film errors and defects already in its
 geometry and texture) and the same :class:`~workbench.camera.Camera` as
 :func:`workbench.render.photo.render_photo`, but Mitsuba's own image formation: a
-perspective sensor matching ``K``, a box pixel filter over several random samples per
+perspective sensor matching ``K``, a box pixel filter over several multi-jittered samples per
 pixel, a textured diffuse film (optionally under a rough dielectric coating) lit by
 ambient light and a distant lamp, cast shadows and one bounce of interreflection. Only the
 lens (Mitsuba has no lens model) and the sensor finish are added afterwards, the lens by
@@ -109,7 +109,11 @@ def sensor_dict(mi, camera: Camera, spp: int) -> dict:
 
 
 def _bitmap(mi, texture: np.ndarray) -> dict:
-    """A Mitsuba bitmap texture of a 0-255 image, read raw (the values are linear reflectances)."""
+    """A Mitsuba bitmap texture of a 0-255 image, read raw (the values are linear reflectances).
+
+    Filtered bilinearly, as the project renderer samples the print, without mip-mapping:
+    where the photo sees the print smaller than its own pixels, the pixel's samples average it.
+    """
     rgb = np.ascontiguousarray(np.asarray(texture, dtype=np.float32)[..., :3] / 255.0)
     return {"type": "bitmap", "bitmap": mi.Bitmap(rgb), "raw": True, "filter_type": "bilinear", "wrap_mode": "clamp"}
 
@@ -159,7 +163,9 @@ def lights(imp: Imperfections) -> dict:
     never chosen for light sampling (``sampling_weight`` 0), only found by the BSDF's own
     samples: for a diffuse surface under a uniform sky that estimate has no variance, so
     the Monte Carlo noise is only where something shades the sky (near the part, in
-    hollows). The lamp (a delta light) is always the sampled one, at zero power if off.
+    hollows, and on tilted surfaces whose hemisphere takes in the table): at 4 samples per
+    pixel single pixels there are tens of grey levels dark, at 16 a quarter of that. The
+    lamp (a delta light) is always the sampled one, at zero power if off.
     """
     lit = bool(imp.shading) or imp.gloss > 0
     ambient = float(imp.ambient) if lit else 1.0

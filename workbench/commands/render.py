@@ -31,7 +31,9 @@ def add_parser(sub) -> None:
             "Render the decorated part of a design directory, on its fixture plate, from a designed view, a "
             "camera file or an orbit position. Writes PHOTO.png (or .jpg) and PHOTO.json: the truth (K, "
             "distortion, R, t, image size, every imperfection), in the form of a camera profile. --previews "
-            "writes one image per designed view, one from a generic viewpoint and a contact sheet."
+            "writes one image per designed view, one from a generic viewpoint and a contact sheet. --renderer "
+            "mitsuba renders the same scene with Mitsuba 3's path tracer (pip install mitsuba) instead of the "
+            "workbench's own rasteriser: an independent image formation for the tests of validate."
         ),
     )
     p.add_argument("design", metavar="DESIGN_DIR")
@@ -51,7 +53,17 @@ def add_parser(sub) -> None:
     p.add_argument("--fov-deg", type=float, help="horizontal field of view for --orbit (default 40)")
     p.add_argument("--intrinsics", metavar="PROFILE.json", help="camera profile (K, dist, image_size) for --orbit")
     p.add_argument("--no-fixture", action="store_true", help="the part alone, without its fixture plate")
-    p.add_argument("--supersample", type=int, default=2, help="samples per pixel along each axis (default 2)")
+    p.add_argument(
+        "--supersample", type=int, help="samples per pixel along each axis (default 2; --renderer workbench)"
+    )
+    p.add_argument(
+        "--renderer",
+        choices=("workbench", "mitsuba"),
+        default="workbench",
+        help="workbench (default): the project's rasteriser; mitsuba: Mitsuba 3's path tracer (scalar_rgb, CPU), "
+        "--shading, --light, --ambient, --gloss and --shininess becoming its lamp, sky and film coating",
+    )
+    p.add_argument("--spp", type=int, help="samples per pixel (default 16; --renderer mitsuba)")
     g = p.add_argument_group("imperfections (all off by default)")
     g.add_argument("--realistic", action="store_true", help="blur 1 px, noise 3, JPEG 90, shading, vignetting 0.15")
     g.add_argument(
@@ -88,7 +100,7 @@ def add_parser(sub) -> None:
     )
     g.add_argument("--vignetting", type=float, help="brightness loss at the corners (0 to 1)")
     g.add_argument("--jpeg-quality", type=int, help="JPEG round trip at this quality")
-    g.add_argument("--seed", type=int, default=0, help="noise seed")
+    g.add_argument("--seed", type=int, default=0, help="noise seed (and the path tracer's sampler seed)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -200,14 +212,23 @@ def _size(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
 BYTES_PER_SAMPLE = 80
 
 
-def check_render_fits(width: int, height: int, supersample: int) -> None:
+# peak bytes per photo pixel of a Mitsuba render with a lens (a 2 x 2 times larger ideal RGBA film,
+# its copies, the resampling maps and samples): 4.2 GB peak RSS measured for 4000 x 3000 px
+# (benchmarks/bench_render_mitsuba.py), with a margin
+BYTES_PER_PIXEL_MITSUBA = 400
+
+
+def check_render_fits(width: int, height: int, supersample: int | None, renderer: str = "workbench") -> None:
     """Refuse, before any work, a photo whose buffers would not fit in this machine's memory."""
-    need = width * height * supersample**2 * BYTES_PER_SAMPLE
+    if renderer == "mitsuba":
+        need, knob = width * height * BYTES_PER_PIXEL_MITSUBA, ""
+    else:
+        need, knob = width * height * supersample**2 * BYTES_PER_SAMPLE, f" with --supersample {supersample}"
     have = physical_memory()
     if need > 0.7 * have:
         raise WorkbenchError(
-            f"--size {width}x{height} with --supersample {supersample} needs about {need / 2**30:,.1f} GiB; "
-            f"this machine has {have / 2**30:.1f} GiB available: lower --size or --supersample"
+            f"--size {width}x{height}{knob} needs about {need / 2**30:,.1f} GiB; "
+            f"this machine has {have / 2**30:.1f} GiB available: lower --size" + (" or --supersample" if knob else "")
         )
 
 
@@ -229,7 +250,46 @@ def check_camera_options(args) -> None:
             )
 
 
-def truth(camera: Camera, imp: Imperfections, design: Design, source: str, out: Path) -> dict:
+def check_renderer_options(args) -> None:
+    """Each renderer's own sampling option is refused with the other, not ignored; fills in the defaults."""
+    if args.renderer == "mitsuba":
+        if args.supersample is not None:
+            raise UsageError("--supersample does not apply to --renderer mitsuba: give --spp (samples per pixel)")
+        if args.spp is None:
+            args.spp = 16
+        if not 1 <= args.spp <= 4096:
+            raise UsageError(f"--spp {args.spp}: between 1 and 4096 samples per pixel")
+    else:
+        if args.spp is not None:
+            raise UsageError("--spp applies to --renderer mitsuba; the workbench renderer takes --supersample")
+        if args.supersample is None:
+            args.supersample = 2
+        if not 1 <= args.supersample <= 8:
+            raise UsageError("--supersample: between 1 and 8")
+
+
+def renderer_info(args) -> dict:
+    """PHOTO.json's record of what made the photo (the truth itself does not depend on it)."""
+    if args.renderer == "mitsuba":
+        from workbench.render.mitsuba import VARIANT, load_mitsuba
+
+        mi = load_mitsuba()
+        return {"name": "mitsuba", "version": mi.__version__, "variant": VARIANT, "spp": args.spp, "seed": args.seed}
+    return {"name": "workbench", "supersample": args.supersample}
+
+
+def make_photo(args, scene, cam: Camera, imp: Imperfections) -> np.ndarray:
+    """The photo by the renderer ``args.renderer`` asks for; (H, W, 3) uint8 RGB."""
+    if args.renderer == "mitsuba":
+        from workbench.render.mitsuba import render_photo_mitsuba  # Mitsuba is optional: imported when asked for
+
+        return render_photo_mitsuba(scene, cam, imp, spp=args.spp, seed=args.seed)
+    return render_photo(scene, cam, imp, args.supersample)
+
+
+def truth(
+    camera: Camera, imp: Imperfections, design: Design, source: str, out: Path, renderer: dict | None = None
+) -> dict:
     """PHOTO.json: a camera profile (K, dist, image_size) with the pose and every imperfection."""
     return {
         "K": camera.K.tolist(),
@@ -249,6 +309,7 @@ def truth(camera: Camera, imp: Imperfections, design: Design, source: str, out: 
             "design_json_sha256": hashlib.sha256((design.dir / "design.json").read_bytes()).hexdigest(),
         },
         "software": {"name": "workbench", "version": __version__},
+        **({"renderer": renderer} if renderer else {}),
     }
 
 
@@ -264,14 +325,14 @@ def encode(rgb: np.ndarray, path: Path, imp: Imperfections) -> bytes:
 
 def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
-    if not 1 <= args.supersample <= 8:
-        raise UsageError("--supersample: between 1 and 8")
+    check_renderer_options(args)
     imp = imperfections_from(args)
     check_camera_options(args)
     design = Design(Path(args.design))
+    renderer = renderer_info(args)  # Mitsuba missing: said before any work
     fixture = not args.no_fixture
     if args.previews:
-        return previews(args, design, imp, fixture, log)
+        return previews(args, design, imp, fixture, log, renderer)
     if args.view:
         cam = design.view_camera(args.view)
         if args.size:
@@ -300,19 +361,15 @@ def run(args) -> int:
     check_outputs(out, out.with_suffix(".json"))  # before the rendering, not after it
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         raise UsageError(f"-o {out}: photos are written as .png or .jpg")
-    check_render_fits(cam.width, cam.height, args.supersample)
-    rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
-    write_files(
-        {
-            out: encode(rgb, out, imp),
-            out.with_suffix(".json"): (json.dumps(truth(cam, imp, design, source, out), indent=1) + "\n").encode(),
-        }
-    )
+    check_render_fits(cam.width, cam.height, args.supersample, args.renderer)
+    rgb = make_photo(args, design.scene(imp, fixture), cam, imp)
+    record = truth(cam, imp, design, source, out, renderer)
+    write_files({out: encode(rgb, out, imp), out.with_suffix(".json"): (json.dumps(record, indent=1) + "\n").encode()})
     log(f"wrote {out} ({cam.width} x {cam.height}) and {out.with_suffix('.json')}")
     return 0
 
 
-def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> int:
+def previews(args, design: Design, imp: Imperfections, fixture: bool, log, renderer: dict | None = None) -> int:
     out = Path(args.output) if args.output else design.dir / "previews"
     check_output_dir(out)
     files, tiles = {}, []
@@ -327,10 +384,10 @@ def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> in
         )
     )
     for name, cam in cams:
-        rgb = render_photo(scene, cam, imp, args.supersample)
+        rgb = make_photo(args, scene, cam, imp)
         files[out / f"{safe_name(name)}.png"] = png_bytes(rgb)
         files[out / f"{safe_name(name)}.json"] = (
-            json.dumps(truth(cam, imp, design, f"preview {name}", out / name), indent=1) + "\n"
+            json.dumps(truth(cam, imp, design, f"preview {name}", out / name, renderer), indent=1) + "\n"
         ).encode()
         h = 300
         tile = cv2.resize(rgb, (int(round(rgb.shape[1] * h / rgb.shape[0])), h), interpolation=cv2.INTER_AREA)

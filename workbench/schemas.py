@@ -46,6 +46,11 @@ JOB_FIXTURE = {
     "dictionary": Field("string", required=False, default="DICT_5X5_250"),
     "first_id": Field("integer", required=False, default=0, lo=0),
     "origin_mm": Field("array", required=False, shape=(3,), hint="[x, y, z] in mm"),
+    # the colour chart's slot beside the board (validate's colour QA), or "none"
+    "colour_chart": Field(
+        "string", required=False, default="ColorChecker Classic 24", choices=("ColorChecker Classic 24", "none")
+    ),
+    "colour_chart_pitch_mm": Field("number", required=False, default=16.0, lo=4.0, hi=100.0),
 }
 
 # fixture.json of a design folder: a board definition placed in the mesh frame

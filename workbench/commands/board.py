@@ -13,7 +13,14 @@ from workbench import __version__
 from workbench.atomic import write_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
-from workbench.printing.boards import CharucoSpec, definition, draw_board, fixture_from_job
+from workbench.printing.boards import (
+    CharucoSpec,
+    colour_chart_from_job,
+    definition,
+    draw_board,
+    draw_chart_slot,
+    fixture_from_job,
+)
 from workbench.printing.paper import choose_sheet, parse_paper
 from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
 
@@ -59,8 +66,13 @@ def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     return nx, ny
 
 
-def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, footprint=None) -> tuple[bytes, tuple]:
+def board_pdf(
+    spec: CharucoSpec, title: str, paper, profile: PrinterProfile, footprint=None, chart: dict | None = None
+) -> tuple[bytes, tuple]:
     """PDF of a board centred on a sheet with a 100 mm bar and a line of text under it.
+
+    With ``chart`` (a fixture's ``colour_chart``), the chart's slot is drawn under the board,
+    where the definition puts it, and the bar and text go under the slot.
 
     Returns
     -------
@@ -73,8 +85,11 @@ def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, foo
     from reportlab.pdfgen import canvas as rl_canvas
 
     bw, bh = spec.size_mm
-    need_w = max(bw, 110.0) + 2 * BOARD_MARGIN_MM
-    need_h = bh + BELOW_MM + 2 * BOARD_MARGIN_MM
+    # the slot's extent below the board's bottom edge
+    below_board = 0.0 if chart is None else chart["frame_board_mm"][3] - bh
+    side = 0.0 if chart is None else max(chart["frame_board_mm"][2] - bw, -chart["frame_board_mm"][0], 0.0)
+    need_w = max(bw + 2 * side, 110.0) + 2 * BOARD_MARGIN_MM
+    need_h = bh + below_board + BELOW_MM + 2 * BOARD_MARGIN_MM
     paper_name, pw, ph = choose_sheet(paper, need_w, need_h)
     buf = io.BytesIO()
     c = rl_canvas.Canvas(buf, pagesize=(pw * PT_PER_MM, ph * PT_PER_MM), invariant=1, pageCompression=1)
@@ -86,8 +101,10 @@ def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, foo
     c.setViewerPreference("PrintScaling", "None")
     page = _Page(c, pw, ph, profile)
     left = (pw - bw) / 2
-    top = ph - (ph - bh - BELOW_MM) / 2  # sheet y (up) of the board's top edge
+    top = ph - (ph - bh - below_board - BELOW_MM) / 2  # sheet y (up) of the board's top edge
     draw_board(c, spec, left, top)
+    if chart is not None:
+        draw_chart_slot(c, chart, left, top)
     if footprint is not None:
         # the outline leaves a 3 mm gap around every ChArUco corner: a line through a
         # corner would pull its sub-pixel position (seen: 0.1 mm)
@@ -117,7 +134,7 @@ def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, foo
         c.setStrokeColorRGB(0, 0, 0)
         c.setLineWidth(0.25 / PT_PER_MM)
         page.text(left, top + 2.0, "top edge: mesh +y. Place the part inside the red outline.", size=2.6)
-    bottom = top - bh
+    bottom = top - bh - below_board
     scale_bar(page, left, bottom - 6.0, vertical=False)
     page.text(
         left,
@@ -136,7 +153,7 @@ def run(args) -> int:
     paper = parse_paper(args.paper)
     profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
     extra: dict = {"software": {"name": "workbench", "version": __version__}}
-    footprint = origin = None
+    footprint = origin = chart = None
     if args.kind == "fixture":
         if args.job is None:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
@@ -150,6 +167,9 @@ def run(args) -> int:
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
         extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
         extra["footprint_board_mm"] = footprint.tolist()
+        chart = colour_chart_from_job(job.fixture, spec, origin)
+        if chart is not None:
+            extra["colour_chart"] = chart
         default_out = Path("prints") / f"{job.name}-fixture.pdf"
         title = f"workbench fixture board for job {job.name}"
     else:
@@ -184,7 +204,7 @@ def run(args) -> int:
     out = Path(args.output) if args.output else default_out
     if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
         extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
-    pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint)
+    pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint, chart)
     extra["paper"] = paper_name
     extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}
     info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)

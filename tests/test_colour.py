@@ -124,7 +124,7 @@ def test_perfect_print_and_a_drifted_one_under_even_light(scene):
     assert drifted["chart_fit_delta_e00"] == pytest.approx(perfect["chart_fit_delta_e00"], abs=0.1)
 
 
-@pytest.mark.parametrize("light", [WARM, COOL], ids=["warm", "cool"])
+@pytest.mark.parametrize("light", [WARM, pytest.param(COOL, marks=pytest.mark.slow)], ids=["warm", "cool"])
 def test_a_coloured_light_changes_neither(scene, light):
     perfect, _ = measure(scene, photo_of(scene, white_balance=light))
     assert perfect["measured"] and perfect["delta_e00"]["mean"] <= 1.0, perfect

@@ -41,6 +41,7 @@ TVI_50 = 0.12  # tone value increase at 50 % (ISO 12647-2 PT1, positive plates: 
 YULE_NIELSEN_N = 2.0
 SURFACE_REFLECTION = 0.008  # share of light the ink's surface reflects unchanged: the press's black point
 TOTAL_INK_LIMIT = 3.2  # the profile's own separation never exceeds 320 %
+COPYRIGHT = "Free to use and redistribute. Built by workbench from the ISO 12647-2:2004 PT1 CIELAB aims."
 
 
 def lab_to_xyz(lab: np.ndarray, white: np.ndarray = D50) -> np.ndarray:
@@ -185,7 +186,7 @@ def build_cmyk_profile(grid_in: int = 9, grid_out: int = 33) -> bytes:
     paper = lab_to_xyz(PT1_LAB["paper"])
     tags = [
         (b"desc", _tag_desc("workbench coated PT1 model (ISO 12647-2:2004 aims, Yule-Nielsen)")),
-        (b"cprt", _tag_text("Public domain. Built by workbench from the ISO 12647-2:2004 PT1 CIELAB aims.")),
+        (b"cprt", _tag_text(COPYRIGHT)),
         (b"wtpt", _tag_xyz(paper)),
         (b"A2B0", _tag_lut16(a2b, 4, 3, grid_in)),
         (b"B2A0", _tag_lut16(b2a, 3, 4, grid_out)),

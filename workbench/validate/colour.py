@@ -208,18 +208,15 @@ class ChartSample:
 
 
 def project_points(cam: Camera, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """World points (n, 3) through the posed camera and its lens: pixels (n, 2) and depth (n,) mm."""
-    Xc = np.asarray(X, dtype=np.float64) @ cam.R.T + np.ravel(cam.t)
-    z = Xc[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pts, _ = cv2.projectPoints(
-            np.ascontiguousarray(X, dtype=np.float64).reshape(-1, 1, 3),
-            cv2.Rodrigues(cam.R)[0],
-            np.ravel(cam.t).astype(np.float64),
-            cam.K,
-            np.ravel(cam.dist)[:5].astype(np.float64),
-        )
-    return pts.reshape(-1, 2), z
+    """World points (n, 3) through the posed camera and its lens: pixels (n, 2) and depth (n,) mm.
+
+    :func:`workbench.validate.dense.project_through_lens` (one compiled pass: a print grid's
+    1.4 million points in tens of milliseconds, where ``cv2.projectPoints`` takes seconds).
+    """
+    from workbench.validate.dense import project_through_lens
+
+    _, z, lens = project_through_lens(cam, np.ascontiguousarray(X, dtype=np.float64))
+    return lens, z
 
 
 def sample_chart(

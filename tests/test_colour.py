@@ -214,3 +214,19 @@ def test_render_options(tmp_path, capsys, scene):
     assert imp["colour_shift_lab"] == [-6.0, 6.0, 8.0] and imp["white_balance"] == [1.0, 0.9, 0.72]
     assert main([*args, "--colour-shift-lab", "60,0,0"]) == 2
     assert "--colour-shift-lab 60,0,0: each of DL, DA, DB between -50 and 50" in capsys.readouterr().err
+
+
+def test_a_broken_chart_in_fixture_json_is_refused(scene, tmp_path):
+    import json
+    import shutil
+
+    from workbench.design_dir import Design
+    from workbench.errors import WorkbenchError
+
+    d = tmp_path / "design"
+    shutil.copytree(scene[0].dir, d)
+    info = json.loads((d / "fixture.json").read_text())
+    info["colour_chart"]["patches"][3]["lab_d50"] = [50, 0]
+    (d / "fixture.json").write_text(json.dumps(info))
+    with pytest.raises(WorkbenchError, match=r"fixture.json: colour_chart.patches\[3\].lab_d50: must be"):
+        Design(d)

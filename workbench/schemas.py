@@ -53,6 +53,23 @@ JOB_FIXTURE = {
     "colour_chart_pitch_mm": Field("number", required=False, default=16.0, lo=4.0, hi=100.0),
 }
 
+# the colour chart's slot of a fixture (fixture.json: colour_chart), read by colour QA
+COLOUR_CHART = {
+    "kind": Field("string"),
+    "patches": Field(
+        "list",
+        min_len=6,
+        items=Field(
+            "object",
+            fields={
+                "name": Field("string"),
+                "lab_d50": Field("array", shape=(3,), hint="[L, a, b], CIELAB D50"),
+                "corners_mesh_mm": Field("array", shape=(4, 3), hint="four corners in the mesh frame"),
+            },
+        ),
+    ),
+}
+
 # fixture.json of a design folder: a board definition placed in the mesh frame
 FIXTURE = {
     **BOARD,
@@ -71,6 +88,7 @@ FIXTURE = {
             "corners_mesh_mm": Field("array", shape=(None, 4, 3), min_len=1),
         },
     ),
+    "colour_chart": Field("object", required=False, fields=COLOUR_CHART),
 }
 
 # design.json of a design folder: what pdf reads back (the print and the job) ...

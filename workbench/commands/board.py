@@ -15,10 +15,13 @@ from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
 from workbench.printing.boards import (
     CharucoSpec,
+    ChessboardSpec,
+    chessboard_definition,
     colour_chart_from_job,
     definition,
     draw_board,
     draw_chart_slot,
+    draw_chessboard,
     fixture_from_job,
 )
 from workbench.printing.paper import choose_sheet, parse_paper
@@ -31,25 +34,31 @@ BELOW_MM = 22.0  # scale bar and text line under the board
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "board",
-        help="print a ChArUco board: fixture plate, camera calibration board or printer target",
+        help="print a board: fixture plate, camera calibration board (ChArUco or chessboard) or printer target",
         description=(
             "Write a ChArUco board as a PDF at true scale, and its definition file (JSON, beside the PDF: "
             "dictionary, sizes, ids and every corner's position). 'fixture' is the plate the part stands on "
             "for validation photos ([fixture] of the job; corners also in the job's mesh frame, and the part's "
-            "footprint drawn for placement); 'charuco' a camera calibration board; 'printer-target' a board "
+            "footprint drawn for placement); 'charuco' a camera calibration board (--legacy: the pre-4.6 OpenCV "
+            "layout); 'chessboard' a plain chessboard for camera calibration; 'printer-target' a board "
             "filling the sheet, to measure a printer's scale."
         ),
     )
-    p.add_argument("kind", choices=("fixture", "charuco", "printer-target"))
+    p.add_argument("kind", choices=("fixture", "charuco", "chessboard", "printer-target"))
     p.add_argument("job", nargs="?", metavar="JOB.toml", help="for 'fixture': the job file")
     p.add_argument(
         "-o", "--output", metavar="FILE.pdf", help="default calib/boards/<kind>.pdf (fixture: prints/<job>-fixture.pdf)"
     )
-    p.add_argument("--squares", metavar="NXxNY", help="squares across and down (charuco default 7x5)")
+    p.add_argument("--squares", metavar="NXxNY", help="squares across and down (charuco default 7x5, chessboard 10x7)")
     p.add_argument("--square-mm", type=float, help="square side, mm")
     p.add_argument("--marker-mm", type=float, help="marker side, mm (default 0.75 of the square)")
     p.add_argument("--dictionary", default=None, help="ArUco dictionary (default DICT_5X5_250)")
     p.add_argument("--first-id", type=int, default=None, help="id of the first marker (default 0)")
+    p.add_argument(
+        "--legacy",
+        action="store_true",
+        help="charuco: the pre-4.6 OpenCV layout (differs for an even number of rows; many printed boards use it)",
+    )
     p.add_argument("--paper", default="auto", help="A4, A3, letter, ..., auto or WxH in mm")
     p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile to pre-compensate")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -67,7 +76,12 @@ def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
 
 
 def board_pdf(
-    spec: CharucoSpec, title: str, paper, profile: PrinterProfile, footprint=None, chart: dict | None = None
+    spec: CharucoSpec | ChessboardSpec,
+    title: str,
+    paper,
+    profile: PrinterProfile,
+    footprint=None,
+    chart: dict | None = None,
 ) -> tuple[bytes, tuple]:
     """PDF of a board centred on a sheet with a 100 mm bar and a line of text under it.
 
@@ -95,14 +109,13 @@ def board_pdf(
     c = rl_canvas.Canvas(buf, pagesize=(pw * PT_PER_MM, ph * PT_PER_MM), invariant=1, pageCompression=1)
     c.setTitle(title)
     c.setCreator(f"workbench {__version__}")
-    c.setKeywords(
-        f"workbench, board, {spec.dictionary}, {spec.squares[0]}x{spec.squares[1]}, printer-profile={profile.name}"
-    )
+    pattern = spec.dictionary if isinstance(spec, CharucoSpec) else "chessboard"
+    c.setKeywords(f"workbench, board, {pattern}, {spec.squares[0]}x{spec.squares[1]}, printer-profile={profile.name}")
     c.setViewerPreference("PrintScaling", "None")
     page = _Page(c, pw, ph, profile)
     left = (pw - bw) / 2
     top = ph - (ph - bh - below_board - BELOW_MM) / 2  # sheet y (up) of the board's top edge
-    draw_board(c, spec, left, top)
+    (draw_board if isinstance(spec, CharucoSpec) else draw_chessboard)(c, spec, left, top)
     if chart is not None:
         draw_chart_slot(c, chart, left, top)
     if footprint is not None:
@@ -155,6 +168,8 @@ def run(args) -> int:
     extra: dict = {"software": {"name": "workbench", "version": __version__}}
     footprint = origin = chart = None
     if args.kind == "fixture":
+        if args.legacy:
+            raise UsageError("--legacy is for board charuco: a fixture board is always in today's layout")
         if args.job is None:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
         from workbench.job import load_job
@@ -178,7 +193,14 @@ def run(args) -> int:
         for flag, v in (("--square-mm", args.square_mm), ("--marker-mm", args.marker_mm)):
             if v is not None and not (np.isfinite(v) and 0 < v <= 1000):
                 raise UsageError(f"{flag} {v:g}: must be a positive size in mm (at most 1000)")
-        if args.kind == "charuco":
+        if args.legacy and args.kind != "charuco":
+            raise UsageError(f"--legacy is a ChArUco layout: board {args.kind} has none")
+        if args.kind == "chessboard":
+            if args.marker_mm is not None or args.dictionary is not None or args.first_id is not None:
+                raise UsageError("board chessboard has no markers: --marker-mm, --dictionary, --first-id do not apply")
+            square = 25.0 if args.square_mm is None else args.square_mm
+            squares = _squares(args.squares, (10, 7))
+        elif args.kind == "charuco":
             square = 30.0 if args.square_mm is None else args.square_mm
             squares = _squares(args.squares, (7, 5))
         else:  # a printer target fills the sheet, to measure scale over the longest lengths
@@ -190,27 +212,37 @@ def run(args) -> int:
             )
             squares = _squares(args.squares, default)
         try:
-            spec = CharucoSpec(
-                squares=squares,
-                square_mm=square,
-                marker_mm=args.marker_mm or 0.75 * square,
-                dictionary=args.dictionary or "DICT_5X5_250",
-                first_id=args.first_id or 0,
-            )
+            if args.kind == "chessboard":
+                spec = ChessboardSpec(squares=squares, square_mm=square)
+            else:
+                spec = CharucoSpec(
+                    squares=squares,
+                    square_mm=square,
+                    marker_mm=args.marker_mm or 0.75 * square,
+                    dictionary=args.dictionary or "DICT_5X5_250",
+                    first_id=args.first_id or 0,
+                    legacy=bool(args.legacy),
+                )
         except WorkbenchError as exc:  # every value came from an option: a usage error
             raise UsageError(str(exc)) from None
-        default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
-        title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
+        layout = "-legacy" if args.legacy else ""
+        default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm{layout}.pdf"
+        pattern = "chessboard" if args.kind == "chessboard" else spec.dictionary + (", legacy layout" * args.legacy)
+        title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {pattern}"
     out = Path(args.output) if args.output else default_out
     if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
         extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
     pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint, chart)
     extra["paper"] = paper_name
     extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}
-    info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)
+    if isinstance(spec, ChessboardSpec):
+        info = chessboard_definition(spec, page_origin_mm=page_origin, extra=extra)
+    else:
+        info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)
     write_files({out: pdf, out.with_suffix(".json"): (json.dumps(info, indent=1) + "\n").encode()})
+    pattern = "chessboard" if isinstance(spec, ChessboardSpec) else spec.dictionary + (", legacy layout" * spec.legacy)
     log(
         f"wrote {out} ({paper_name}) and {out.with_suffix('.json')}: {spec.squares[0]} x {spec.squares[1]} squares "
-        f"of {spec.square_mm:g} mm, {spec.dictionary}"
+        f"of {spec.square_mm:g} mm, {pattern}"
     )
     return 0

@@ -1,8 +1,12 @@
-"""ChArUco boards: geometry, definition files and vector drawing at true scale.
+"""ChArUco boards and chessboards: geometry, definition files and vector drawing at true scale.
 
 Board frame (OpenCV's): origin at the board's top-left corner, x right, y down, mm.
 ChArUco corner k sits at ((i + 1) · square, (j + 1) · square) with i = k mod (nx - 1);
-the top-left square is black and the markers fill the white squares.
+the top-left square is black and the markers fill the white squares. In the legacy
+layout (OpenCV before 4.6, and many printed boards) a board with an even number of rows
+starts with a white square instead: the markers sit in the other squares, and a detector
+given the wrong layout finds markers but no corners. A chessboard's inner corners are
+numbered the same way; its top-left square is black.
 
 A fixture board lies on the table under the part, its top edge towards the mesh's +y:
 mesh = origin + (x, -y, 0), with ``origin`` the board's top-left corner in the job's
@@ -41,6 +45,9 @@ class CharucoSpec:
         OpenCV ArUco dictionary name, e.g. ``DICT_5X5_250``.
     first_id : int
         Id of the first marker (boards of one lab use disjoint id ranges).
+    legacy : bool
+        The pre-4.6 OpenCV layout (``CharucoBoard.setLegacyPattern``): differs from
+        today's for an even number of rows.
     """
 
     squares: tuple[int, int] = (7, 5)
@@ -48,6 +55,7 @@ class CharucoSpec:
     marker_mm: float = 22.0
     dictionary: str = "DICT_5X5_250"
     first_id: int = 0
+    legacy: bool = False
 
     def __post_init__(self):
         nx, ny = self.squares
@@ -73,6 +81,7 @@ class CharucoSpec:
             float(d["marker_mm"]),
             d["dictionary"],
             int(d.get("first_id") or 0),
+            bool(d.get("legacy", False)),
         )
 
     @property
@@ -84,7 +93,90 @@ class CharucoSpec:
         d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
         nx, ny = self.squares
         ids = np.arange(self.first_id, self.first_id + (nx * ny) // 2, dtype=np.int32)
-        return cv2.aruco.CharucoBoard((nx, ny), self.square_mm, self.marker_mm, d, ids)
+        board = cv2.aruco.CharucoBoard((nx, ny), self.square_mm, self.marker_mm, d, ids)
+        board.setLegacyPattern(self.legacy)
+        return board
+
+
+@dataclass(frozen=True)
+class ChessboardSpec:
+    """A plain chessboard (no markers): OpenCV's ``findChessboardCornersSB`` reads it.
+
+    Attributes
+    ----------
+    squares : (nx, ny)
+        Squares across and down; the inner corners are (nx - 1) x (ny - 1).
+    square_mm : float
+        Square side.
+    """
+
+    squares: tuple[int, int] = (10, 7)
+    square_mm: float = 25.0
+
+    def __post_init__(self):
+        nx, ny = self.squares
+        if nx < 3 or ny < 3:
+            raise WorkbenchError(f"a chessboard needs at least 3 x 3 squares, got {nx} x {ny}")
+        if not self.square_mm > 0:
+            raise WorkbenchError(f"square_mm {self.square_mm} must be positive")
+
+    @classmethod
+    def from_definition(cls, d: dict) -> ChessboardSpec:
+        return cls(tuple(int(n) for n in d["squares"]), float(d["square_mm"]))
+
+    @property
+    def size_mm(self) -> tuple[float, float]:
+        return self.squares[0] * self.square_mm, self.squares[1] * self.square_mm
+
+    @property
+    def inner(self) -> tuple[int, int]:
+        """Inner corners across and down: OpenCV's pattern size."""
+        return self.squares[0] - 1, self.squares[1] - 1
+
+    def corners_mm(self) -> np.ndarray:
+        """(n, 2) float: inner corner k at ((i + 1) · square, (j + 1) · square), i = k mod (nx - 1)."""
+        cx, cy = self.inner
+        j, i = np.divmod(np.arange(cx * cy), cx)
+        return np.stack([(i + 1) * self.square_mm, (j + 1) * self.square_mm], axis=1).astype(np.float64)
+
+
+def is_chessboard(definition: dict) -> bool:
+    """Whether a board definition is a plain chessboard (``"board": "chessboard"``)."""
+    return definition.get("board") == "chessboard"
+
+
+def board_points_mm(definition: dict) -> np.ndarray:
+    """(n, 2) float: the corners a detector finds on the board (ChArUco or inner chessboard corners), mm."""
+    key = "corners" if is_chessboard(definition) else "charuco_corners"
+    return np.asarray(definition[key]["board_mm"], dtype=np.float64)
+
+
+def chessboard_definition(spec: ChessboardSpec, page_origin_mm=None, extra: dict | None = None) -> dict:
+    """A chessboard's definition file content (JSON-ready): squares, square size, every inner corner."""
+    out = {
+        "kind": "chessboard",
+        "board": "chessboard",
+        "squares": list(spec.squares),
+        "square_mm": spec.square_mm,
+        "frame": "board: origin at the top-left corner, x right, y down, mm",
+        "corners": {"ids": list(range(len(spec.corners_mm()))), "board_mm": spec.corners_mm().tolist()},
+    }
+    if page_origin_mm is not None:
+        out["page_origin_mm"] = list(map(float, page_origin_mm))
+    if extra:
+        out.update(extra)
+    return out
+
+
+def draw_chessboard(canvas, spec: ChessboardSpec, left_mm: float, top_mm: float) -> None:
+    """Draw a chessboard (top-left square black) as vector squares on a canvas in mm, y up."""
+    nx, ny = spec.squares
+    s = spec.square_mm
+    canvas.setFillColorRGB(0, 0, 0)
+    for j in range(ny):
+        for i in range(nx):
+            if (i + j) % 2 == 0:
+                canvas.rect(left_mm + i * s, top_mm - (j + 1) * s, s, s, stroke=0, fill=1)
 
 
 def board_geometry(spec: CharucoSpec) -> dict:
@@ -140,6 +232,7 @@ def definition(spec: CharucoSpec, kind: str, origin_mm=None, page_origin_mm=None
         "square_mm": spec.square_mm,
         "marker_mm": spec.marker_mm,
         "first_id": spec.first_id,
+        "legacy": spec.legacy,
         "frame": "board: origin at the top-left corner, x right, y down, mm",
         "charuco_corners": {"ids": g["charuco_ids"].tolist(), "board_mm": g["charuco_mm"].tolist()},
         "markers": {"ids": g["marker_ids"].tolist(), "corners_board_mm": g["marker_corners_mm"].tolist()},
@@ -260,6 +353,9 @@ def fixture_from_job(fixture: dict | None, V: np.ndarray, F: np.ndarray, where: 
 def load_board(path: str | Path, what: str = "board definition", fields: dict | None = None) -> dict:
     """A board definition (``workbench board``'s FILE.json) or a design's ``fixture.json``, checked.
 
+    A definition with ``"board": "chessboard"`` is a plain chessboard
+    (:data:`workbench.schemas.CHESSBOARD`); every other is a ChArUco board.
+
     Beyond the schema (:data:`workbench.schemas.BOARD`, or ``fields``), the board must be
     one OpenCV can build, with as many ChArUco corners and markers as its squares give.
 
@@ -272,6 +368,20 @@ def load_board(path: str | Path, what: str = "board definition", fields: dict | 
     from workbench.jsonfile import read_json
 
     path = Path(path)
+    d = read_json(path, what)
+    if fields is None and is_chessboard(d):
+        d = read_json(path, what, schemas.CHESSBOARD)
+        try:
+            spec = ChessboardSpec.from_definition(d)
+        except WorkbenchError as exc:
+            raise WorkbenchError(f"{path}: {exc}") from None
+        got, want = len(d["corners"]["board_mm"]), spec.inner[0] * spec.inner[1]
+        if got != want:
+            raise WorkbenchError(
+                f"{path}: corners.board_mm: {got} entries, "
+                f"a {spec.squares[0]} x {spec.squares[1]} chessboard has {want}"
+            )
+        return d
     d = read_json(path, what, fields or schemas.BOARD)
     try:
         spec = CharucoSpec.from_definition(d)

@@ -483,7 +483,8 @@ def _xmp(pdf, title: str) -> None:
     # the same document, the same id: reproducible bytes
     doc_id = "uuid:" + hashlib.sha256(title.encode()).hexdigest()[:32]
     with pdf.open_metadata(set_pikepdf_as_editor=False, update_docinfo=False) as meta:
-        meta.load_from_docinfo(pdf.docinfo)
+        # ReportLab writes /Trapped, which load_from_docinfo does not map (pdf:Trapped is set below)
+        meta.load_from_docinfo({k: v for k, v in pdf.docinfo.items() if k not in ("/Trapped", "/GTS_PDFXVersion")})
         meta["pdfxid:GTS_PDFXVersion"] = "PDF/X-4"
         meta["pdf:Trapped"] = "False"
         meta["xmpMM:DocumentID"] = doc_id

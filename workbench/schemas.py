@@ -54,6 +54,28 @@ JOB_FIXTURE = {
     "dictionary": Field("string", required=False, default="DICT_5X5_250"),
     "first_id": Field("integer", required=False, default=0, lo=0),
     "origin_mm": Field("array", required=False, shape=(3,), hint="[x, y, z] in mm"),
+    # the colour chart's slot beside the board (validate's colour QA), or "none"
+    "colour_chart": Field(
+        "string", required=False, default="ColorChecker Classic 24", choices=("ColorChecker Classic 24", "none")
+    ),
+    "colour_chart_pitch_mm": Field("number", required=False, default=16.0, lo=4.0, hi=100.0),
+}
+
+# the colour chart's slot of a fixture (fixture.json: colour_chart), read by colour QA
+COLOUR_CHART = {
+    "kind": Field("string"),
+    "patches": Field(
+        "list",
+        min_len=6,
+        items=Field(
+            "object",
+            fields={
+                "name": Field("string"),
+                "lab_d50": Field("array", shape=(3,), hint="[L, a, b], CIELAB D50"),
+                "corners_mesh_mm": Field("array", shape=(4, 3), hint="four corners in the mesh frame"),
+            },
+        ),
+    ),
 }
 
 # fixture.json of a design folder: a board definition placed in the mesh frame
@@ -74,6 +96,7 @@ FIXTURE = {
             "corners_mesh_mm": Field("array", shape=(None, 4, 3), min_len=1),
         },
     ),
+    "colour_chart": Field("object", required=False, fields=COLOUR_CHART),
 }
 
 # design.json of a design folder: what pdf reads back (the print and the job) ...

@@ -17,8 +17,10 @@ from workbench.printing.boards import (
     CharucoSpec,
     ChessboardSpec,
     chessboard_definition,
+    colour_chart_from_job,
     definition,
     draw_board,
+    draw_chart_slot,
     draw_chessboard,
     fixture_from_job,
 )
@@ -74,9 +76,17 @@ def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
 
 
 def board_pdf(
-    spec: CharucoSpec | ChessboardSpec, title: str, paper, profile: PrinterProfile, footprint=None
+    spec: CharucoSpec | ChessboardSpec,
+    title: str,
+    paper,
+    profile: PrinterProfile,
+    footprint=None,
+    chart: dict | None = None,
 ) -> tuple[bytes, tuple]:
     """PDF of a board centred on a sheet with a 100 mm bar and a line of text under it.
+
+    With ``chart`` (a fixture's ``colour_chart``), the chart's slot is drawn under the board,
+    where the definition puts it, and the bar and text go under the slot.
 
     Returns
     -------
@@ -89,8 +99,11 @@ def board_pdf(
     from reportlab.pdfgen import canvas as rl_canvas
 
     bw, bh = spec.size_mm
-    need_w = max(bw, 110.0) + 2 * BOARD_MARGIN_MM
-    need_h = bh + BELOW_MM + 2 * BOARD_MARGIN_MM
+    # the slot's extent below the board's bottom edge
+    below_board = 0.0 if chart is None else chart["frame_board_mm"][3] - bh
+    side = 0.0 if chart is None else max(chart["frame_board_mm"][2] - bw, -chart["frame_board_mm"][0], 0.0)
+    need_w = max(bw + 2 * side, 110.0) + 2 * BOARD_MARGIN_MM
+    need_h = bh + below_board + BELOW_MM + 2 * BOARD_MARGIN_MM
     paper_name, pw, ph = choose_sheet(paper, need_w, need_h)
     buf = io.BytesIO()
     c = rl_canvas.Canvas(buf, pagesize=(pw * PT_PER_MM, ph * PT_PER_MM), invariant=1, pageCompression=1)
@@ -101,8 +114,10 @@ def board_pdf(
     c.setViewerPreference("PrintScaling", "None")
     page = _Page(c, pw, ph, profile)
     left = (pw - bw) / 2
-    top = ph - (ph - bh - BELOW_MM) / 2  # sheet y (up) of the board's top edge
+    top = ph - (ph - bh - below_board - BELOW_MM) / 2  # sheet y (up) of the board's top edge
     (draw_board if isinstance(spec, CharucoSpec) else draw_chessboard)(c, spec, left, top)
+    if chart is not None:
+        draw_chart_slot(c, chart, left, top)
     if footprint is not None:
         # the outline leaves a 3 mm gap around every ChArUco corner: a line through a
         # corner would pull its sub-pixel position (seen: 0.1 mm)
@@ -132,7 +147,7 @@ def board_pdf(
         c.setStrokeColorRGB(0, 0, 0)
         c.setLineWidth(0.25 / PT_PER_MM)
         page.text(left, top + 2.0, "top edge: mesh +y. Place the part inside the red outline.", size=2.6)
-    bottom = top - bh
+    bottom = top - bh - below_board
     scale_bar(page, left, bottom - 6.0, vertical=False)
     page.text(
         left,
@@ -151,7 +166,7 @@ def run(args) -> int:
     paper = parse_paper(args.paper)
     profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
     extra: dict = {"software": {"name": "workbench", "version": __version__}}
-    footprint = origin = None
+    footprint = origin = chart = None
     if args.kind == "fixture":
         if args.legacy:
             raise UsageError("--legacy is for board charuco: a fixture board is always in today's layout")
@@ -167,6 +182,9 @@ def run(args) -> int:
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
         extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
         extra["footprint_board_mm"] = footprint.tolist()
+        chart = colour_chart_from_job(job.fixture, spec, origin)
+        if chart is not None:
+            extra["colour_chart"] = chart
         default_out = Path("prints") / f"{job.name}-fixture.pdf"
         title = f"workbench fixture board for job {job.name}"
     else:
@@ -214,7 +232,7 @@ def run(args) -> int:
     out = Path(args.output) if args.output else default_out
     if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
         extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
-    pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint)
+    pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint, chart)
     extra["paper"] = paper_name
     extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}
     if isinstance(spec, ChessboardSpec):

@@ -22,7 +22,7 @@ from workbench.figures import stretch_figure, views_figure
 from workbench.job import load_job
 from workbench.jsonfile import recorded_path
 from workbench.mesh.io import format_obj
-from workbench.printing.boards import definition, fixture_from_job
+from workbench.printing.boards import colour_chart_from_job, definition, fixture_from_job
 
 
 def add_parser(sub) -> None:
@@ -232,9 +232,11 @@ def run(args) -> int:
             v.image.read_bytes() if v.image.suffix.lower() == ".png" else png_bytes(read_image(v.image, v.name))
         )
     spec, origin, footprint = fixture_from_job(job.fixture, result.V, result.F, f"{job.path}: fixture")
-    fixture = definition(
-        spec, "fixture", origin_mm=origin, extra={"job": info["job"], "footprint_board_mm": footprint.tolist()}
-    )
+    extra = {"job": info["job"], "footprint_board_mm": footprint.tolist()}
+    chart = colour_chart_from_job(job.fixture, spec, origin)
+    if chart is not None:  # the colour chart's slot beside the board: validate's colour QA reads it
+        extra["colour_chart"] = chart
+    fixture = definition(spec, "fixture", origin_mm=origin, extra=extra)
     files[out / "fixture.json"] = (json.dumps(fixture, indent=1) + "\n").encode()
     timings = {**result.timings_s, "write": time.perf_counter() - t0}
     info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}

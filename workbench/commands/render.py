@@ -100,6 +100,16 @@ def add_parser(sub) -> None:
     )
     g.add_argument("--vignetting", type=float, help="brightness loss at the corners (0 to 1)")
     g.add_argument("--jpeg-quality", type=int, help="JPEG round trip at this quality")
+    g.add_argument(
+        "--colour-shift-lab",
+        metavar="DL,DA,DB",
+        help="every colour of the print shifted in CIELAB (D50), e.g. -6,6,8: a wrong ink or profile",
+    )
+    g.add_argument(
+        "--white-balance",
+        metavar="R,G,B",
+        help="a coloured light: linear gains per channel on the whole scene, e.g. 1.1,1,0.85 (warm)",
+    )
     g.add_argument("--seed", type=int, default=0, help="noise seed (and the path tracer's sampler seed)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
@@ -169,6 +179,8 @@ def imperfections_from(args) -> Imperfections:
         "gloss": args.gloss,
         "shininess": args.shininess,
         "jpeg_quality": args.jpeg_quality,
+        "colour_shift_lab": _floats(args.colour_shift_lab, 3, "--colour-shift-lab"),
+        "white_balance": _floats(args.white_balance, 3, "--white-balance"),
     }
     kw.update({k: v for k, v in pairs.items() if v is not None})
     kw["seed"] = args.seed
@@ -192,6 +204,10 @@ def imperfections_from(args) -> Imperfections:
     ):
         if key in kw and not lo <= kw[key] <= hi:
             raise UsageError(f"--{key.replace('_', '-')} {kw[key]}: must be between {lo} and {hi}")
+    if "colour_shift_lab" in kw and not all(abs(v) <= 50 for v in kw["colour_shift_lab"]):
+        raise UsageError(f"--colour-shift-lab {args.colour_shift_lab}: each of DL, DA, DB between -50 and 50")
+    if "white_balance" in kw and not all(0.1 <= v <= 10 for v in kw["white_balance"]):
+        raise UsageError(f"--white-balance {args.white_balance}: each gain between 0.1 and 10")
     return Imperfections(**kw)
 
 

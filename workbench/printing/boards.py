@@ -400,3 +400,145 @@ def load_board(path: str | Path, what: str = "board definition", fields: dict | 
         if got != want:
             raise WorkbenchError(f"{path}: {key}: {got} entries, a {nx} x {ny} board has {want}")
     return d
+
+
+# ------------------------------------------------------------------ colour chart slot
+
+CHART_KIND = "ColorChecker Classic 24"
+CHART_REFERENCE = "ColorChecker24 - After November 2014"  # colour-science's name of X-Rite's reference data
+CHART_COLUMNS, CHART_ROWS = 6, 4
+CHART_GAP_MM = 12.0  # from the board's bottom edge (the plate's white margin lies between)
+CHART_PITCH_MM = 16.0
+CHART_PATCH_SHARE = 0.8  # patch side / pitch: the chart's black frame shows between patches
+CHART_FRAME_MM = 4.0  # black frame around the patches
+
+
+def colour_chart_reference() -> tuple[list[str], np.ndarray]:
+    """The ColorChecker Classic's 24 patches, in reading order, and their CIELAB (D50, 2°).
+
+    Reference values: X-Rite's data for charts made after November 2014, as colour-science
+    ships them (``colour.CCS_COLOURCHECKERS``, CIE xyY under D50), converted to CIELAB
+    with the D50 white of that data.
+
+    Returns
+    -------
+    names : list of str
+        ``dark skin`` ... ``black 2 (1.5 D)``, row by row from the top-left.
+    lab_d50 : (24, 3) float
+    """
+    import colour
+
+    cc = colour.CCS_COLOURCHECKERS[CHART_REFERENCE]
+    xyY = np.array(list(cc.data.values()), dtype=np.float64)
+    return list(cc.data.keys()), colour.XYZ_to_Lab(colour.xyY_to_XYZ(xyY), cc.illuminant)
+
+
+def chart_patch_corners(spec: CharucoSpec, pitch_mm: float = CHART_PITCH_MM) -> np.ndarray:
+    """Corners of the chart's patches in the board frame (x right, y down, mm).
+
+    The chart lies centred under the board (beyond its bottom edge, y > board height),
+    :data:`CHART_GAP_MM` below it: outside the part's footprint and clear of every marker.
+
+    Returns
+    -------
+    (24, 4, 2) float
+        Per patch in reading order, its corners clockwise from the top-left (as markers).
+    """
+    bw, bh = spec.size_mm
+    x0 = (bw - CHART_COLUMNS * pitch_mm) / 2
+    y0 = bh + CHART_GAP_MM + CHART_FRAME_MM
+    side = CHART_PATCH_SHARE * pitch_mm
+    inset = (pitch_mm - side) / 2
+    r, c = np.divmod(np.arange(CHART_COLUMNS * CHART_ROWS), CHART_COLUMNS)
+    tl = np.stack([x0 + c * pitch_mm + inset, y0 + r * pitch_mm + inset], axis=1)
+    return tl[:, None, :] + np.array([[0, 0], [side, 0], [side, side], [0, side]], dtype=np.float64)[None]
+
+
+def chart_extent_mm(pitch_mm: float) -> tuple[float, float]:
+    """Width and height of the chart with its frame, mm."""
+    return CHART_COLUMNS * pitch_mm + 2 * CHART_FRAME_MM, CHART_ROWS * pitch_mm + 2 * CHART_FRAME_MM
+
+
+def colour_chart_definition(spec: CharucoSpec, origin_mm, pitch_mm: float = CHART_PITCH_MM) -> dict:
+    """The fixture definition's ``colour_chart`` entry (JSON-ready).
+
+    ``{"kind", "reference", "illuminant", "pitch_mm", "patch_mm", "frame_board_mm",
+    "patches": [{"name", "lab_d50": [L, a, b], "corners_board_mm", "corners_mesh_mm":
+    [[x, y, z] x 4]}, ...]}``: each patch's reference colour and where it lies, in the
+    board frame and the job's mesh frame.
+    """
+    names, lab = colour_chart_reference()
+    corners = chart_patch_corners(spec, pitch_mm)
+    mesh = board_to_mesh(corners.reshape(-1, 2), origin_mm).reshape(-1, 4, 3)
+    lo = corners.reshape(-1, 2).min(axis=0) - (pitch_mm * (1 - CHART_PATCH_SHARE) / 2 + CHART_FRAME_MM)
+    hi = corners.reshape(-1, 2).max(axis=0) + (pitch_mm * (1 - CHART_PATCH_SHARE) / 2 + CHART_FRAME_MM)
+    return {
+        "kind": CHART_KIND,
+        "reference": f"colour-science {CHART_REFERENCE} (X-Rite), CIELAB D50 2 degree",
+        "illuminant": "D50",
+        "pitch_mm": float(pitch_mm),
+        "patch_mm": float(CHART_PATCH_SHARE * pitch_mm),
+        "frame_board_mm": [*map(float, lo), *map(float, hi)],
+        "patches": [
+            {
+                "name": n,
+                "lab_d50": [round(float(v), 4) for v in lab[k]],
+                "corners_board_mm": corners[k].tolist(),
+                "corners_mesh_mm": mesh[k].tolist(),
+            }
+            for k, n in enumerate(names)
+        ],
+    }
+
+
+def colour_chart_from_job(fixture: dict | None, spec: CharucoSpec, origin_mm) -> dict | None:
+    """The job's colour chart slot (``[fixture] colour_chart``, ``colour_chart_pitch_mm``), or None for ``"none"``.
+
+    The keys are checked by :func:`fixture_from_job` (call it first).
+    """
+    fx = dict(fixture or {})
+    if fx.get("colour_chart", CHART_KIND) == "none":
+        return None
+    return colour_chart_definition(spec, origin_mm, float(fx.get("colour_chart_pitch_mm") or CHART_PITCH_MM))
+
+
+def chart_srgb(lab_d50: np.ndarray) -> np.ndarray:
+    """sRGB (uint8, (n, 3)) of D50 CIELAB colours: Bradford-adapted to D65, clipped to the gamut."""
+    import colour
+
+    d50 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D50"]
+    xyz = colour.Lab_to_XYZ(np.asarray(lab_d50, dtype=np.float64), d50)
+    rgb = colour.XYZ_to_sRGB(xyz, d50, chromatic_adaptation_transform="Bradford")
+    return np.clip(np.round(rgb * 255), 0, 255).astype(np.uint8)
+
+
+def draw_chart_slot(canvas, chart: dict, left_mm: float, top_mm: float) -> None:
+    """Draw the chart's slot on a fixture sheet: its frame and each patch outlined and named.
+
+    A slot, not a chart: a printed ColorChecker is not the reference; the lab places a real
+    one here (dark skin at the top-left). Canvas unit: 1 mm, y up; ``left_mm``, ``top_mm``:
+    the board's top-left corner on the sheet.
+    """
+    from workbench.printing.pdf import embedded_font
+
+    font = embedded_font()
+    x0, y0, x1, y1 = chart["frame_board_mm"]
+    canvas.saveState()
+    canvas.setLineWidth(0.3)
+    canvas.rect(left_mm + x0, top_mm - y1, x1 - x0, y1 - y0, stroke=1, fill=0)
+    canvas.setLineWidth(0.15)
+    size = min(1.6, chart["patch_mm"] / 9)
+    for p in chart["patches"]:
+        c = np.asarray(p["corners_board_mm"])
+        canvas.rect(left_mm + c[0, 0], top_mm - c[2, 1], c[1, 0] - c[0, 0], c[2, 1] - c[0, 1], stroke=1, fill=0)
+        canvas.setFont(font, size)
+        words = p["name"].split(" (")[0]
+        canvas.drawCentredString(left_mm + (c[0, 0] + c[1, 0]) / 2, top_mm - (c[0, 1] + c[2, 1]) / 2, words)
+    canvas.setFont(font, 2.4)
+    canvas.drawString(
+        left_mm + x0,
+        top_mm - y0 + 1.5,
+        f"{chart['kind']} here, dark skin top-left, patch pitch {chart['pitch_mm']:g} mm (a real chart: a print of "
+        "one is no reference)",
+    )
+    canvas.restoreState()

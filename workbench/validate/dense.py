@@ -1241,12 +1241,11 @@ def find_defects(
     both = cv2.morphologyEx(sb | cb, cv2.MORPH_CLOSE, k3)
     n, lab = cv2.connectedComponents(both, connectivity=8)
     px_mm2 = 1.0 / grid.px_per_mm**2
-    found = []
-    claimed = np.zeros(lab.shape, bool)  # pixels a larger region has already grown over
+    # each region's kind and pixels; a shift region grown to where the flow reaches half its
+    # shift, and shift regions that grow into one another merged (one bubble, one defect)
+    regions = []
     for k in range(1, n):
         region = lab == k
-        if claimed[region].mean() > 0.5:
-            continue
         s_px, c_px = region & (sb > 0), region & (cb > 0)
         if evidence is not None and (s_px & evidence).sum() < 0.25 * s_px.sum():
             s_px = s_px & evidence  # the rest is the flow's guess along an edge
@@ -1257,7 +1256,6 @@ def find_defects(
         # tests); ink that is gone leaves a lot, and drags the flow around it too
         if nc >= 0.2 * ns:
             kind = "missing" if (region & missing).sum() > 0.5 * nc else "colour"
-            sized = c_px
         else:
             kind = "shift"
             if extent is not None:
@@ -1266,10 +1264,25 @@ def find_defects(
                 # region's edge whatever the tolerance (the tolerance's threshold would size a
                 # large slide too large and a slide just above the tolerance too small)
                 level = 0.5 * float(np.median(extent[s_px]))
-                n_h, lab_h = cv2.connectedComponents(((extent >= level) & measured).astype(np.uint8), connectivity=8)
+                _, lab_h = cv2.connectedComponents(((extent >= level) & measured).astype(np.uint8), connectivity=8)
                 hit = np.unique(lab_h[s_px])
                 s_px = np.isin(lab_h, hit[hit > 0]) | s_px
-                claimed |= s_px
+        regions.append([kind, region, s_px, c_px, ns, nc])
+    merged: list = []
+    for r in sorted(regions, key=lambda r: -int(r[2].sum())):
+        if r[0] == "shift":
+            into = next((m for m in merged if m[0] == "shift" and (m[2] & r[2]).any()), None)
+            if into is not None:
+                into[1] |= r[1]
+                into[2] |= r[2]
+                into[4] += r[4]
+                continue
+        merged.append(r)
+    found = []
+    for kind, region, s_px, c_px, ns, nc in merged:
+        if kind != "shift":
+            sized = c_px
+        else:
             # a shift shows only where there is texture: the slid region's plain patches between
             # its edges belong to it too (a closing of SHIFT_CLOSE_MM: 1.5 mm made a 12 mm bubble
             # 10 % too large, none left a 6 mm one 15 % too small; 1 mm: -1 % and -12 %)

@@ -256,7 +256,11 @@ def register_tile(template: np.ndarray, image: np.ndarray, x0: int, y0: int) -> 
     # (the correlation's standard error over N independent samples is about (1 - cc²) / √N;
     # the tile's smoothed pixels hold N = T² / (4π s²) of them: a second peak within three
     # of those of the first is not told apart from it)
+    # (only for a tile that matches somewhere: a photo that shows nothing of the tile, painted
+    # over or torn away, correlates equally badly everywhere, and that is a tile that fails)
     best = float(res[iy, ix])
+    if not np.isfinite(best) or best < MIN_CORRELATION / 2:
+        return None, 0.0, np.inf
     n_ind = T * T / (4.0 * np.pi * REGISTRATION_BLUR_PX**2)
     if float(far.max()) > best - AMBIGUITY_Z * max(1.0 - best * best, 0.0) / np.sqrt(n_ind):
         return None, np.nan, np.inf

@@ -49,7 +49,7 @@ KINDS = ("photo", "gradient", "logo", "text", "checker")
 # views the first (from above) frames the middle of the part only and the second owns the rest,
 # as the default job's logo and front views do
 PARTS = (
-    ("face", "shared:face.obj", 180.0, "free", ((0, 90), (-35, 50))),
+    ("face", "shared:face.obj", 180.0, "free", ((0, 90), (-35, 50))),  # a half head: its own +z is the face
     ("camelhead", "shared:camelhead.off", 120.0, "auto", ((0, 90),)),
     ("lilium", "shared:lilium.obj", 100.0, "free", ((0, 90), (25, 55))),
     ("camel_b", "shared:camel_b.obj", 150.0, "auto", ((0, 90),)),
@@ -64,6 +64,8 @@ PARTS = (
     ("snail", "corpus:snail-0", 80.0, "free", ((0, 90), (35, 50))),
     ("cheburashka", "corpus:cheburashka-0", 100.0, "rectangle", ((0, 90),)),
 )
+# the decorated side's direction in the source's frame where the area-weighted normal is not it
+UP = {"face": (0.0, 0.0, 1.0)}
 SOURCES = {
     "shared": "libigl tutorial data (github.com/libigl/libigl-tutorial-data), the project's planning meshes",
     "corpus": "tests/data/corpus (geodesic disc of a libigl tutorial data mesh; see tests/data/README.md)",
@@ -95,13 +97,14 @@ def decimate(V: np.ndarray, F: np.ndarray, max_faces: int = MAX_FACES) -> tuple[
     return np.asarray(U, np.float64), np.asarray(G, np.int64)
 
 
-def place(V: np.ndarray, F: np.ndarray, size_mm: float) -> np.ndarray:
+def place(V: np.ndarray, F: np.ndarray, size_mm: float, up: tuple | None = None) -> np.ndarray:
     """The part as it stands on its fixture: decorated side (area-weighted normal) up, base at z = 0.
 
     Returns (n, 3) float64 vertices in mm, the bounding box centred over the origin in x and y,
-    the longest side of the bounding box ``size_mm``.
+    the longest side of the bounding box ``size_mm``. ``up``: the decorated side's direction in
+    the source's frame, where the area-weighted normal is not it (a half head's points sideways).
     """
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]).sum(axis=0)
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]).sum(axis=0) if up is None else np.array(up)
     n /= np.linalg.norm(n)
     # the rotation taking n to +z (Rodrigues about n x z)
     axis = np.cross(n, [0.0, 0.0, 1.0])
@@ -300,7 +303,7 @@ def main() -> None:
             V0, F0 = read_source(source, args.meshes)
             source_faces = len(F0)
             V, F = decimate(V0, F0)
-            V = place(V, F, size)
+            V = place(V, F, size, UP.get(name))
             write_ply(folder / "part.ply", V, F)
         vspecs, images = [], {}
         for k, (az, el) in enumerate(views):

@@ -375,6 +375,7 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
             photo.result = {"outcome": "render failed", "why": r.stderr.strip().splitlines()[-1:]}
             return photo
         stamp.write_text(key)
+        (folder / "validation" / "validation.json").unlink(missing_ok=True)  # of an earlier photo
     t1 = time.perf_counter()
     vdir = folder / "validation"
     validate = [sys.executable, "-m", "workbench", "validate", str(design), str(img), "--camera", str(truth_file)]
@@ -469,6 +470,10 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
                 f"| {d} | {r} | {s['photos']} | {pct(s['found'], s['photos'])} | {s['fail_not_located']} | "
                 f"{pct(s['escapes'], s['photos'])} | {s['below_stated_limit']} | {s['invalid']} |"
             )
+    lines += ["", "## Why photos get the wrong verdict", ""]
+    lines += ["| reason (figures as #) | perfect photos | defect photos |", "|---|---:|---:|"]
+    for reason, (n_perfect, n_defect) in wrong_verdict_reasons(photos).items():
+        lines.append(f"| {reason} | {n_perfect} | {n_defect} |")
     lines += [
         "",
         "## Photos",
@@ -501,6 +506,24 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
             f"{found} | {truth} | {err} | {limit} | {reason} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def wrong_verdict_reasons(photos: list[Photo]) -> dict:
+    """Validate's reasons for the false rejects (perfect photos) and misses (defect photos), figures as #."""
+    import re
+
+    out: dict = {}
+    for p in photos:
+        o = p.result.get("outcome")
+        if o not in ("false reject", "fail, not located", "escape", "invalid"):
+            continue
+        text = p.result.get("reason") or o
+        # one line per rule: "a; b" are two reasons
+        for part in text.split("; "):
+            key = re.sub(r"-?\d+(\.\d+)?", "#", part).strip()
+            n = out.setdefault(key, [0, 0])
+            n[0 if p.defect is None else 1] += 1
+    return dict(sorted(out.items(), key=lambda kv: -sum(kv[1])))
 
 
 def artwork_of() -> dict:

@@ -233,15 +233,16 @@ def grid(subset: str, renderers: list[str]) -> list[Photo]:
                 photos.append(Photo(part, view, "4000x3000", look, r, defect, seed=100 + n))
         return photos
     n = 0
-    for part, view in parts_and_views():
+    for v, (part, view) in enumerate(parts_and_views()):
+        # the v-th view shifts the cycles by v: each look and defect meets every size across views
         for k, look in enumerate(looks):
-            size = SIZES[(n + k) % len(SIZES)]
+            size = SIZES[(k + v) % len(SIZES)]
             for r in renderers:
                 photos.append(Photo(part, view, size, look, r, None, seed=n))
             n += 1
         for k, defect in enumerate(DEFECTS):
-            size = SIZES[(n + 2 * k + 1) % len(SIZES)]
-            look = looks[(n + k) % len(looks)]
+            size = SIZES[(k + v + 1) % len(SIZES)]
+            look = looks[(k + v) % len(looks)]
             for r in renderers:
                 photos.append(Photo(part, view, size, look, r, defect, seed=n))
             n += 1

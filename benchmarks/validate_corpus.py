@@ -381,7 +381,8 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
         render += ["--renderer", "mitsuba", "--spp", str(args.spp)]
     render += ["-o", str(img), "-q"]
     stamp = folder / "render.cmd"
-    key = json.dumps(render[3:])
+    # the command and the design it renders (a design made again from a changed job differs)
+    key = json.dumps([hashlib.sha256((design / "design.json").read_bytes()).hexdigest(), *render[3:]])
     if not (img.is_file() and truth_file.is_file() and stamp.is_file() and stamp.read_text() == key):
         r = subprocess.run(render, env=env_render, capture_output=True, text=True, timeout=3600)
         if r.returncode != 0:

@@ -54,6 +54,7 @@ KNOWN_FAILING = {
 
 class Args:
     revalidate = True
+    report_only = False
     spp = 16
 
 

@@ -6,8 +6,9 @@ subset (6 photos at 2000 x 1500 of 6 real parts: photographs, a low-contrast log
 text, checkers, gradients; matte, glossy, lens distortion) runs in ``make test``; the issue's
 acceptance cases at 12 Mpx (8 perfect parts; the 1 mm bubble of 12 mm, the 0.5 mm bubble of
 6 mm, a 10 mm² dropout, a 20 mm scratch on two parts) on both renderers are marked slow
-(``make bench``). The whole corpus (some 250 photos, 2000 x 1500 to 6000 x 4000, an hour or
-more on two cores) is ``python benchmarks/validate_corpus.py --subset full``. All come from
+(``make bench``). The whole corpus (252 photos per renderer, 2000 x 1500 to 6000 x 4000, about
+two hours on two cores with the workbench renderer) is ``python benchmarks/validate_corpus.py
+--subset full``. All come from
 that runner: one ``workbench render`` and one ``workbench validate`` command per photo,
 against the truth in PHOTO.json.
 

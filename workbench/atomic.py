@@ -161,8 +161,8 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
     *paths : Path
         Files a command is about to write.
     inputs : iterable of Path
-        Files and folders the command reads: no output may be one of them (or, for a
-        folder, one of the files in it).
+        Files the command reads (folders among them are for :func:`check_output_dir`):
+        no output may be one of them.
 
     Raises
     ------
@@ -170,7 +170,7 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
         Naming the first path that is a directory, whose name is too long, that two outputs
         share (``board -o b.json``: the PDF and its definition) or that is an input.
     """
-    in_files, in_folders = _input_files(inputs)
+    in_files, _ = _input_files(inputs)
     seen: dict[Path, Path] = {}
     for path in paths:
         path = Path(path)
@@ -182,10 +182,9 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
             raise WorkbenchError(f"{path}: two outputs of this command would share this name; give another name")
         seen[r] = path
         given = in_files.get(r)
-        if given is None and r.is_file() and r.parent in in_folders:
-            given = r
         if given is not None:
-            raise WorkbenchError(f"{path}: is an input of this command ({given}); write the output elsewhere")
+            also = "" if given == path else f" ({given})"
+            raise WorkbenchError(f"{path}: is an input of this command{also}; write the output elsewhere")
 
 
 def check_output_dir(directory: Path, inputs: Iterable[Path] = ()) -> None:
@@ -205,8 +204,9 @@ def check_output_dir(directory: Path, inputs: Iterable[Path] = ()) -> None:
     in_files, in_folders = _input_files(inputs)
     r = _resolved(directory)
     if r in in_folders:
-        raise WorkbenchError(f"{directory}: is an input of this command ({in_folders[r]}); write the output elsewhere")
-    for name in _manifest(r):
+        also = "" if in_folders[r] == directory else f" ({in_folders[r]})"
+        raise WorkbenchError(f"{directory}: is an input folder of this command{also}; write the output elsewhere")
+    for name in folder_manifest(r):
         if (r / name) in in_files:
             raise WorkbenchError(
                 f"{directory}: its earlier output {name} is an input of this command; write the output elsewhere"
@@ -332,7 +332,7 @@ def _restore(backups: dict[Path, Path | None]) -> None:
             pass
 
 
-def _manifest(directory: Path) -> list[str]:
+def folder_manifest(directory: Path) -> list[str]:
     """The files the last run wrote into ``directory`` (relative, POSIX), from its ``.workbench-files``."""
     try:
         text = (directory / MANIFEST).read_text(encoding="utf-8")
@@ -396,7 +396,7 @@ def write_folder(directory: Path, files: dict[Path, bytes], inputs: Iterable[Pat
         rel[name.as_posix()] = data
     directory = _resolved(given)
     in_files, _ = _input_files(inputs)
-    old = _manifest(directory) if directory.is_dir() else []
+    old = folder_manifest(directory) if directory.is_dir() else []
     stale = [n for n in old if n not in rel and (directory / n).is_file()]
     for n in stale:
         if directory / n in in_files:

@@ -379,6 +379,7 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     auto = job.object.corners == "auto"
     options = FlattenOptions(
         corners=None if auto else job.object.corners,
+        corners_from=f"{job.path}: object.corners",
         scale=job.print.scale,
         min_print_mm=0.5 * 25.4 / job.print.dpi,
         outline=job.print.outline,

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from workbench import schemas
-from workbench.atomic import safe_name
+from workbench.atomic import folder_manifest, safe_name
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
 from workbench.jsonfile import read_json
@@ -24,6 +24,20 @@ def read_design_json(path: Path, fields: dict = schemas.DESIGN) -> dict:
         if name in names[:k]:
             raise WorkbenchError(f"{path}: views[{k}].name: {name!r} is used twice")
     return info
+
+
+# what workbench design writes, for a folder written before it listed them in .workbench-files
+_DESIGN_FILES = ("design.json", "print.png", "owner.png", "flat.obj", "decorated.obj", "decorated.mtl", "decorated.glb",
+                 "fixture.json", "views.png", "stretch.png", "view-*.png", "print-*.png", "flat-*.obj")  # fmt: skip
+
+
+def design_files(directory: Path) -> list[Path]:
+    """The files of a design folder, with the folder itself: the inputs no output of pdf, render or
+    validate may replace (``render -o DESIGN/print.png``) and no output folder may be."""
+    directory = Path(directory)
+    names = folder_manifest(directory)
+    files = [directory / n for n in names] or [p for pat in _DESIGN_FILES for p in sorted(directory.glob(pat))]
+    return [directory, *files]
 
 
 class Design:

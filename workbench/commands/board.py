@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from workbench import __version__
-from workbench.atomic import write_files
+from workbench.atomic import check_outputs, write_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
+from workbench.options import Number, parse_numbers
 from workbench.printing.boards import CharucoSpec, definition, draw_board, fixture_from_job
 from workbench.printing.paper import choose_sheet, parse_paper
 from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
@@ -39,10 +40,19 @@ def add_parser(sub) -> None:
         "-o", "--output", metavar="FILE.pdf", help="default calib/boards/<kind>.pdf (fixture: prints/<job>-fixture.pdf)"
     )
     p.add_argument("--squares", metavar="NXxNY", help="squares across and down (charuco default 7x5)")
-    p.add_argument("--square-mm", type=float, help="square side, mm")
-    p.add_argument("--marker-mm", type=float, help="marker side, mm (default 0.75 of the square)")
+    size = {"action": Number, "lo": 0, "lo_open": True, "hi": 1000, "unit": "mm"}
+    p.add_argument("--square-mm", **size, help="square side, mm")
+    p.add_argument("--marker-mm", **size, help="marker side, mm (default 0.75 of the square)")
     p.add_argument("--dictionary", default=None, help="ArUco dictionary (default DICT_5X5_250)")
-    p.add_argument("--first-id", type=int, default=None, help="id of the first marker (default 0)")
+    p.add_argument(
+        "--first-id",
+        action=Number,
+        lo=0,
+        hi=2**20,
+        integer=True,
+        default=None,
+        help="id of the first marker (default 0)",
+    )
     p.add_argument("--paper", default="auto", help="A4, A3, letter, ..., auto or WxH in mm")
     p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile to pre-compensate")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -52,11 +62,9 @@ def add_parser(sub) -> None:
 def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     if text is None:
         return default
-    try:
-        nx, ny = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise UsageError(f"--squares {text!r}: give NXxNY, e.g. 7x5") from None
-    return nx, ny
+    if len(text.lower().split("x")) != 2:
+        raise UsageError(f"--squares {text!r}: give NXxNY, e.g. 7x5")
+    return parse_numbers(text.lower(), 2, "--squares", sep="x", lo=1, hi=1000, integer=True)
 
 
 def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, footprint=None) -> tuple[bytes, tuple]:
@@ -137,6 +145,7 @@ def run(args) -> int:
     profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
     extra: dict = {"software": {"name": "workbench", "version": __version__}}
     footprint = origin = None
+    inputs = [Path(args.printer_profile)] if args.printer_profile else []
     if args.kind == "fixture":
         if args.job is None:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
@@ -145,6 +154,7 @@ def run(args) -> int:
         from workbench.mesh.validate import check_disc
 
         job = load_job(args.job)
+        inputs += [job.path, job.object.mesh, *(v.image for v in job.views)]
         V, F = read_mesh(job.object.mesh, job.object.units)
         check_disc(V, F, str(job.object.mesh))  # the footprint is the disc's boundary
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
@@ -155,9 +165,6 @@ def run(args) -> int:
     else:
         if args.job is not None:
             raise UsageError(f"board {args.kind} takes options, not a job file")
-        for flag, v in (("--square-mm", args.square_mm), ("--marker-mm", args.marker_mm)):
-            if v is not None and not (np.isfinite(v) and 0 < v <= 1000):
-                raise UsageError(f"{flag} {v:g}: must be a positive size in mm (at most 1000)")
         if args.kind == "charuco":
             square = 30.0 if args.square_mm is None else args.square_mm
             squares = _squares(args.squares, (7, 5))
@@ -182,13 +189,15 @@ def run(args) -> int:
         default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
         title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
     out = Path(args.output) if args.output else default_out
+    # `-o b.json`: the PDF and its definition would get one name; the job's files are inputs
+    check_outputs(out, out.with_suffix(".json"), inputs=inputs)
     if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
         extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
     pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint)
     extra["paper"] = paper_name
     extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}
     info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)
-    write_files({out: pdf, out.with_suffix(".json"): (json.dumps(info, indent=1) + "\n").encode()})
+    write_files({out: pdf, out.with_suffix(".json"): (json.dumps(info, indent=1) + "\n").encode()}, inputs=inputs)
     log(
         f"wrote {out} ({paper_name}) and {out.with_suffix('.json')}: {spec.squares[0]} x {spec.squares[1]} squares "
         f"of {spec.square_mm:g} mm, {spec.dictionary}"

@@ -17,6 +17,7 @@ from workbench.camera import intrinsics_problem
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_dpi
 from workbench.jsonfile import check, read_json, recorded_path, resolve_recorded
+from workbench.options import Number
 from workbench.printing.boards import load_board
 
 
@@ -43,7 +44,7 @@ def add_parser(sub) -> None:
     )
     r.add_argument("scan", metavar="SCAN.png")
     r.add_argument("--board", metavar="BOARD.json", required=True, help="definition of the printed target")
-    r.add_argument("--dpi", type=float, required=True, help="resolution of the scan")
+    r.add_argument("--dpi", action=Number, lo=1, hi=100_000, required=True, help="resolution of the scan")
     r.add_argument("--name", help="printer name shown on pages (default: the profile's file name)")
     r.add_argument("-o", "--output", metavar="PROFILE.json", required=True)
     r.add_argument("-q", "--quiet", action="store_true")
@@ -56,8 +57,13 @@ def add_parser(sub) -> None:
     )
     k.add_argument("profile", metavar="PROFILE.json")
     k.add_argument("inputs", metavar="PHOTO_OR_SCAN", nargs="+")
-    k.add_argument("--tolerance-pct", type=float, default=0.05, help="printer: largest scale drift (default 0.05 %%)")
-    k.add_argument("--tolerance-px", type=float, default=0.5, help="camera: largest reprojection RMS (default 0.5 px)")
+    positive = {"action": Number, "lo": 0, "lo_open": True}
+    k.add_argument(
+        "--tolerance-pct", **positive, hi=100, default=0.05, help="printer: largest scale drift (default 0.05 %%)"
+    )
+    k.add_argument(
+        "--tolerance-px", **positive, hi=1000, default=0.5, help="camera: largest reprojection RMS (default 0.5 px)"
+    )
     k.add_argument("-q", "--quiet", action="store_true")
     k.set_defaults(run=run_check)
 
@@ -106,7 +112,9 @@ def run_camera(args) -> int:
     board_path = Path(args.board)
     board = load_board(board_path)
     out = Path(args.output)
-    check_outputs(out, out.with_suffix(".png"))  # before the calibration, not after it
+    inputs = [board_path, *map(Path, args.photos)]
+    # before the calibration, not after it; `-o cam.png` would give the profile and its picture one name
+    check_outputs(out, out.with_suffix(".png"), inputs=inputs)
     images = [(str(p), _gray(Path(p))) for p in args.photos]
     cal = calibrate_camera(images, board)
     profile = {
@@ -128,7 +136,7 @@ def run_camera(args) -> int:
     pic = residual_picture(
         cal, f"{out.name}: RMS {cal.rms_px:.3f} px over {sum(v['used'] for v in cal.per_view)} views"
     )
-    write_files({out: (json.dumps(profile, indent=1) + "\n").encode(), out.with_suffix(".png"): pic})
+    write_files({out: (json.dumps(profile, indent=1) + "\n").encode(), out.with_suffix(".png"): pic}, inputs=inputs)
     for v in cal.per_view:
         if not v["used"]:
             log(f"left out {v['name']}: {v['reason']}")
@@ -155,7 +163,7 @@ def run_printer(args) -> int:
     board = load_board(board_path)
     _check_dpi(scan_path, args.dpi)
     out = Path(args.output)
-    check_outputs(out)
+    check_outputs(out, inputs=[board_path, scan_path])
     m = _measure(scan_path, board, args.dpi)
     check_printer_scale(m, args.dpi, png_dpi(scan_path.read_bytes()) is not None, str(scan_path))
     profile = {
@@ -172,7 +180,7 @@ def run_printer(args) -> int:
         "scan": {"file": recorded_path(scan_path, out.parent), "sha256": _sha(scan_path)},
         "software": {"name": "workbench", "version": __version__},
     }
-    write_files({out: (json.dumps(profile, indent=1) + "\n").encode()})
+    write_files({out: (json.dumps(profile, indent=1) + "\n").encode()}, inputs=[board_path, scan_path])
     log(
         f"scale x {100 * (m.scale_x - 1):+.3f} %, y {100 * (m.scale_y - 1):+.3f} %, skew {m.skew_deg:+.3f}°, "
         f"fit {m.rms_mm * 1000:.1f} µm over {m.corners} corners; wrote {out}"
@@ -206,9 +214,6 @@ def _camera_drift(path: Path, board: dict, K: np.ndarray, dist: np.ndarray) -> f
 
 def run_check(args) -> int:
     log = _log(args)
-    for flag, v in (("--tolerance-pct", args.tolerance_pct), ("--tolerance-px", args.tolerance_px)):
-        if not (np.isfinite(v) and v > 0):
-            raise UsageError(f"{flag} {v:g}: must be a positive number")
     path = Path(args.profile)
     what = "profile of workbench calibrate (camera-profile or printer-profile)"
     prof = read_json(path, what, schemas.CALIBRATION_PROFILE)

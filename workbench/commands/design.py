@@ -89,7 +89,8 @@ def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     job = load_job(args.job)
     out = Path(args.out) if args.out else Path(f"design-{safe_name(job.name)}")
-    check_output_dir(out)  # before the minutes of work, not after them
+    inputs = [job.path, job.object.mesh, *(v.image for v in job.views)]
+    check_output_dir(out, inputs)  # before the minutes of work, not after them
     result = design(job, log)
     warnings = fit_warnings(result, job.object.material.max_stretch)
     if warnings and args.strict:
@@ -236,7 +237,7 @@ def run(args) -> int:
     timings = {**result.timings_s, "write": time.perf_counter() - t0}
     info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
     files[out / "design.json"] = (json.dumps(info, indent=2) + "\n").encode()
-    write_folder(out, files)
+    write_folder(out, files, inputs)
     log(
         f"print {flat.width_mm:.2f} x {flat.height_mm:.2f} mm, {cols} x {rows} px at {grid.dpi:g} dpi; "
         + "; ".join(f"{s['name']} {100 * s['print_share']:.1f} %" for s in stats)

@@ -9,11 +9,12 @@ import cv2
 import numpy as np
 
 from workbench import schemas
-from workbench.atomic import write_files
-from workbench.design_dir import read_design_json
-from workbench.errors import UsageError, WorkbenchError
+from workbench.atomic import check_outputs, write_files
+from workbench.design_dir import design_files, read_design_json
+from workbench.errors import WorkbenchError
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import boundary_loops
+from workbench.options import Number
 from workbench.printing.paper import parse_paper
 from workbench.printing.pdf import FilmPage, PrinterProfile, load_printer_profile, print_pdf, print_pdf_pages
 
@@ -35,8 +36,17 @@ def add_parser(sub) -> None:
         "--paper", default="auto", help="A4, A3, letter, ..., auto (default: smallest that fits) or WxH in mm"
     )
     p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile (workbench calibrate printer)")
-    p.add_argument("--bleed-mm", type=float, help="texture beyond the trim (default: the job's, 3 mm)")
-    p.add_argument("--margin-mm", type=float, help="free border to the sheet's edge (default: the job's, 10 mm)")
+    p.add_argument(
+        "--bleed-mm", action=Number, lo=0, hi=50, unit="mm", help="texture beyond the trim (default: the job's, 3 mm)"
+    )
+    p.add_argument(
+        "--margin-mm",
+        action=Number,
+        lo=0,
+        hi=50,
+        unit="mm",
+        help="free border to the sheet's edge (default: the job's, 10 mm)",
+    )
     p.add_argument(
         "--no-cut",
         action="store_true",
@@ -131,17 +141,16 @@ def run(args) -> int:
     name = job.get("name") or Path(args.design).name
     bleed = args.bleed_mm if args.bleed_mm is not None else pr["bleed_mm"]
     margin = args.margin_mm if args.margin_mm is not None else pr["margin_mm"]
-    for key, v in (("--bleed-mm", args.bleed_mm), ("--margin-mm", args.margin_mm)):
-        # the design's own values are checked where design.json is read
-        if v is not None and not (np.isfinite(v) and 0 <= v <= 50):
-            raise UsageError(f"{key} {v:g}: must be between 0 and 50 mm")
     out = Path(args.output) if args.output else Path("prints") / f"{name}.pdf"
+    # the design folder's files and the profile: `-o DESIGN/print.png` would destroy the design
+    inputs = [*design_files(Path(args.design)), *([Path(args.printer_profile)] if args.printer_profile else [])]
+    check_outputs(out, inputs=inputs)
     if info.get("films"):
         pages = film_pages(Path(args.design), info)
         pdf, sheets = print_pdf_pages(
             pages, pr["dpi"], name, job.get("sha256", "unknown"), paper, bleed, margin, profile, cut=not args.no_cut
         )
-        write_files({out: pdf})
+        write_files({out: pdf}, inputs=inputs)
         log(f"wrote {out}: {len(pages)} films, one page each ({', '.join(sorted({s.paper for s in sheets}))})")
         log("print at 100 % (actual size, no fit-to-page) and check that both bars measure 100 mm")
         return 0
@@ -161,7 +170,7 @@ def run(args) -> int:
         cut=not args.no_cut,
         film=film,
     )
-    write_files({out: pdf})
+    write_files({out: pdf}, inputs=inputs)
     log(
         f"wrote {out}: {pr['width_mm']:.2f} x {pr['height_mm']:.2f} mm on {sheet.paper}, bleed {bleed:g} mm, "
         f"printer profile {profile.name}"

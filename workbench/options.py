@@ -27,6 +27,8 @@ def _range_text(lo: float, hi: float, lo_open: bool, hi_open: bool, unit: str) -
         return f"more than {_fmt(lo)}{u}" if lo_open else f"at least {_fmt(lo)}{u}"
     if lo_open and lo == 0 and not hi_open:
         return f"positive, at most {_fmt(hi)}{u}"
+    if lo_open and hi_open:
+        return f"between {_fmt(lo)} and {_fmt(hi)}{u}, both excluded"
     if lo_open or hi_open:
         low = f"{'more than' if lo_open else 'at least'} {_fmt(lo)}"
         return f"{low} and {'less than' if hi_open else 'at most'} {_fmt(hi)}{u}"

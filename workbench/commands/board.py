@@ -11,10 +11,10 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import check_outputs, write_files
-from workbench.errors import UsageError, WorkbenchError
+from workbench.errors import UsageError
 from workbench.jsonfile import recorded_path
 from workbench.options import Number, parse_numbers
-from workbench.printing.boards import CharucoSpec, definition, draw_board, fixture_from_job
+from workbench.printing.boards import BoardError, CharucoSpec, definition, draw_board, fixture_from_job
 from workbench.printing.paper import choose_sheet, parse_paper
 from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
 
@@ -184,8 +184,10 @@ def run(args) -> int:
                 dictionary=args.dictionary or "DICT_5X5_250",
                 first_id=args.first_id or 0,
             )
-        except WorkbenchError as exc:  # every value came from an option: a usage error
-            raise UsageError(str(exc)) from None
+        except BoardError as exc:  # every value came from an option (or its default): name it
+            flag = "--" + exc.key.replace("_", "-")
+            given = getattr(args, exc.key, None)
+            raise UsageError(f"{flag}{'' if given is None else f' {given}'}: {exc}") from None
         default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
         title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
     out = Path(args.output) if args.output else default_out

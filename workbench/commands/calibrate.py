@@ -12,7 +12,13 @@ import numpy as np
 
 from workbench import __version__, schemas
 from workbench.atomic import check_outputs, write_files
-from workbench.calibration import calibrate_camera, check_printer_scale, detect_corners, measure_printer
+from workbench.calibration import (
+    calibrate_camera,
+    check_printer_scale,
+    detect_corners,
+    measure_printer,
+    printer_scale_warnings,
+)
 from workbench.camera import intrinsics_problem
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_dpi
@@ -46,6 +52,11 @@ def add_parser(sub) -> None:
     r.add_argument("--board", metavar="BOARD.json", required=True, help="definition of the printed target")
     r.add_argument("--dpi", action=Number, lo=1, hi=100_000, required=True, help="resolution of the scan")
     r.add_argument("--name", help="printer name shown on pages (default: the profile's file name)")
+    r.add_argument(
+        "--strict",
+        action="store_true",
+        help="treat a scale unlike a printer's (beyond ±2 %%, a wrong target or definition) as an error: exit 1",
+    )
     r.add_argument("-o", "--output", metavar="PROFILE.json", required=True)
     r.add_argument("-q", "--quiet", action="store_true")
     r.set_defaults(run=run_printer)
@@ -116,7 +127,11 @@ def run_camera(args) -> int:
     # before the calibration, not after it; `-o cam.png` would give the profile and its picture one name
     check_outputs(out, out.with_suffix(".png"), inputs=inputs)
     images = [(str(p), _gray(Path(p))) for p in args.photos]
-    cal = calibrate_camera(images, board)
+    try:
+        cal = calibrate_camera(images, board)
+    except WorkbenchError as exc:  # "2 usable views of the board": of which photos, which board
+        photos = ", ".join(args.photos[:3]) + (f" and {len(args.photos) - 3} more" if len(args.photos) > 3 else "")
+        raise WorkbenchError(f"{photos} (board {board_path}): {exc}") from None
     profile = {
         "kind": "camera-profile",
         "K": cal.K.tolist(),
@@ -166,6 +181,9 @@ def run_printer(args) -> int:
     check_outputs(out, inputs=[board_path, scan_path])
     m = _measure(scan_path, board, args.dpi)
     check_printer_scale(m, args.dpi, png_dpi(scan_path.read_bytes()) is not None, str(scan_path))
+    warnings = printer_scale_warnings(m)
+    if warnings and args.strict:
+        raise WorkbenchError(f"{scan_path}: not a printer's scale (--strict): " + "; ".join(warnings))
     profile = {
         "kind": "printer-profile",
         "name": args.name or out.stem,
@@ -174,6 +192,7 @@ def run_printer(args) -> int:
         "skew_deg": m.skew_deg,
         "scan_rotation_deg": m.rotation_deg,
         "fit_rms_mm": m.rms_mm,
+        "warnings": warnings,
         "corners": m.corners,
         "dpi": args.dpi,
         "board": {"file": recorded_path(board_path, out.parent), "sha256": _sha(board_path)},
@@ -181,6 +200,8 @@ def run_printer(args) -> int:
         "software": {"name": "workbench", "version": __version__},
     }
     write_files({out: (json.dumps(profile, indent=1) + "\n").encode()}, inputs=[board_path, scan_path])
+    for w in warnings:
+        log(f"warning: {w}")
     log(
         f"scale x {100 * (m.scale_x - 1):+.3f} %, y {100 * (m.scale_y - 1):+.3f} %, skew {m.skew_deg:+.3f}°, "
         f"fit {m.rms_mm * 1000:.1f} µm over {m.corners} corners; wrote {out}"

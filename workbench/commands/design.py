@@ -92,7 +92,7 @@ def run(args) -> int:
     inputs = [job.path, job.object.mesh, *(v.image for v in job.views)]
     check_output_dir(out, inputs)  # before the minutes of work, not after them
     result = design(job, log)
-    warnings = fit_warnings(result, job.object.material.max_stretch)
+    warnings = fit_warnings(result, job.object.material.max_stretch, [v.name for v in job.views])
     if warnings and args.strict:
         raise WorkbenchError(f"{job.path}: the print does not fit the part (--strict): " + "; ".join(warnings))
 
@@ -225,9 +225,12 @@ def run(args) -> int:
                 header=f"workbench {__version__} flat layout of film {f.name} of {job.object.mesh.name}, mm",
             )
     # the view images, so that the design directory alone is enough to validate photos
-    for v in job.views:
+    # (as the design read them: an RGBA image over the print's background, 8 bits)
+    for i, v in enumerate(job.views):
+        png = v.image.read_bytes() if v.image.suffix.lower() == ".png" else b""
+        plain = png[25:26] in (b"\x00", b"\x02") and png[24:25] == b"\x08"  # IHDR: 8-bit grey or RGB, no alpha
         files[out / f"view-{safe_name(v.name)}.png"] = (
-            v.image.read_bytes() if v.image.suffix.lower() == ".png" else png_bytes(read_image(v.image, v.name))
+            png if plain else png_bytes(read_image(v.image, f"{job.path}: views[{i}].image", job.print.background))
         )
     spec, origin, footprint = fixture_from_job(job.fixture, result.V, result.F, f"{job.path}: fixture")
     fixture = definition(

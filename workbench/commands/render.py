@@ -346,7 +346,10 @@ def run(args) -> int:
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         raise UsageError(f"-o {out}: photos are written as .png or .jpg")
     check_render_fits(cam.width, cam.height, args.supersample)
-    rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
+    try:
+        rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
+    except WorkbenchError as exc:  # "the camera sees nothing": say which camera
+        raise WorkbenchError(f"--{source}: {exc}") from None
     write_files(
         {
             out: encode(rgb, out, imp),

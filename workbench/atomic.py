@@ -406,7 +406,6 @@ def write_folder(directory: Path, files: dict[Path, bytes], inputs: Iterable[Pat
         _update_folder(directory, given, rel, stale)
     else:
         _new_folder(directory, given, rel)
-    _SIGNALS.written.append(given)
 
 
 def _new_folder(directory: Path, given: Path, rel: dict[str, bytes]) -> None:
@@ -427,6 +426,7 @@ def _new_folder(directory: Path, given: Path, rel: dict[str, bytes]) -> None:
                 os.rename(tmp, directory)
             except OSError as exc:
                 raise _oserror(given, exc) from None
+            _SIGNALS.written.append(given)
     finally:
         with _held():
             _rmtree(tmp)
@@ -472,6 +472,7 @@ def _update_folder(directory: Path, given: Path, rel: dict[str, bytes], stale: l
                     except OSError:
                         pass
                 raise _oserror(given, exc) from None
+            _SIGNALS.written.append(given)
             for name in stale:  # folders that held only stale files go with them
                 for parent in (directory / name).parents:
                     if parent == directory:

@@ -10,6 +10,7 @@ import warnings
 
 from workbench import __version__
 from workbench.atomic import signals_handled
+from workbench.environment import use_writable_caches
 from workbench.errors import UsageError, WorkbenchError
 
 # in the order of `workbench --help`
@@ -67,6 +68,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 1
+    use_writable_caches()  # before a command's modules load numba and matplotlib
     args_in = sys.argv[1:] if argv is None else argv
     first = next((a for a in args_in if not a.startswith("-")), None)
     parser = build_parser(first if first in COMMANDS else None)

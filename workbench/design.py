@@ -208,13 +208,13 @@ def _film_regions(
         out.append((spec.name, faces, flat, spec.material, spec.outline))
     left = (owner_view >= 0) & ~claimed
     decorated = float(area[owner_view >= 0].sum())
-    if left.any():
-        say(f"warning: {int(left.sum())} decorated faces ({area[left].sum():.0f} mm²) are on no film")
     if decorated > 0 and area[left].sum() > MAX_BARE_SHARE * decorated:
         warnings.append(
             f"{100 * area[left].sum() / decorated:.1f} % of the decorated surface ({area[left].sum():.0f} mm²) "
             "is on no film: the part would be left bare there"
         )
+    elif left.any():
+        say(f"{int(left.sum())} decorated faces ({area[left].sum():.0f} mm²) are on no film")
     return out
 
 

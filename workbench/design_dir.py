@@ -210,16 +210,16 @@ def check_image_size(path, what: str) -> None:
     """Refuse, from its header alone, an image of more than MAX_VIEW_PIXELS pixels."""
     from PIL import Image
 
+    limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # this check is ours, and says which file
     try:
         with Image.open(path) as im:  # the header only: no pixel decoded
             w, h = im.size
-    except Image.DecompressionBombError:
-        w = h = None
     except Exception:  # not an image PIL knows: OpenCV says so next
         return
-    if w is None or w * h > MAX_VIEW_PIXELS:
-        size = "" if w is None else f" is {w} x {h} px ({w * h / 1e6:,.0f} Mpx);"
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
+    if w * h > MAX_VIEW_PIXELS:
         raise WorkbenchError(
-            f"{what}: {path}{size} more than a view image needs (at most {MAX_VIEW_PIXELS / 1e6:.0f} Mpx, "
+            f"{what}: {path} is {w} x {h} px ({w * h / 1e6:,.0f} Mpx): more than a view image needs (at most {MAX_VIEW_PIXELS / 1e6:.0f} Mpx, "
             "whose decoding alone takes gigabytes): scale it down"
         )

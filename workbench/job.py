@@ -333,8 +333,11 @@ def load_job(path: str | Path) -> Job:
         scale = ScaleMode.parse(p.string("scale", str(ScaleMode.default(outline))))
     except UsageError as exc:
         p.fail(str(exc).replace("--scale ", ""), "scale")
+    dpi = p.number("dpi", 300.0, lo=0, hi=100_000)
+    if dpi < 1:  # a denormal: a print pixel wider than any part, and a division by it overflows
+        p.fail(f"must be at least 1 dpi, got {dpi!r}", "dpi")
     spec = PrintSpec(
-        dpi=p.number("dpi", 300.0, lo=0),
+        dpi=dpi,
         scale=scale,
         outline=outline,
         background=_colour(p, "background", "#ffffff"),

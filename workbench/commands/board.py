@@ -187,7 +187,8 @@ def run(args) -> int:
         except BoardError as exc:  # every value came from an option (or its default): name it
             flag = "--" + exc.key.replace("_", "-")
             given = getattr(args, exc.key, None)
-            raise UsageError(f"{flag}{'' if given is None else f' {given}'}: {exc}") from None
+            given = "" if given is None else f" {given:g}" if isinstance(given, float) else f" {given}"
+            raise UsageError(f"{flag}{given}: {exc}") from None
         default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
         title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
     out = Path(args.output) if args.output else default_out

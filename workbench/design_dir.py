@@ -220,6 +220,6 @@ def check_image_size(path, what: str) -> None:
         Image.MAX_IMAGE_PIXELS = limit
     if w * h > MAX_VIEW_PIXELS:
         raise WorkbenchError(
-            f"{what}: {path} is {w} x {h} px ({w * h / 1e6:,.0f} Mpx): more than a view image needs (at most {MAX_VIEW_PIXELS / 1e6:.0f} Mpx, "
-            "whose decoding alone takes gigabytes): scale it down"
+            f"{what}: {path} is {w} x {h} px ({w * h / 1e6:,.0f} Mpx): more than a view image needs "
+            f"(at most {MAX_VIEW_PIXELS / 1e6:.0f} Mpx, whose decoding alone takes gigabytes): scale it down"
         )

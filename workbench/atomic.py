@@ -137,6 +137,15 @@ def _check_name_lengths(path: Path, what: str = "") -> None:
             )
 
 
+def _check_parents(directory: Path) -> None:
+    """Refuse a folder for outputs that is a file or lies under one."""
+    for d in (directory, *directory.parents):
+        if d.exists() and not d.is_dir():
+            raise WorkbenchError(f"{d}: is a file; give a directory for the output")
+        if d.exists():
+            return
+
+
 def _resolved(path: Path) -> Path:
     """``path`` made absolute, ``.`` and ``..`` and every symlink along it followed."""
     return Path(os.path.realpath(os.path.abspath(path)))
@@ -177,6 +186,7 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
         _check_name_lengths(path)
         if path.is_dir():
             raise WorkbenchError(f"{path}: is a directory; give a file name for this output")
+        _check_parents(path.parent)
         r = _resolved(path)
         if r in seen:
             raise WorkbenchError(f"{path}: two outputs of this command would share this name; give another name")
@@ -196,11 +206,7 @@ def check_output_dir(directory: Path, inputs: Iterable[Path] = ()) -> None:
     """
     directory = Path(directory)
     _check_name_lengths(directory)
-    for d in (directory, *directory.parents):
-        if d.exists() and not d.is_dir():
-            raise WorkbenchError(f"{d}: is a file; give a directory for the output")
-        if d.exists():
-            break
+    _check_parents(directory)
     in_files, in_folders = _input_files(inputs)
     r = _resolved(directory)
     if r in in_folders:
@@ -304,11 +310,9 @@ def write_files(files: dict[Path, bytes], inputs: Iterable[Path] = ()) -> None:
             _SIGNALS.written.extend(Path(p) for p in files)
     finally:
         with _held():
-            for tmp, _, _ in temps:
-                tmp.unlink(missing_ok=True)
-            for backup in backups.values():
-                if backup is not None:
-                    backup.unlink(missing_ok=True)
+            for p in [t for t, _, _ in temps] + [b for b in backups.values() if b is not None]:
+                with contextlib.suppress(OSError):
+                    p.unlink(missing_ok=True)
 
 
 def _backup(path: Path) -> Path | None:

@@ -547,3 +547,17 @@ def test_a_view_image_of_400_megapixels_is_refused_from_its_header(work, capsys)
     assert run(["design", write_job(work, job), "--out", work / "out", "-q"]) == 1
     line = one_line(capsys)
     assert "views[0].image: " in line and "20000 x 20000 px (400 Mpx)" in line and "at most 100 Mpx" in line, line
+
+
+@pytest.mark.parametrize("where", ["object", "film"])
+def test_a_20_digit_corner_in_the_job_is_one_line(work, capsys, where):
+    job = copy.deepcopy(BASE_JOB)
+    huge = [0, 9, 99999999999999999999, 70]
+    if where == "object":
+        job["object"]["corners"] = huge
+    else:
+        (work / "all.txt").write_text(" ".join(map(str, range(126))))
+        job["films"] = [{"name": "all", "faces": "all.txt", "corners": huge}]
+    assert run(["design", write_job(work, job), "--out", work / "out", "-q"]) == 1
+    key = "object.corners" if where == "object" else "films[0].corners"
+    assert f"{key}: must be a list of 4 vertex indices" in one_line(capsys) and not (work / "out").exists()

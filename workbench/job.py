@@ -314,11 +314,7 @@ def load_job(path: str | Path) -> Job:
     o = _Reader(path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material"})
     corners = o.get("corners")
     if corners is not None and corners != "auto":
-        if not (
-            isinstance(corners, list)
-            and len(corners) == 4
-            and all(isinstance(c, int) and not isinstance(c, bool) for c in corners)
-        ):
+        if not (isinstance(corners, list) and len(corners) == 4 and all(_vertex_index(c) for c in corners)):
             o.fail(f'must be a list of 4 vertex indices or "auto", got {corners!r}', "corners")
         corners = tuple(corners)
     m = _Reader(path, "object.material", o.get("material", {}), {"name", "max_stretch"})
@@ -367,6 +363,11 @@ def load_job(path: str | Path) -> Job:
     )
 
 
+def _vertex_index(c) -> bool:
+    """Whether ``c`` can be a vertex index: a whole number from 0 below 2**31 (a 20-digit one overflowed numpy)."""
+    return isinstance(c, int) and not isinstance(c, bool) and 0 <= c < 2**31
+
+
 def _films(path: Path, top: _Reader, obj: ObjectSpec, spec: PrintSpec, view_names: set[str]):
     """``films = "auto"`` or ``[[films]]`` tables; None without either."""
     raw = top.get("films")
@@ -408,11 +409,7 @@ def _films(path: Path, top: _Reader, obj: ObjectSpec, spec: PrintSpec, view_name
         if corners is not None:
             if outline != "rectangle":
                 r.fail("corners belong to a rectangle; a free outline has none", "corners")
-            if not (
-                isinstance(corners, list)
-                and len(corners) == 4
-                and all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in corners)
-            ):
+            if not (isinstance(corners, list) and len(corners) == 4 and all(_vertex_index(c) for c in corners)):
                 r.fail(f"must be a list of 4 vertex indices, got {corners!r}", "corners")
             corners = tuple(corners)
         material = obj.material

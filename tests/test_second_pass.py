@@ -358,7 +358,7 @@ def test_a_print_at_one_dpi_warns(work, capsys):
     job = copy.deepcopy(BASE_JOB)
     job["print"]["dpi"] = 1
     warnings = design_warnings(capsys, write_job(work, job), work / "out")
-    assert warnings[0] == "the print's 1 dpi makes pixels of 25 mm: below 25 dpi no detail shows", warnings
+    assert warnings[0] == "the print's 1 dpi makes pixels of 25 mm: below 10 dpi no detail shows", warnings
 
 
 def test_the_transparent_part_of_an_rgba_view_prints_in_the_background_colour(work):

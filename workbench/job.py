@@ -329,9 +329,11 @@ def load_job(path: str | Path) -> Job:
         scale = ScaleMode.parse(p.string("scale", str(ScaleMode.default(outline))))
     except UsageError as exc:
         p.fail(str(exc).replace("--scale ", ""), "scale")
-    dpi = p.number("dpi", 300.0, lo=0, hi=100_000)
-    if dpi < 1:  # a denormal: a print pixel wider than any part, and a division by it overflows
-        p.fail(f"must be at least 1 dpi, got {dpi!r}", "dpi")
+    dpi = p.number("dpi", 300.0, lo=0)
+    # a denormal: a print pixel wider than any part, and a division by it overflows; 1e308: the
+    # print's size in pixels overflows before the memory check can refuse it
+    if not 1 <= dpi <= 1e6:
+        p.fail(f"must be from 1 to 1000000 dpi, got {dpi!r}", "dpi")
     spec = PrintSpec(
         dpi=dpi,
         scale=scale,

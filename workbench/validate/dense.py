@@ -874,3 +874,23 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
     for i, d in enumerate(found):
         labels[d.pop("_mask")] = i + 1
     return labels, found
+
+
+def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> dict:
+    """Per view, the shares of its own region on the print: measured (colour, shift) and unmeasured by reason."""
+    out = {}
+    for vi, name in enumerate(names):
+        own = state[owner == vi]
+        n = max(len(own), 1)
+        out[name] = {
+            "measured": float(np.isin(own, MEASURED).sum() / n),
+            "shift_measured": float(np.isin(own, (NORMAL, FULL, DEFECT)).sum() / n),
+            "shift_full_vector": float(np.isin(own, (FULL, DEFECT)).sum() / n),
+            "defective": float((own == DEFECT).sum() / n),
+            "unmeasured": {
+                STATE_NAMES[k]: float((own == k).sum() / n)
+                for k in range(COLOUR_ONLY)
+                if k != OFF_PART and (own == k).any()
+            },
+        }
+    return out

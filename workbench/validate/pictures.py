@@ -180,3 +180,34 @@ def dense_heatmap(
     ax.set_ylabel("print y (mm)")
     ax.set_title(title, fontsize=9)
     return figure_png(fig)
+
+
+def tile_heatmap(design_rgb, sc, title: str) -> bytes:
+    """The view's image in grey with each tile coloured by its misregistration (mm), and a colour bar."""
+    from workbench.figures import _figure, figure_png
+
+    plt = _figure()
+    grey = cv2.cvtColor(cv2.cvtColor(design_rgb, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
+    H, W = grey.shape[:2]
+    fig, ax = plt.subplots(figsize=(8, 8 * H / W + 0.6), dpi=100)
+    ax.imshow(grey, alpha=0.6)
+    vmax = max(float(sc.shift_mm.max()) if len(sc.shift_mm) else 0.1, 0.1)
+    sca = ax.scatter(
+        sc.centres[:, 0], sc.centres[:, 1], c=sc.shift_mm, cmap="inferno", vmin=0, vmax=vmax, s=60, marker="s"
+    )
+    if len(sc.centres):
+        ax.quiver(
+            sc.centres[:, 0],
+            sc.centres[:, 1],
+            sc.shift_px[:, 0],
+            -sc.shift_px[:, 1],
+            color="cyan",
+            angles="xy",
+            scale_units="xy",
+            scale=0.05,
+            width=0.002,
+        )
+    fig.colorbar(sca, ax=ax, fraction=0.046, pad=0.04).set_label("misregistration on the surface (mm)")
+    ax.set_title(title, fontsize=9)
+    ax.set_axis_off()
+    return figure_png(fig)

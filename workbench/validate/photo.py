@@ -1,0 +1,306 @@
+"""One photo of the part: pose, warps into its view and onto the print, tiles, dense field, figures and verdict."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PIL import Image
+
+from workbench.atomic import safe_name
+from workbench.camera import Camera
+from workbench.design_dir import Design, read_image
+from workbench.errors import WorkbenchError
+from workbench.export import png_bytes
+from workbench.raster import depth_buffer
+from workbench.validate import dense, pictures
+from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
+from workbench.validate.pose import PoseError, estimate_pose
+from workbench.validate.report import page_names, page_picture
+from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, photo_verdict
+from workbench.validate.score import TILE, _bilinear, score, view_surface, warp_photo
+
+
+def sha256(path: Path) -> str:
+    """The file's SHA-256, hex."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def markers_under_the_part(pose, design: Design, face: np.ndarray | None = None) -> list[int]:
+    """Markers seen where the part, if it sat where the fixture says, would hide them.
+
+    ``face``: the part's face buffer in the undistorted photo camera, when the caller has it.
+    """
+    cam = Camera(pose.camera.K, pose.camera.R, pose.camera.t, pose.camera.width, pose.camera.height)
+    if face is None:
+        xy, z = cam.project(design.V)
+        face, _ = depth_buffer(xy, z, design.F, cam.width, cam.height)
+    fx = design.fixture
+    mesh = np.asarray(fx["markers"]["corners_mesh_mm"])
+    index = {int(i): k for k, i in enumerate(fx["markers"]["ids"])}
+    hidden = []
+    for mid in pose.marker_ids:
+        k = index.get(int(mid))
+        if k is None:
+            continue
+        pts, _ = cam.project(mesh[k])
+        # the whole marker, shrunk a little, inside the part's silhouette
+        c = pts.mean(axis=0)
+        inner = c + 0.7 * (pts - c)
+        ij = np.round(inner).astype(int)
+        if ((ij >= 0).all(1) & (ij[:, 0] < cam.width) & (ij[:, 1] < cam.height)).all() and (
+            face[ij[:, 1], ij[:, 0]] >= 0
+        ).all():
+            hidden.append(int(mid))
+    return hidden
+
+
+def stats(values: np.ndarray) -> dict:
+    if len(values) == 0:
+        return {"median": None, "p95": None, "max": None}
+    return {"median": float(np.median(values)), "p95": float(np.percentile(values, 95)), "max": float(values.max())}
+
+
+def validate_photo(
+    path: Path,
+    design: Design,
+    profile,
+    view_name,
+    tolerance_mm,
+    cache,
+    stem: str | None = None,
+    max_defect_mm2: float = MAX_DEFECT_MM2,
+) -> tuple[dict, dict, np.ndarray | None, dict]:
+    """Score one photo; never raises for a bad photo (its verdict says why).
+
+    ``profile`` is the camera profile, or the reason it cannot be used (every photo is then INVALID).
+
+    Returns
+    -------
+    entry : dict
+        The photo's part of validation.json.
+    files : dict
+        File name to bytes (pictures).
+    state : (rows, cols) uint8 or None
+        The photo's state per print grid pixel (:mod:`workbench.validate.dense`), None
+        when the photo was not scored.
+    pages : dict
+        Picture file name to the JPEG bytes its page of the QA report shows
+        (:func:`workbench.validate.report.page_picture`): made here, where the pictures are,
+        rather than by the report, which waits for every photo.
+    """
+    entry: dict = {"photo": str(path), "verdict": "INVALID", "reason": None}  # made relative by run()
+    files: dict = {}
+    try:
+        if path.is_dir():
+            raise WorkbenchError(f"{path}: is a directory, not a photo")
+        entry["sha256"] = sha256(path)
+        photo = read_image(path, "photo")
+    except (OSError, WorkbenchError) as exc:
+        entry["reason"] = f"unreadable image: {exc}"
+        return entry, files, None, {}
+    if isinstance(profile, str):
+        entry["reason"] = f"unusable camera profile: {profile}"
+        return entry, files, None, {}
+    if photo.shape[1] != profile.width or photo.shape[0] != profile.height:
+        entry["reason"] = (
+            f"photo is {photo.shape[1]} x {photo.shape[0]} px, the camera profile is for "
+            f"{profile.width} x {profile.height}"
+        )
+        return entry, files, None, {}
+    clock = [time.perf_counter()]  # stage timings, for the benchmark
+    gray = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY)
+    try:
+        pose = estimate_pose(gray, design.fixture, profile.K, profile.dist)
+    except PoseError as exc:
+        entry["reason"] = str(exc)
+        return entry, files, None, {}
+    entry["pose"] = {
+        "R": pose.camera.R.tolist(),
+        "t": pose.camera.t.tolist(),
+        "camera_center_mm": pose.camera.center.tolist(),
+    }
+    entry["reprojection_rms_px"] = pose.rms_px
+    entry["corners_used"] = pose.n_corners
+    if pose.rms_px > MAX_RMS_PX:
+        entry["reason"] = (
+            f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"
+        )
+        return entry, files, None, {}
+    # one z-buffer of the part in the photo: for this check and for both warps
+    face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
+    hidden = markers_under_the_part(pose, design, face_buffer)
+    if hidden:
+        entry["reason"] = (
+            f"the object is not where the fixture says: marker {hidden[0]} is visible where the part "
+            f"should hide it ({len(hidden)} such markers)"
+        )
+        return entry, files, None, {}
+    views = design.info["views"]
+    if view_name is None:
+        dists = [np.linalg.norm(np.asarray(_centre(v)) - pose.camera.center) for v in views]
+        vi = int(np.argmin(dists))
+    else:
+        vi = [v["name"] for v in views].index(view_name)
+    name = views[vi]["name"]
+    entry["view"] = name
+    if vi not in cache:
+        cam = design.view_camera(name)
+        p = design.info["print"]
+        cache[vi] = (
+            view_surface(cam, design.V, design.F, design.flat, p["height_mm"], design.owner, vi, p["dpi"] / 25.4),
+            design.view_image(vi),
+        )
+    surface, view_rgb = cache[vi]
+    clock.append(time.perf_counter())  # pose
+    warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
+    p = design.info["print"]
+    clock.append(time.perf_counter())  # warps
+    sc = score(view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]))
+    if "grid" not in cache:
+        cache["grid"] = dense.print_grid(
+            design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
+        )
+    grid = cache["grid"]
+    clock.append(time.perf_counter())  # tiles
+    on_print, state, scale = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
+    clock.append(time.perf_counter())  # print warp
+    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale)
+    px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
+    entry.update(
+        {
+            "misregistration_mm": stats(sc.shift_mm),
+            "misregistration_px": stats(px_mag),
+            "tiles": int(len(sc.shift_mm)),
+            "tiles_examined": sc.tiles_examined,
+            "ssim": sc.ssim,
+            "coverage": sc.coverage,
+            "blur_px": sc.blur_px,
+            "film_offset_mm": sc.film.get("offset_mm"),
+            "film_rotation_deg": sc.film.get("rotation_deg"),
+            "film_scale_pct": sc.film.get("scale_pct"),
+            "film_fit_rms_mm": sc.film.get("rms_mm"),
+        }
+    )
+    if design.info.get("films"):
+        # several films: each film's placement from its own tiles
+        films = design.info["films"]
+        entry["films"] = fit_per_film(sc, surface, films, p["dpi"] / 25.4)
+        # the seams this photo shows: how far apart the two films' inks land there
+        if "seams" not in cache:
+            cache["seams"] = film_seams(design.V, design.F, design.flat, p["height_mm"], films)
+        edges = cache["seams"]
+        seen = seams_seen(edges.X, design.view_camera(name), surface, valid)
+        entry["seams"] = seam_misregistration(edges, entry["films"], films, p["dpi"] / 25.4, seen)
+    clock.append(time.perf_counter())  # dense analysis
+    entry["dense"] = dense_summary(dr, grid, design, sc, surface)
+    entry["defects"] = defect_entries(dr, grid, design, pose.camera)
+    entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2)
+    clock.append(time.perf_counter())  # summary
+    stem = stem or safe_name(path.stem)
+    entry["pictures"] = stem  # the name the warped photo, overlay and heat map start with
+    overlay = view_rgb.copy()
+    overlay[valid] = (0.5 * view_rgb[valid] + 0.5 * warped[valid]).astype(np.uint8)
+    files[f"{stem}_warped_{name}.png"] = png_bytes(warped)
+    files[f"{stem}_overlay_{name}.png"] = png_bytes(overlay)
+    files[f"{stem}_heatmap_{name}.png"] = pictures.tile_heatmap(
+        view_rgb, sc, f"{path.name} in view {name}: {entry['verdict']}"
+    )
+    # light compression for the pictures: level 3 costs a few tenths of a second per photo
+    files[f"{stem}_defects_print.png"] = png_bytes(
+        pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm), compression=1
+    )
+    dense_png = pictures.dense_heatmap(
+        grid.reference,
+        dr.shift_mm,
+        dr.labels,
+        grid.px_per_mm,
+        2 * tolerance_mm,
+        f"{path.name} on the print: dense misregistration (the tolerance is mid-scale), defects outlined",
+    )
+    in_view = pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm))
+    centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
+    radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
+    circled = pictures.photo_circled(photo, centres, radii)
+    files[f"{stem}_dense_print.png"] = dense_png
+    files[f"{stem}_defects_{name}.png"] = png_bytes(in_view, compression=1)
+    files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
+    shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
+    pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
+    clock.append(time.perf_counter())  # pictures
+    stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "figures and verdict", "pictures")
+    entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
+    return entry, files, dr.state, pages
+
+
+def dense_summary(dr, grid, design: Design, sc, surface) -> dict:
+    """The dense field's figures: misregistration, agreement with the tiles, coverage of every view."""
+    full = dr.texture == 2  # (a defect pixel keeps what its texture lets the flow know)
+    measured_shift = np.isfinite(dr.shift_mm)
+    agree = {"tiles": 0, "median_mm": None, "p95_mm": None}
+    if len(sc.centres):
+        c, d = sc.centres, sc.shift_px
+        p0 = _bilinear(surface.print_mm, c[:, 0], c[:, 1])
+        p1 = _bilinear(surface.print_mm, c[:, 0] + d[:, 0], c[:, 1] + d[:, 1])
+        # each tile's footprint on the print: the box of its corners' print points
+        h = (TILE - 1) / 2
+        corners = [_bilinear(surface.print_mm, c[:, 0] + sx * h, c[:, 1] + sy * h) for sx in (-1, 1) for sy in (-1, 1)]
+        corners = np.stack(corners, axis=1)
+        boxes = np.concatenate([corners.min(axis=1), corners.max(axis=1)], axis=1)
+        ok = np.isfinite(p0).all(1) & np.isfinite(p1).all(1) & np.isfinite(boxes).all(1)
+        agree = dense.agreement(dr.flow_px, dr.texture == 2, grid.px_per_mm, p0[ok], p1[ok], boxes[ok])
+    return {
+        "grid_px_per_mm": grid.px_per_mm,
+        "blur_px": dr.blur_px,
+        "misregistration_mm": stats(dr.shift_mm[measured_shift]),
+        "misregistration_full_vector_mm": stats(dr.shift_mm[full & measured_shift]),
+        "note": (
+            "misregistration per print pixel from dense optical flow; where the texture has one direction only "
+            "(along an edge) the component across the edge is reported (state 'normal'), where it has none only "
+            "the colour is scored"
+        ),
+        "agreement_with_tiles_mm": agree,
+        "coverage": dense.coverage_by_view(dr.state, grid.owner, [v["name"] for v in design.info["views"]]),
+    }
+
+
+def defect_entries(dr, grid, design: Design, cam: Camera) -> list[dict]:
+    """Defects for validation.json: on the print (mm), in which view's region, and where in the photo."""
+    names = [v["name"] for v in design.info["views"]]
+    out = []
+    rvec = cv2.Rodrigues(cam.R)[0]
+    for k, d in enumerate(dr.defects):
+        ii, jj = np.nonzero(dr.labels == k + 1)
+        X = grid.X[ii, jj]
+        X = X[np.isfinite(X).all(1)]
+        c_ij = (
+            min(max(int(d["centre_mm"][1] * grid.px_per_mm), 0), grid.owner.shape[0] - 1),
+            min(max(int(d["centre_mm"][0] * grid.px_per_mm), 0), grid.owner.shape[1] - 1),
+        )
+        vi = int(grid.owner[c_ij])
+        px = np.full(2, np.nan)
+        radius = 0.0
+        if len(X):
+            proj, _ = cv2.projectPoints(np.ascontiguousarray(X[:: max(1, len(X) // 500)]), rvec, cam.t, cam.K, cam.dist)
+            proj = proj.reshape(-1, 2)
+            px = proj.mean(axis=0)
+            radius = float(np.linalg.norm(proj - px, axis=1).max())
+        out.append(
+            {
+                "id": k + 1,
+                **{key: v for key, v in d.items()},
+                "view": names[vi] if vi >= 0 else None,
+                "photo_px": px.tolist(),
+                "photo_radius_px": radius,
+            }
+        )
+    return out
+
+
+def _centre(view: dict) -> list:
+    c = view["camera"]
+    return (-np.asarray(c["R"]).T @ np.asarray(c["t"])).tolist()

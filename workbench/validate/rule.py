@@ -1,0 +1,87 @@
+"""The acceptance rule: from a photo's figures to PASS, FAIL or INVALID, and the rule's text for the report."""
+
+from __future__ import annotations
+
+from workbench.validate import dense
+
+MAX_RMS_PX = 1.0
+MIN_TILES = 5
+MIN_SSIM = 0.5
+# share of the textured tiles of the view's region that must match the design: a decoration
+# painted over or torn in part matches where it is intact and nowhere else (measured: 41 % of
+# the tiles for half the part painted over, 82 % and more for an intact film 2 mm off)
+MIN_MATCHED_SHARE = 0.7
+MAX_DEFECT_MM2 = 4.0
+
+
+def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
+    """The acceptance rule, as it goes into validation.json and the QA report."""
+    return {
+        "text": (
+            f"FAIL when any defect is larger than {max_defect_mm2:g} mm² on the print, or the misregistration "
+            f"p95 (tiles) exceeds {tolerance_mm:g} mm, or the decoration does not match the design (fewer than "
+            f"{MIN_TILES} tiles match, or SSIM < {MIN_SSIM}, or fewer than {100 * MIN_MATCHED_SHARE:.0f} % of the "
+            "view's textured tiles match); otherwise PASS. A defect is a connected region of "
+            f"at least {dense.MIN_DEFECT_MM2:g} mm² where the dense misregistration exceeds {tolerance_mm:g} mm, "
+            f"or where the colour differs from the design by more than {dense.COLOUR_TOL:g} grey levels after a "
+            "local gain and offset fit per channel and a blur matched to the photo. Highlights, deep shadows, "
+            "surface turned away from the camera and the photo's pixels along the part's outline and its folds "
+            "are masked, not scored."
+        ),
+        "tolerance_mm": tolerance_mm,
+        "max_defect_mm2": max_defect_mm2,
+        "min_defect_mm2": dense.MIN_DEFECT_MM2,
+        "colour_tolerance_grey_levels": dense.COLOUR_TOL,
+        "min_tiles": MIN_TILES,
+        "min_ssim": MIN_SSIM,
+        "min_matched_tile_share": MIN_MATCHED_SHARE,
+    }
+
+
+def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tuple[str, str]:
+    """PASS or FAIL of one scored photo, and why, from its figures in validation.json.
+
+    Parameters
+    ----------
+    entry : dict
+        The photo's entry: ``tiles``, ``tiles_examined``, ``ssim``, ``misregistration_mm``
+        and ``defects`` (each with ``kind``, ``area_mm2``, ``centre_mm``).
+    tolerance_mm : float
+        Largest accepted misregistration, mm on the surface.
+    max_defect_mm2 : float
+        Largest accepted defect, mm² on the print.
+
+    Returns
+    -------
+    verdict : str
+    reason : str
+    """
+    tiles, examined, sim = entry["tiles"], entry["tiles_examined"], entry["ssim"]
+    big = [d for d in entry["defects"] if d["area_mm2"] > max_defect_mm2]
+    if tiles < MIN_TILES or sim < MIN_SSIM:
+        return "FAIL", (
+            f"the decoration does not match the design (SSIM {sim:.2f}, {tiles} tiles "
+            "matched): wrong print, or badly damaged"
+        )
+    if tiles < MIN_MATCHED_SHARE * examined:
+        return "FAIL", (
+            f"only {tiles} of {examined} textured tiles match the design: part of the "
+            "decoration is missing, covered or damaged"
+        )
+    p95 = entry["misregistration_mm"]["p95"]
+    why = []
+    if p95 > tolerance_mm:
+        why.append(f"misregistration p95 {p95:.3f} mm > tolerance {tolerance_mm} mm")
+    if big:
+        d = big[0]
+        why.append(
+            f"{len(big)} defect{'s' if len(big) > 1 else ''} > {max_defect_mm2:g} mm² (largest: {d['kind']}, "
+            f"{d['area_mm2']:.1f} mm² at ({d['centre_mm'][0]:.1f}, {d['centre_mm'][1]:.1f}) mm on the print)"
+        )
+    if why:
+        return "FAIL", "; ".join(why)
+    return "PASS", f"misregistration p95 {p95:.3f} mm <= tolerance {tolerance_mm} mm, " + (
+        f"no defect > {max_defect_mm2:g} mm²"
+        if not entry["defects"]
+        else f"{len(entry['defects'])} defect(s), none > {max_defect_mm2:g} mm²"
+    )

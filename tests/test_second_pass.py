@@ -561,3 +561,15 @@ def test_a_20_digit_corner_in_the_job_is_one_line(work, capsys, where):
     assert run(["design", write_job(work, job), "--out", work / "out", "-q"]) == 1
     key = "object.corners" if where == "object" else "films[0].corners"
     assert f"{key}: must be a list of 4 vertex indices" in one_line(capsys) and not (work / "out").exists()
+
+
+def test_a_tampered_file_list_removes_nothing_outside_the_folder(tmp_path):
+    outside = tmp_path / "outside.txt"
+    outside.write_text("not the folder's")
+    out = tmp_path / "out"
+    atomic.write_folder(out, {out / "a.txt": b"a"})
+    (out / "link").symlink_to(tmp_path, target_is_directory=True)
+    (out / atomic.MANIFEST).write_text(".\n../outside.txt\n/etc/hostname\nlink/outside.txt\n\na.txt\n")
+    atomic.write_folder(out, {out / "b.txt": b"b"})
+    assert outside.read_text() == "not the folder's"
+    assert sorted(p.name for p in out.iterdir()) == [atomic.MANIFEST, "b.txt", "link"]  # a.txt: stale, removed

@@ -349,7 +349,7 @@ def folder_manifest(directory: Path) -> list[str]:
             continue
         p = Path(line)
         # only names inside the folder: a tampered list must not reach outside it
-        if not p.is_absolute() and ".." not in p.parts and p.parts[0] != MANIFEST:
+        if p.parts and not p.is_absolute() and ".." not in p.parts and p.parts[0] != MANIFEST:
             names.append(p.as_posix())
     return names
 
@@ -401,7 +401,10 @@ def write_folder(directory: Path, files: dict[Path, bytes], inputs: Iterable[Pat
     directory = _resolved(given)
     in_files, _ = _input_files(inputs)
     old = folder_manifest(directory) if directory.is_dir() else []
-    stale = [n for n in old if n not in rel and (directory / n).is_file()]
+    # a stale file is removed only where it really is inside the folder (not through a symlink out of it)
+    stale = [
+        n for n in old if n not in rel and (directory / n).is_file() and directory in _resolved(directory / n).parents
+    ]
     for n in stale:
         if directory / n in in_files:
             raise WorkbenchError(f"{given / n}: is an input of this command; write the output elsewhere")

@@ -573,3 +573,9 @@ def test_a_tampered_file_list_removes_nothing_outside_the_folder(tmp_path):
     atomic.write_folder(out, {out / "b.txt": b"b"})
     assert outside.read_text() == "not the folder's"
     assert sorted(p.name for p in out.iterdir()) == [atomic.MANIFEST, "b.txt", "link"]  # a.txt: stale, removed
+
+
+def test_an_output_named_as_a_folders_file_list_is_refused(work, capsys):
+    before = tree(work)
+    assert run(["pdf", work / "design", "-o", work / "design" / atomic.MANIFEST, "-q"]) == 1
+    assert "list of its files" in one_line(capsys) and tree(work) == before

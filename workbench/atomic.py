@@ -187,6 +187,8 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
         if path.is_dir():
             raise WorkbenchError(f"{path}: is a directory; give a file name for this output")
         _check_parents(path.parent)
+        if path.name == MANIFEST:
+            raise WorkbenchError(f"{path}: is the name of an output folder's list of its files; give another name")
         r = _resolved(path)
         if r in seen:
             raise WorkbenchError(f"{path}: two outputs of this command would share this name; give another name")

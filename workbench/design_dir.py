@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from workbench import schemas
-from workbench.atomic import folder_manifest, safe_name
+from workbench.atomic import MANIFEST, folder_manifest, safe_name
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
 from workbench.jsonfile import read_json
@@ -37,7 +37,7 @@ def design_files(directory: Path) -> list[Path]:
     directory = Path(directory)
     names = folder_manifest(directory)
     files = [directory / n for n in names] or [p for pat in _DESIGN_FILES for p in sorted(directory.glob(pat))]
-    return [directory, *files]
+    return [directory, *files, *([directory / MANIFEST] if names else [])]
 
 
 class Design:

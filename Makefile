@@ -43,6 +43,7 @@ bench: install
 	$(PY) benchmarks/bench_validate.py
 	$(PY) benchmarks/bench_films.py
 	$(PY) benchmarks/bench_defects.py
+	$(PY) benchmarks/bench_suggest.py
 	$(PY) -m pytest -q -m slow
 
 lint: install

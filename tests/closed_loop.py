@@ -81,7 +81,7 @@ def tile_misregistration(reference, image, mask, tile=64, min_texture=50.0):
                 continue
             if y < MARGIN or x < MARGIN or y + tile + MARGIN > H or x + tile + MARGIN > W:
                 continue
-            d, cc = register_tile(ref[y : y + tile, x : x + tile], img, x, y)
+            d, cc, _ = register_tile(ref[y : y + tile, x : x + tile], img, x, y)
             if d is not None and cc > 0.9:
                 shifts.append(d)
     return np.array(shifts).reshape(-1, 2)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
+from workbench.calibration import detect_corners
 from workbench.cli import main
 from workbench.mesh.io import read_mesh
 from workbench.printing.boards import CharucoSpec
@@ -17,31 +18,34 @@ DPI = 600
 PX_PER_MM = DPI / 25.4
 
 
-def rasterise(pdf_path):
+def rasterise(pdf_path, dpi=DPI):
     import pypdfium2 as pdfium
 
     page = pdfium.PdfDocument(str(pdf_path))[0]
-    return np.asarray(page.render(scale=DPI / 72, grayscale=True).to_pil().convert("L"))
+    return np.asarray(page.render(scale=dpi / 72, grayscale=True).to_pil().convert("L"))
 
 
 def detect(img, info):
-    spec = CharucoSpec(
-        tuple(info["squares"]), info["square_mm"], info["marker_mm"], info["dictionary"], info["first_id"]
-    )
+    if info.get("board") == "chessboard":  # what calibrate reads: numbered from the black top-left square
+        px, ids, problem = detect_corners(img, info)
+        assert problem is None, problem
+        return px, ids
+    spec = CharucoSpec.from_definition(info)
     det = cv2.aruco.CharucoDetector(spec.opencv())
     corners, ids, _, _ = det.detectBoard(img)
     assert ids is not None
     return corners.reshape(-1, 2), ids.ravel()
 
 
-def check_board(pdf, info):
-    """Detected ChArUco corners (mm on the sheet) against the definition: absolute and relative."""
-    img = rasterise(pdf)
+def check_board(pdf, info, dpi=DPI):
+    """Detected corners (mm on the sheet) against the definition: absolute and relative."""
+    img = rasterise(pdf, dpi)
     px, ids = detect(img, info)
     # OpenCV's pixel centres are at integers: position on the sheet = (px + 0.5) / px_per_mm
-    got = (px + 0.5) / PX_PER_MM
-    want = np.asarray(info["page_origin_mm"]) + np.asarray(info["charuco_corners"]["board_mm"])[ids]
-    n_corners = len(info["charuco_corners"]["ids"])
+    got = (px + 0.5) / (dpi / 25.4)
+    key = "corners" if info.get("board") == "chessboard" else "charuco_corners"
+    want = np.asarray(info["page_origin_mm"]) + np.asarray(info[key]["board_mm"])[ids]
+    n_corners = len(info[key]["ids"])
     assert len(ids) == n_corners
     assert np.abs(got - want).max() <= 0.1
     # scale: the two most distant corners, within 0.05 %
@@ -57,6 +61,33 @@ def test_charuco_board(tmp_path):
     assert info["kind"] == "charuco" and info["squares"] == [7, 5] and info["marker_mm"] == 22.5
     assert len(info["markers"]["ids"]) == 17
     check_board(out, info)
+
+
+def test_legacy_charuco_board(tmp_path):
+    # an even number of rows: the pre-4.6 layout starts with a white square, today's with a black one
+    out = tmp_path / "legacy.pdf"
+    assert main(["board", "charuco", "--squares", "8x6", "--square-mm", "25", "--legacy", "-o", str(out), "-q"]) == 0
+    info = json.loads(out.with_suffix(".json").read_text())
+    assert info["legacy"] is True and info["squares"] == [8, 6]
+    check_board(out, info)
+    # the first marker sits in the top-left square, where today's layout has a black square
+    first = np.asarray(info["markers"]["corners_board_mm"][0])
+    assert first[:, 0].max() < 25 and first[:, 1].max() < 25
+    # read as today's layout, the markers are found and the corners are not
+    img = rasterise(out)
+    today = CharucoSpec.from_definition({**info, "legacy": False})
+    _, ids, _, mids = cv2.aruco.CharucoDetector(today.opencv()).detectBoard(img)
+    assert mids is not None and len(mids) == 24 and (ids is None or len(ids) < 5)
+
+
+def test_chessboard(tmp_path):
+    out = tmp_path / "chess.pdf"
+    assert main(["board", "chessboard", "--squares", "10x7", "--square-mm", "20", "-o", str(out), "-q"]) == 0
+    info = json.loads(out.with_suffix(".json").read_text())
+    assert info["kind"] == "chessboard" and info["board"] == "chessboard" and len(info["corners"]["board_mm"]) == 54
+    assert info["corners"]["board_mm"][:2] == [[20.0, 20.0], [40.0, 20.0]]
+    # 200 dpi: the chessboard detector's time grows with the image (40 s at 600 dpi)
+    assert check_board(out, info, dpi=200) <= 0.1
 
 
 def test_printer_target_fills_the_sheet(tmp_path):
@@ -120,6 +151,9 @@ def test_printer_profile_applies_to_boards(tmp_path):
             1,
         ),
         (["fixture"], "board fixture needs the job file", 2),
+        (["chessboard", "--legacy"], "--legacy is a ChArUco layout: board chessboard has none", 2),
+        (["chessboard", "--marker-mm", "10"], "board chessboard has no markers", 2),
+        (["chessboard", "--squares", "2x5"], "a chessboard needs at least 3 x 3 squares", 2),
         (["fixture", "missing.toml"], "no such job file", 1),
     ],
 )

@@ -3,7 +3,10 @@
 The photos are glossy (a lamp's highlight), realistic (blur, noise, JPEG, shading, vignetting)
 and taken through a lens with k1 = -0.10 that the camera profile knows. Each defect the
 renderer puts on the film must be found at its place (within 1 mm on the print) with its
-area (within 25 %), make the photo FAIL, and nothing else may be reported.
+area (within 25 %), make the photo FAIL, and nothing else may be reported. Every such test
+runs on photos of both renderers: the project's own and Mitsuba 3's path tracer (box-filtered
+pixels, several samples each, its own lighting and gloss), so that validate is not tuned to
+one image formation.
 """
 
 from __future__ import annotations
@@ -22,6 +25,9 @@ from workbench.render.defects import Defect, apply_defects
 
 ORBIT = "--orbit=10,55,330"
 LOOK = ["--realistic", "--gloss", "0.5", "--distortion=-0.1,0,0,0,0"]
+# Mitsuba: its own noise (Monte Carlo, 8 samples a pixel) and lighting; the sensor's JPEG
+MITSUBA = ["--renderer", "mitsuba", "--spp", "8", "--gloss", "0.5", "--distortion=-0.1,0,0,0,0", "--jpeg-quality", "90"]
+RENDERERS = ["workbench", "mitsuba"]
 # print mm, on the logo's checker (texture: a shift shows) and clear of the lamp's highlight
 DEFECTS = {
     "bubble 1 mm, 12 mm across": ("bubble:45,30,6,1", "shift"),
@@ -39,9 +45,10 @@ def design(tmp_path_factory):
     return Design(d)
 
 
-def render(design, path, size, defects=()):
+def render(design, path, size, defects=(), renderer="workbench"):
     extra = [a for spec in defects for a in ("--defect", spec)]
-    assert main(["render", str(design.dir), ORBIT, "--size", size, *LOOK, *extra, "-o", str(path), "-q"]) == 0
+    look = LOOK if renderer == "workbench" else MITSUBA
+    assert main(["render", str(design.dir), ORBIT, "--size", size, *look, *extra, "-o", str(path), "-q"]) == 0
     return path
 
 
@@ -107,10 +114,10 @@ def test_bad_defect_is_a_usage_error(design, tmp_path, capsys):
     assert status == 2 and "--defect" in capsys.readouterr().err
 
 
-@pytest.fixture(scope="module")
-def four_defects(design, tmp_path_factory):
+@pytest.fixture(scope="module", params=RENDERERS)
+def four_defects(design, tmp_path_factory, request):
     tmp = tmp_path_factory.mktemp("four")
-    p = render(design, tmp / "defects.png", "2000x1500", [spec for spec, _ in DEFECTS.values()])
+    p = render(design, tmp / "defects.png", "2000x1500", [spec for spec, _ in DEFECTS.values()], request.param)
     return p, validate(design, [p], tmp / "out")
 
 
@@ -135,8 +142,9 @@ def test_each_defect_is_found_located_and_sized(four_defects):
     assert report["verdict_rule"]["max_defect_mm2"] == 4.0 and "FAIL when any defect" in report["verdict_rule"]["text"]
 
 
-def test_a_perfect_glossy_part_passes_with_no_defect_and_is_measured(design, tmp_path):
-    p = render(design, tmp_path / "perfect.png", "2000x1500")
+@pytest.mark.parametrize("renderer", RENDERERS)
+def test_a_perfect_glossy_part_passes_with_no_defect_and_is_measured(design, tmp_path, renderer):
+    p = render(design, tmp_path / "perfect.png", "2000x1500", renderer=renderer)
     report = validate(design, [p], tmp_path / "out")
     e = report["photos"][0]
     assert e["verdict"] == "PASS", e["reason"]
@@ -164,8 +172,9 @@ def test_the_dense_field_agrees_with_the_tiles_on_a_moved_film(design, tmp_path)
     assert e["verdict"] == "FAIL"
 
 
-def test_parallel_photos_give_the_same_report(design, four_defects, tmp_path):
-    p, serial = four_defects
+def test_parallel_photos_give_the_same_report(design, tmp_path):
+    p = render(design, tmp_path / "defects.png", "2000x1500", [spec for spec, _ in DEFECTS.values()])
+    serial = validate(design, [p], tmp_path / "serial")
     perfect = render(design, tmp_path / "perfect.png", "2000x1500")
     # here numba's OpenMP threads already run, so this pool's workers are spawned; a command of
     # its own forks them (below): both must give what one process gives
@@ -192,11 +201,12 @@ def test_parallel_photos_give_the_same_report(design, four_defects, tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("renderer", RENDERERS)
 @pytest.mark.parametrize("name", list(DEFECTS))
-def test_each_defect_alone_at_full_size(design, tmp_path, name):
+def test_each_defect_alone_at_full_size(design, tmp_path, name, renderer):
     # the issue's conditions: 4000 x 3000, realistic, gloss, lens distortion; one defect per photo
     spec, kind = DEFECTS[name]
-    p = render(design, tmp_path / "p.jpg", "4000x3000", [spec])
+    p = render(design, tmp_path / "p.jpg", "4000x3000", [spec], renderer)
     e = validate(design, [p], tmp_path / "out")["photos"][0]
     truth = json.loads(p.with_suffix(".json").read_text())["defects"]
     assert e["verdict"] == "FAIL" and len(e["defects"]) == 1, e["defects"]
@@ -207,8 +217,9 @@ def test_each_defect_alone_at_full_size(design, tmp_path, name):
 
 
 @pytest.mark.slow
-def test_perfect_part_at_full_size(design, tmp_path):
-    p = render(design, tmp_path / "p.jpg", "4000x3000")
+@pytest.mark.parametrize("renderer", RENDERERS)
+def test_perfect_part_at_full_size(design, tmp_path, renderer):
+    p = render(design, tmp_path / "p.jpg", "4000x3000", renderer=renderer)
     e = validate(design, [p], tmp_path / "out")["photos"][0]
     assert e["verdict"] == "PASS" and e["defects"] == []
     assert e["dense"]["coverage"]["front"]["measured"] >= 0.8

@@ -26,11 +26,11 @@ def test_a_surface_turned_away_from_the_camera_is_not_scored():
     # the same square seen from its decorated side is scored; turned over (its triangles
     # wound the other way), nothing of it is: it is the back of the part
     V, F, grid, cam, photo = quad_scene(flip=False)
-    _, state, _ = dense.warp_to_print(photo, cam, grid, V, F)
+    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
     on = np.isfinite(grid.X[..., 0])
     assert np.isin(state[on], (dense.FULL, dense.EDGE)).all() and (state == dense.FULL).mean() > 0.5
     V, F, grid, cam, photo = quad_scene(flip=True)
-    _, state, _ = dense.warp_to_print(photo, cam, grid, V, F)
+    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
     assert (state[on] == dense.OCCLUDED).all()
 
 
@@ -38,7 +38,7 @@ def test_points_next_to_the_outline_in_the_photo_are_not_scored():
     # the photo's pixels along the square's outline mix it with the background: print pixels
     # seen within the band (3 photo pixels, plus twice the pre-blur) are EDGE, the rest FULL
     V, F, grid, cam, photo = quad_scene(flip=False)
-    _, state, scale = dense.warp_to_print(photo, cam, grid, V, F)
+    _, state, scale, _ = dense.warp_to_print(photo, cam, grid, V, F)
     xy, _ = cam.project(grid.X[np.isfinite(grid.X[..., 0])])
     lo, hi = cam.project(V)[0].min(axis=0), cam.project(V)[0].max(axis=0)
     to_outline = np.minimum(xy - lo, hi - xy).min(axis=1)

@@ -254,7 +254,7 @@ def test_bleed_follows_a_free_outline_and_the_cut_line_has_its_own_layer():
     assert (beyond[blue] <= bleed + 0.15).all()  # nothing beyond the bleed
     assert blue[(beyond > bleed + 0.15) & (beyond < bleed + 3)].sum() == 0
     reader = pypdf.PdfReader(io.BytesIO(pdf))
-    assert reader.pdf_header == "%PDF-1.5"
+    assert reader.pdf_header == "%PDF-1.6"  # PDF/X-4
     ocgs = [o.get_object()["/Name"] for o in reader.trailer["/Root"]["/OCProperties"]["/OCGs"]]
     assert ocgs == ["CutContour"]
     page = reader.pages[0]

@@ -15,7 +15,7 @@ DPI = 600
 PX_PER_MM = DPI / 25.4
 
 
-def make_design(tmp_path, width_mm=100.0, height_mm=60.0, dpi=300.0, square_mm=5.0):
+def make_design(tmp_path, width_mm=100.0, height_mm=60.0, dpi=300.0, square_mm=5.0, stretch_max=None):
     """A design directory whose print is a black/white checker of square_mm squares."""
     d = tmp_path / "design"
     d.mkdir()
@@ -37,6 +37,8 @@ def make_design(tmp_path, width_mm=100.0, height_mm=60.0, dpi=300.0, square_mm=5
             "margin_mm": 10.0,
         },
     }
+    if stretch_max is not None:
+        info["stretch"] = {"min": 0.9, "p50": 1.0, "max": stretch_max, "weighting": "surface area"}
     (d / "design.json").write_text(json.dumps(info))
     return d
 
@@ -212,3 +214,239 @@ def test_bad_input(tmp_path, capsys, setup, args, fragment, status):
     assert main(["pdf", str(d), "-o", str(out), "-q", *args]) == status
     err = capsys.readouterr().err.strip()
     assert fragment in err and len(err.splitlines()) == 1 and not out.exists()
+
+
+# ---------------------------------------------------------------- PDF/X-4 preflight
+
+
+def preflight(path):
+    """What a PDF/X-4 preflight checks, item by item, read with pikepdf (one dict entry per item)."""
+    import io
+
+    import pikepdf
+    from PIL import ImageCms
+
+    pdf = pikepdf.open(path)
+    items = {"version": pdf.pdf_version}
+    (intent,) = pdf.Root.OutputIntents
+    profile = intent.DestOutputProfile.read_bytes()
+    prof = ImageCms.ImageCmsProfile(io.BytesIO(profile)).profile
+    items["output_intent"] = (
+        str(intent.S),
+        prof.device_class,
+        prof.xcolor_space.strip(),
+        int(intent.DestOutputProfile.N),
+    )
+    items["output_profile"] = profile
+    meta = pdf.open_metadata()
+    items["xmp_pdfx"] = meta.get("pdfxid:GTS_PDFXVersion")
+    items["trapped"] = (str(pdf.docinfo.get("/Trapped")), meta.get("pdf:Trapped"))
+    fonts, images, boxes, cut = [], [], [], []
+    for page in pdf.pages:
+        for font in page.Resources.Font.values():
+            desc = font.DescendantFonts[0].FontDescriptor if "/DescendantFonts" in font else font.get("/FontDescriptor")
+            embedded = desc is not None and any(k in desc for k in ("/FontFile", "/FontFile2", "/FontFile3"))
+            fonts.append((str(font.BaseFont), embedded))
+        for img in page.get_images().values():
+            cs = img.ColorSpace
+            if isinstance(cs, pikepdf.Array):
+                space = ImageCms.ImageCmsProfile(io.BytesIO(cs[1].read_bytes())).profile.xcolor_space.strip()
+                images.append((str(cs[0]), space))
+            else:
+                images.append((str(cs), None))
+        boxes.append(("/TrimBox" in page, "/BleedBox" in page))
+        # the cut line: the marked content of its layer sets an overprinting ExtGState and a spot colour
+        content = (
+            page.Contents.read_bytes()
+            if not isinstance(page.Contents, pikepdf.Array)
+            else b"".join(c.read_bytes() for c in page.Contents)
+        )
+        ops = pikepdf.parse_content_stream(page)
+        inside, gs_op, spots = False, False, []
+        for operands, op in ops:
+            op = str(op)
+            if op == "BDC":
+                inside = True
+            elif op == "EMC":
+                inside = False
+            elif inside and op == "gs":
+                gs_op |= bool(page.Resources.ExtGState[operands[0]].get("/OP", False))
+            elif inside and op == "CS":
+                c = page.Resources.ColorSpace[operands[0]]
+                spots.append((str(c[0]), str(c[1])))
+        cut.append((gs_op, spots))
+        items["device_rgb_ops"] = items.get("device_rgb_ops", 0) + sum(str(op) in ("rg", "RG") for _, op in ops)
+        assert content
+    items.update(fonts=fonts, images=images, boxes=boxes, cut=cut)
+    return items
+
+
+def test_preflight_pdfx4(tmp_path, capsys):
+    from workbench.printing.icc import DEFAULT_CMYK_PROFILE
+
+    d = make_design(tmp_path)
+    out = tmp_path / "p.pdf"
+    assert main(["pdf", str(d), "-o", str(out), "--paper", "A4", "-q"]) == 0
+    assert out.read_bytes().startswith(b"%PDF-1.6")
+    items = preflight(out)
+    assert items["version"] == "1.6"
+    assert items["output_intent"] == ("/GTS_PDFX", "prtr", "CMYK", 4)
+    assert items["output_profile"] == DEFAULT_CMYK_PROFILE.read_bytes()
+    assert items["xmp_pdfx"] == "PDF/X-4"
+    assert items["trapped"] == ("/False", "False")
+    assert items["fonts"] and all(embedded for _, embedded in items["fonts"]), items["fonts"]
+    assert items["images"] == [("/ICCBased", "RGB")]  # the print, sRGB for late binding
+    assert items["boxes"] == [(True, True)]
+    assert items["cut"] == [(True, [("/Separation", "/CutContour")])]
+    assert items["device_rgb_ops"] == 0  # marks and text in DeviceCMYK black, no uncalibrated RGB
+
+
+def test_preflight_cmyk_ink_limit_spot_name_and_shop_profile(tmp_path, capsys):
+    import shutil
+
+    import pikepdf
+
+    from workbench.printing.icc import DEFAULT_CMYK_PROFILE
+
+    d = make_design(tmp_path)
+    shop = tmp_path / "shop.icc"
+    shutil.copy(DEFAULT_CMYK_PROFILE, shop)
+    out = tmp_path / "p.pdf"
+    args = ["pdf", str(d), "-o", str(out), "--paper", "A4", "--output-profile", str(shop), "--cmyk"]
+    assert main([*args, "--max-ink", "250", "--cut-spot-name", "PerfCutContour"]) == 0
+    err = capsys.readouterr().err
+    # the checker's black out of the profile (black point compensated) is 307 %: the limit takes it to 250 %
+    assert "total ink at most 250 % (limit 250 %; 307 % out of the profile" in err
+    items = preflight(out)
+    assert items["images"] == [("/DeviceCMYK", None)] and items["output_intent"][2] == "CMYK"
+    assert items["cut"] == [(True, [("/Separation", "/PerfCutContour")])]
+    doc = pikepdf.open(out)
+    img = next(iter(doc.pages[0].get_images().values()))
+    cmyk = np.asarray(pikepdf.PdfImage(img).as_pil_image()).astype(int)
+    total = cmyk.sum(axis=2) / 2.55
+    assert total.max() <= 250.0 and total.max() > 248.0
+    # white stays paper; the limit takes C, M and Y down and leaves K as the profile separated it
+    free = tmp_path / "free.pdf"
+    assert main([*args, "-o", str(free), "--max-ink", "400", "-q"]) == 0
+    doc_free = pikepdf.open(free)
+    unlimited = np.asarray(pikepdf.PdfImage(next(iter(doc_free.pages[0].get_images().values()))).as_pil_image())
+    assert (total == 0).any()
+    np.testing.assert_array_equal(cmyk[..., 3], unlimited[..., 3])
+    assert unlimited.astype(int).sum(axis=2).max() / 2.55 > 300
+
+
+def test_limit_ink_keeps_black_and_never_exceeds():
+    from workbench.printing.pdf import limit_ink
+
+    cmyk = np.array([[255, 255, 255, 255], [100, 50, 20, 0], [200, 200, 200, 229], [0, 0, 0, 255]], np.uint8)
+    out = limit_ink(cmyk, 300.0).astype(int)
+    assert (out.sum(axis=1) <= 765).all()
+    np.testing.assert_array_equal(out[:, 3], cmyk[:, 3])  # K kept
+    np.testing.assert_array_equal(out[1], cmyk[1])  # under the limit: untouched
+    assert out[0].sum() >= 763 and out[2].sum() >= 763  # limited to the limit, not below
+
+
+@pytest.mark.parametrize(
+    ("stretch", "args", "warned"), [(3.0, [], True), (1.5, [], False), (1.5, ["--min-ppi", "250"], True)]
+)
+def test_effective_resolution_warning(tmp_path, capsys, stretch, args, warned):
+    d = make_design(tmp_path, stretch_max=stretch)
+    out = tmp_path / "p.pdf"
+    assert main(["pdf", str(d), "-o", str(out), "--paper", "A4", "-q", *args]) == 0
+    err = capsys.readouterr().err
+    ppi = 300 / stretch
+    assert (f"the print's 300 dpi is {ppi:.0f} ppi on the part where the film stretches most" in err) == warned
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["--output-profile", "MISSING"], "no such output profile"),
+        (["--output-profile", "NOTICC"], "not an ICC profile LittleCMS can read"),
+        (["--output-profile", "SRGB", "--cmyk"], "--cmyk needs a CMYK output profile"),
+        (["--max-ink", "50", "--cmyk"], "--max-ink 50: must be between 100 and 400"),
+        (["--cut-spot-name", "Cut Contour"], "--cut-spot-name 'Cut Contour': give a plain name"),
+    ],
+)
+def test_pdfx_bad_input(tmp_path, capsys, args, fragment):
+    from workbench.printing.icc import srgb_profile
+
+    d = make_design(tmp_path)
+    (tmp_path / "bad.icc").write_bytes(b"not a profile")
+    (tmp_path / "srgb.icc").write_bytes(srgb_profile())
+    subst = {
+        "MISSING": str(tmp_path / "none.icc"),
+        "NOTICC": str(tmp_path / "bad.icc"),
+        "SRGB": str(tmp_path / "srgb.icc"),
+    }
+    out = tmp_path / "p.pdf"
+    assert main(["pdf", str(d), "-o", str(out), "-q", *[subst.get(a, a) for a in args]]) != 0
+    err = capsys.readouterr().err.strip()
+    assert fragment in err and len(err.splitlines()) == 1 and not out.exists()
+
+
+def test_default_profile_is_reproducible_and_models_pt1():
+    from PIL import Image, ImageCms
+
+    from workbench.printing import icc
+
+    assert icc.build_cmyk_profile() == icc.DEFAULT_CMYK_PROFILE.read_bytes()
+    # the profile's A2B0 through LittleCMS (absolute colorimetric): paper and solids at their ISO aims
+    t = ImageCms.buildTransform(
+        ImageCms.ImageCmsProfile(str(icc.DEFAULT_CMYK_PROFILE)),
+        ImageCms.createProfile("LAB"),
+        "CMYK",
+        "LAB",
+        renderingIntent=ImageCms.Intent.ABSOLUTE_COLORIMETRIC,
+    )
+    inks = np.array([[[0, 0, 0, 0], [255, 0, 0, 0], [0, 255, 0, 0], [0, 0, 255, 0], [0, 0, 0, 255]]], np.uint8)
+    lab = np.asarray(ImageCms.applyTransform(Image.fromarray(inks, "CMYK"), t)).astype(np.float64)[0]
+    lab = np.column_stack([lab[:, 0] / 2.55, lab[:, 1:].astype(np.uint8).view(np.int8)])
+    aims = [icc.PT1_LAB[k] for k in ("paper", "C", "M", "Y")]
+    # within 1.5 CIEDE2000 of the aims (the surface reflection takes a little chroma); the black
+    # solid carries that floor: a little lighter than the ink's own 16
+    import colour
+
+    assert colour.delta_E(lab[:4], np.array(aims), method="CIE 2000").max() < 1.5
+    assert 16.0 <= lab[4, 0] <= 22.0
+
+
+@pytest.mark.slow
+def test_cut_overprints_the_process_plates(tmp_path):
+    """ghostscript's separations: under the cut line the C, M, Y, K plates are those of the PDF without the cut."""
+    import shutil
+    import subprocess
+
+    from PIL import Image
+
+    gs = shutil.which("gs")
+    if gs is None:
+        pytest.skip("ghostscript (gs) is not installed: apt-get install ghostscript")
+    d = make_design(tmp_path, square_mm=2.0)
+    plates = {}
+    for tag, extra in (("cut", []), ("bare", ["--no-cut"])):
+        out = tmp_path / f"{tag}.pdf"
+        assert main(["pdf", str(d), "-o", str(out), "--paper", "A4", "-q", *extra]) == 0
+        subprocess.run(
+            [
+                gs,
+                "-q",
+                "-dNOPAUSE",
+                "-dBATCH",
+                "-sDEVICE=tiffsep",
+                "-r600",
+                f"-sOutputFile={tmp_path / tag}%d.tif",
+                out,
+            ],
+            check=True,
+        )
+        plates[tag] = {
+            c: 255 - np.asarray(Image.open(tmp_path / f"{tag}1({c}).tif"), dtype=int)
+            for c in ("Cyan", "Magenta", "Yellow", "Black")
+        }
+    cut = np.asarray(Image.open(tmp_path / "cut1(CutContour).tif"), dtype=int) < 128
+    assert cut.sum() > 10_000  # the line is there: 2 x 160 mm at 600 dpi, about 0.1 mm wide
+    for c in ("Cyan", "Magenta", "Yellow", "Black"):
+        under, bare = plates["cut"][c][cut], plates["bare"][c][cut]
+        assert bare.mean() > 20  # the checker's black puts ink of every plate along the cut
+        assert np.abs(under - bare).max() <= 2, c  # not knocked out

@@ -14,7 +14,7 @@ from workbench.environment import use_writable_caches
 from workbench.errors import UsageError, WorkbenchError
 
 # in the order of `workbench --help`
-COMMANDS = ("flatten", "design", "pdf", "board", "render", "validate", "calibrate")
+COMMANDS = ("flatten", "design", "suggest-views", "pdf", "board", "render", "validate", "calibrate")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -32,7 +32,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in (only,) if only else COMMANDS:
-        importlib.import_module(f"workbench.commands.{name}").add_parser(sub)
+        importlib.import_module(f"workbench.commands.{name.replace('-', '_')}").add_parser(sub)
     return parser
 
 

@@ -75,6 +75,9 @@ class DesignResult:
         validate read.
     seams : dict or None
         With several films, :func:`workbench.films.seams` on the input mesh.
+    undecorated : (mm², share)
+        The surface no view owns (:func:`undecorated_surface`), on the mesh the views
+        were assigned on.
     """
 
     V: np.ndarray
@@ -94,6 +97,31 @@ class DesignResult:
     seams: dict | None = None
     # plausibility warnings found on the way (films that cover little of what they were given)
     warnings: list[str] = field(default_factory=list)
+    undecorated: tuple[float, float] = (0.0, 0.0)
+
+
+def undecorated_surface(V: np.ndarray, F: np.ndarray, status: np.ndarray) -> tuple[float, float]:
+    """The surface no view owns: faces no view claims, even in part.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertices, mm.
+    F : (#F, 3) int
+        Triangles.
+    status : (#F, #views) int8
+        Ownership (:func:`workbench.views.visibility.assign_views`).
+
+    Returns
+    -------
+    mm2 : float
+        Its area, mm².
+    share : float
+        Its share of the surface.
+    """
+    area = face_areas(V, F)
+    left = float(area[~(status != 0).any(axis=1)].sum())
+    return left, left / max(float(area.sum()), 1e-300)
 
 
 @dataclass
@@ -336,6 +364,7 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
         films=films,
         seams=seam,
         warnings=warnings,
+        undecorated=undecorated_surface(V, F, status),
     )
 
 
@@ -452,6 +481,7 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         view_px_per_print_px=scales,
         timings_s=t,
         view_status=status,
+        undecorated=undecorated_surface(V, F, status),
     )
 
 
@@ -472,6 +502,11 @@ def assign_job_views(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nda
     """
     cameras, visibilities = [], []
     for i, (spec, img) in enumerate(zip(job.views, images, strict=True)):
+        if spec.size_px is not None and spec.size_px != (img.shape[1], img.shape[0]):
+            raise WorkbenchError(
+                f"{job.path}: views[{i}].width_px, height_px: {spec.size_px[0]} x {spec.size_px[1]}, but the image "
+                f"{spec.image.name} is {img.shape[1]} x {img.shape[0]} px (the view was planned for that size)"
+            )
         cam = spec.make_camera(img.shape[1], img.shape[0])
         xy, z = cam.project(V)
         behind = np.flatnonzero(z <= 1e-6 * np.abs(z).max())

@@ -55,6 +55,8 @@ class ViewSpec:
     image: Path
     camera: dict
     region: str = "largest"
+    # the image size the view was planned for (suggest-views writes it): checked against the image
+    size_px: tuple[int, int] | None = None
 
     def make_camera(self, width: int, height: int) -> Camera:
         """The camera for an image of this size (the image's pixel grid is the sensor)."""
@@ -234,10 +236,13 @@ def _rotation(r: _Reader) -> np.ndarray:
 VIEW_POSE_KEYS = {"position", "look_at", "up", "fov_deg"}
 VIEW_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 VIEW_K_KEYS = {"fx", "fy", "cx", "cy", "rotation", "translation"}
+# written by suggest-views beside the camera: the image size it needs (checked against the
+# image), and what it would own (a note for the designer; design reports what it owns)
+VIEW_PLAN_KEYS = {"width_px", "height_px", "covers_share", "covers_mm2"}
 
 
 def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
-    r = _Reader(path, f"views[{i}]", table, {"name", "image", "region"} | VIEW_POSE_KEYS | VIEW_K_KEYS)
+    r = _Reader(path, f"views[{i}]", table, {"name", "image", "region"} | VIEW_POSE_KEYS | VIEW_K_KEYS | VIEW_PLAN_KEYS)
     name = r.string("name", required=True)
     if not VIEW_NAME.fullmatch(name):
         # the name becomes file names (view-NAME.png): nothing that leaves the output folder or hides a file
@@ -278,7 +283,13 @@ def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
         camera["translation"] = r.vector("translation", 3)
     else:
         r.fail(f"no camera: give {', '.join(sorted(VIEW_POSE_KEYS))} or {', '.join(sorted(VIEW_K_KEYS))}")
-    return ViewSpec(name=name, image=image, camera=camera, region=region)
+    width, height = (r.number(k, lo=0, integer=True) for k in ("width_px", "height_px"))
+    if (width is None) != (height is None):
+        r.fail("give width_px and height_px together, or neither", "width_px" if width is None else "height_px")
+    r.number("covers_share", lo=-1e-300, hi=1 + 1e-12)
+    r.number("covers_mm2", lo=-1e-300)
+    size = None if width is None else (int(width), int(height))
+    return ViewSpec(name=name, image=image, camera=camera, region=region, size_px=size)
 
 
 def load_job(path: str | Path) -> Job:

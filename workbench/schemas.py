@@ -36,6 +36,14 @@ BOARD = {
     "first_id": Field("integer", required=False, default=0, lo=0),
     "charuco_corners": Field("object", fields={"board_mm": Field("array", shape=(None, 2), min_len=4)}),
     "markers": Field("object", fields={"ids": Field("array", shape=(None,), integer=True, lo=0, min_len=1)}),
+    "legacy": Field("bool", required=False, default=False, hint="the pre-4.6 OpenCV layout (even rows differ)"),
+}
+
+# a chessboard definition (workbench board chessboard): "board": "chessboard", inner corners only
+CHESSBOARD = {
+    "squares": Field("array", shape=(2,), integer=True, lo=3, hi=1000, hint="[nx, ny] squares"),
+    "square_mm": Field("number", lo=1e-3, hi=10_000),
+    "corners": Field("object", fields={"board_mm": Field("array", shape=(None, 2), min_len=4)}),
 }
 
 # the [fixture] table of a job file (TOML): every key optional
@@ -46,6 +54,28 @@ JOB_FIXTURE = {
     "dictionary": Field("string", required=False, default="DICT_5X5_250"),
     "first_id": Field("integer", required=False, default=0, lo=0),
     "origin_mm": Field("array", required=False, shape=(3,), hint="[x, y, z] in mm"),
+    # the colour chart's slot beside the board (validate's colour QA), or "none"
+    "colour_chart": Field(
+        "string", required=False, default="ColorChecker Classic 24", choices=("ColorChecker Classic 24", "none")
+    ),
+    "colour_chart_pitch_mm": Field("number", required=False, default=16.0, lo=4.0, hi=100.0),
+}
+
+# the colour chart's slot of a fixture (fixture.json: colour_chart), read by colour QA
+COLOUR_CHART = {
+    "kind": Field("string"),
+    "patches": Field(
+        "list",
+        min_len=6,
+        items=Field(
+            "object",
+            fields={
+                "name": Field("string"),
+                "lab_d50": Field("array", shape=(3,), hint="[L, a, b], CIELAB D50"),
+                "corners_mesh_mm": Field("array", shape=(4, 3), hint="four corners in the mesh frame"),
+            },
+        ),
+    ),
 }
 
 # fixture.json of a design folder: a board definition placed in the mesh frame
@@ -66,6 +96,7 @@ FIXTURE = {
             "corners_mesh_mm": Field("array", shape=(None, 4, 3), min_len=1),
         },
     ),
+    "colour_chart": Field("object", required=False, fields=COLOUR_CHART),
 }
 
 # design.json of a design folder: what pdf reads back (the print and the job) ...
@@ -113,8 +144,21 @@ CALIBRATION_PROFILE = {
     "kind": Field("string", choices=("camera-profile", "printer-profile"), hint="written by workbench calibrate"),
     "board": Field("object", fields={"file": Field("string"), "sha256": Field("string", required=False)}),
 }
+# what calibrate check reads of a camera profile beyond the intrinsics (all optional: older profiles lack them)
+_STD = Field("number", required=False, default=0.0, lo=0, hi=1e6, hint="standard deviation, px")
+_INTRINSICS_STD = {k: _STD for k in ("fx", "fy", "cx", "cy")}
+CAMERA_CHECK = {
+    **CAMERA_PROFILE,
+    "rms_px": Field("number", required=False, lo=0, hi=1e6),
+    "view_rms_limit_px": Field("number", required=False, lo=0, hi=1e6),
+    "k3_fixed": Field("bool", required=False, default=True),
+    "intrinsics_std": Field("object", required=False, fields=_INTRINSICS_STD),
+    "intrinsics_std_opencv": Field("object", required=False, fields=_INTRINSICS_STD),
+    "views": Field("list", required=False, default=[], items=Field("object", fields={"used": Field("bool")})),
+}
+
 CALIBRATION_KINDS = {
-    "camera-profile": CAMERA_PROFILE,
+    "camera-profile": CAMERA_CHECK,
     "printer-profile": {
         "scale_x": Field("number", lo=0.5, hi=2.0),
         "scale_y": Field("number", lo=0.5, hi=2.0),

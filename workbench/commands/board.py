@@ -11,10 +11,21 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import check_outputs, write_files
-from workbench.errors import UsageError
+from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
 from workbench.options import Number, parse_numbers
-from workbench.printing.boards import BoardError, CharucoSpec, definition, draw_board, fixture_from_job
+from workbench.printing.boards import (
+    BoardError,
+    CharucoSpec,
+    ChessboardSpec,
+    chessboard_definition,
+    colour_chart_from_job,
+    definition,
+    draw_board,
+    draw_chart_slot,
+    draw_chessboard,
+    fixture_from_job,
+)
 from workbench.printing.paper import choose_sheet, parse_paper
 from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date, load_printer_profile, scale_bar
 
@@ -25,21 +36,22 @@ BELOW_MM = 22.0  # scale bar and text line under the board
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "board",
-        help="print a ChArUco board: fixture plate, camera calibration board or printer target",
+        help="print a board: fixture plate, camera calibration board (ChArUco or chessboard) or printer target",
         description=(
             "Write a ChArUco board as a PDF at true scale, and its definition file (JSON, beside the PDF: "
             "dictionary, sizes, ids and every corner's position). 'fixture' is the plate the part stands on "
             "for validation photos ([fixture] of the job; corners also in the job's mesh frame, and the part's "
-            "footprint drawn for placement); 'charuco' a camera calibration board; 'printer-target' a board "
+            "footprint drawn for placement); 'charuco' a camera calibration board (--legacy: the pre-4.6 OpenCV "
+            "layout); 'chessboard' a plain chessboard for camera calibration; 'printer-target' a board "
             "filling the sheet, to measure a printer's scale."
         ),
     )
-    p.add_argument("kind", choices=("fixture", "charuco", "printer-target"))
+    p.add_argument("kind", choices=("fixture", "charuco", "chessboard", "printer-target"))
     p.add_argument("job", nargs="?", metavar="JOB.toml", help="for 'fixture': the job file")
     p.add_argument(
         "-o", "--output", metavar="FILE.pdf", help="default calib/boards/<kind>.pdf (fixture: prints/<job>-fixture.pdf)"
     )
-    p.add_argument("--squares", metavar="NXxNY", help="squares across and down (charuco default 7x5)")
+    p.add_argument("--squares", metavar="NXxNY", help="squares across and down (charuco default 7x5, chessboard 10x7)")
     size = {"action": Number, "lo": 0, "lo_open": True, "hi": 1000, "unit": "mm"}
     p.add_argument("--square-mm", **size, help="square side, mm")
     p.add_argument("--marker-mm", **size, help="marker side, mm (default 0.75 of the square)")
@@ -52,6 +64,11 @@ def add_parser(sub) -> None:
         integer=True,
         default=None,
         help="id of the first marker (default 0)",
+    )
+    p.add_argument(
+        "--legacy",
+        action="store_true",
+        help="charuco: the pre-4.6 OpenCV layout (differs for an even number of rows; many printed boards use it)",
     )
     p.add_argument("--paper", default="auto", help="A4, A3, letter, ..., auto or WxH in mm")
     p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile to pre-compensate")
@@ -67,8 +84,18 @@ def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     return parse_numbers(text.lower(), 2, "--squares", sep="x", lo=1, hi=1000, integer=True)
 
 
-def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, footprint=None) -> tuple[bytes, tuple]:
+def board_pdf(
+    spec: CharucoSpec | ChessboardSpec,
+    title: str,
+    paper,
+    profile: PrinterProfile,
+    footprint=None,
+    chart: dict | None = None,
+) -> tuple[bytes, tuple]:
     """PDF of a board centred on a sheet with a 100 mm bar and a line of text under it.
+
+    With ``chart`` (a fixture's ``colour_chart``), the chart's slot is drawn under the board,
+    where the definition puts it, and the bar and text go under the slot.
 
     Returns
     -------
@@ -81,21 +108,25 @@ def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, foo
     from reportlab.pdfgen import canvas as rl_canvas
 
     bw, bh = spec.size_mm
-    need_w = max(bw, 110.0) + 2 * BOARD_MARGIN_MM
-    need_h = bh + BELOW_MM + 2 * BOARD_MARGIN_MM
+    # the slot's extent below the board's bottom edge
+    below_board = 0.0 if chart is None else chart["frame_board_mm"][3] - bh
+    side = 0.0 if chart is None else max(chart["frame_board_mm"][2] - bw, -chart["frame_board_mm"][0], 0.0)
+    need_w = max(bw + 2 * side, 110.0) + 2 * BOARD_MARGIN_MM
+    need_h = bh + below_board + BELOW_MM + 2 * BOARD_MARGIN_MM
     paper_name, pw, ph = choose_sheet(paper, need_w, need_h)
     buf = io.BytesIO()
     c = rl_canvas.Canvas(buf, pagesize=(pw * PT_PER_MM, ph * PT_PER_MM), invariant=1, pageCompression=1)
     c.setTitle(title)
     c.setCreator(f"workbench {__version__}")
-    c.setKeywords(
-        f"workbench, board, {spec.dictionary}, {spec.squares[0]}x{spec.squares[1]}, printer-profile={profile.name}"
-    )
+    pattern = spec.dictionary if isinstance(spec, CharucoSpec) else "chessboard"
+    c.setKeywords(f"workbench, board, {pattern}, {spec.squares[0]}x{spec.squares[1]}, printer-profile={profile.name}")
     c.setViewerPreference("PrintScaling", "None")
     page = _Page(c, pw, ph, profile)
     left = (pw - bw) / 2
-    top = ph - (ph - bh - BELOW_MM) / 2  # sheet y (up) of the board's top edge
-    draw_board(c, spec, left, top)
+    top = ph - (ph - bh - below_board - BELOW_MM) / 2  # sheet y (up) of the board's top edge
+    (draw_board if isinstance(spec, CharucoSpec) else draw_chessboard)(c, spec, left, top)
+    if chart is not None:
+        draw_chart_slot(c, chart, left, top)
     if footprint is not None:
         # the outline leaves a 3 mm gap around every ChArUco corner: a line through a
         # corner would pull its sub-pixel position (seen: 0.1 mm)
@@ -125,7 +156,7 @@ def board_pdf(spec: CharucoSpec, title: str, paper, profile: PrinterProfile, foo
         c.setStrokeColorRGB(0, 0, 0)
         c.setLineWidth(0.25 / PT_PER_MM)
         page.text(left, top + 2.0, "top edge: mesh +y. Place the part inside the red outline.", size=2.6)
-    bottom = top - bh
+    bottom = top - bh - below_board
     scale_bar(page, left, bottom - 6.0, vertical=False)
     page.text(
         left,
@@ -144,9 +175,11 @@ def run(args) -> int:
     paper = parse_paper(args.paper)
     profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
     extra: dict = {"software": {"name": "workbench", "version": __version__}}
-    footprint = origin = None
+    footprint = origin = chart = None
     inputs = [Path(args.printer_profile)] if args.printer_profile else []
     if args.kind == "fixture":
+        if args.legacy:
+            raise UsageError("--legacy is for board charuco: a fixture board is always in today's layout")
         if args.job is None:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
         from workbench.job import load_job
@@ -160,12 +193,22 @@ def run(args) -> int:
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
         extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
         extra["footprint_board_mm"] = footprint.tolist()
+        chart = colour_chart_from_job(job.fixture, spec, origin)
+        if chart is not None:
+            extra["colour_chart"] = chart
         default_out = Path("prints") / f"{job.name}-fixture.pdf"
         title = f"workbench fixture board for job {job.name}"
     else:
         if args.job is not None:
             raise UsageError(f"board {args.kind} takes options, not a job file")
-        if args.kind == "charuco":
+        if args.legacy and args.kind != "charuco":
+            raise UsageError(f"--legacy is a ChArUco layout: board {args.kind} has none")
+        if args.kind == "chessboard":
+            if args.marker_mm is not None or args.dictionary is not None or args.first_id is not None:
+                raise UsageError("board chessboard has no markers: --marker-mm, --dictionary, --first-id do not apply")
+            square = 25.0 if args.square_mm is None else args.square_mm
+            squares = _squares(args.squares, (10, 7))
+        elif args.kind == "charuco":
             square = 30.0 if args.square_mm is None else args.square_mm
             squares = _squares(args.squares, (7, 5))
         else:  # a printer target fills the sheet, to measure scale over the longest lengths
@@ -177,32 +220,44 @@ def run(args) -> int:
             )
             squares = _squares(args.squares, default)
         try:
-            spec = CharucoSpec(
-                squares=squares,
-                square_mm=square,
-                marker_mm=args.marker_mm or 0.75 * square,
-                dictionary=args.dictionary or "DICT_5X5_250",
-                first_id=args.first_id or 0,
-            )
+            if args.kind == "chessboard":
+                spec = ChessboardSpec(squares=squares, square_mm=square)
+            else:
+                spec = CharucoSpec(
+                    squares=squares,
+                    square_mm=square,
+                    marker_mm=args.marker_mm or 0.75 * square,
+                    dictionary=args.dictionary or "DICT_5X5_250",
+                    first_id=args.first_id or 0,
+                    legacy=bool(args.legacy),
+                )
         except BoardError as exc:  # every value came from an option (or its default): name it
             flag = "--" + exc.key.replace("_", "-")
             given = getattr(args, exc.key, None)
             given = "" if given is None else f" {given:g}" if isinstance(given, float) else f" {given}"
             raise UsageError(f"{flag}{given}: {exc}") from None
-        default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm.pdf"
-        title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {spec.dictionary}"
+        except WorkbenchError as exc:  # every value came from an option: a usage error
+            raise UsageError(str(exc)) from None
+        layout = "-legacy" if args.legacy else ""
+        default_out = Path("calib") / "boards" / f"{args.kind}-{squares[0]}x{squares[1]}-{square:g}mm{layout}.pdf"
+        pattern = "chessboard" if args.kind == "chessboard" else spec.dictionary + (", legacy layout" * args.legacy)
+        title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {pattern}"
     out = Path(args.output) if args.output else default_out
     # `-o b.json`: the PDF and its definition would get one name; the job's files are inputs
     check_outputs(out, out.with_suffix(".json"), inputs=inputs)
     if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
         extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
-    pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint)
+    pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint, chart)
     extra["paper"] = paper_name
     extra["printer_profile"] = {"name": profile.name, "scale_x": profile.scale_x, "scale_y": profile.scale_y}
-    info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)
+    if isinstance(spec, ChessboardSpec):
+        info = chessboard_definition(spec, page_origin_mm=page_origin, extra=extra)
+    else:
+        info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)
     write_files({out: pdf, out.with_suffix(".json"): (json.dumps(info, indent=1) + "\n").encode()}, inputs=inputs)
+    pattern = "chessboard" if isinstance(spec, ChessboardSpec) else spec.dictionary + (", legacy layout" * spec.legacy)
     log(
         f"wrote {out} ({paper_name}) and {out.with_suffix('.json')}: {spec.squares[0]} x {spec.squares[1]} squares "
-        f"of {spec.square_mm:g} mm, {spec.dictionary}"
+        f"of {spec.square_mm:g} mm, {pattern}"
     )
     return 0

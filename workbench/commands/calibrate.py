@@ -13,10 +13,13 @@ import numpy as np
 from workbench import __version__, schemas
 from workbench.atomic import check_outputs, write_files
 from workbench.calibration import (
+    INTRINSICS,
+    TOLERANCE_SIGMA,
     calibrate_camera,
+    check_camera,
     check_printer_scale,
-    detect_corners,
     measure_printer,
+    name_list,
     printer_scale_warnings,
 )
 from workbench.camera import intrinsics_problem
@@ -73,7 +76,20 @@ def add_parser(sub) -> None:
         "--tolerance-pct", **positive, hi=100, default=0.05, help="printer: largest scale drift (default 0.05 %%)"
     )
     k.add_argument(
-        "--tolerance-px", **positive, hi=1000, default=0.5, help="camera: largest reprojection RMS (default 0.5 px)"
+        "--tolerance-px",
+        **positive,
+        hi=1000,
+        default=None,
+        help="camera: largest reprojection RMS of a photo posed with the stored intrinsics "
+        "(default: the profile's own limit, 3 x its median view RMS and at least 0.5 px)",
+    )
+    k.add_argument(
+        "--tolerance-sigma",
+        **positive,
+        hi=1e6,
+        default=TOLERANCE_SIGMA,
+        help="camera: largest difference between re-measured and stored fx, fy, cx, cy, in standard "
+        f"deviations of the two (default {TOLERANCE_SIGMA:g})",
     )
     k.add_argument("-q", "--quiet", action="store_true")
     k.set_defaults(run=run_check)
@@ -97,8 +113,41 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+MAX_ARROWS = 1500
+
+
+def arrow_layout(magnitudes: np.ndarray, width: int) -> tuple[float, int]:
+    """How to draw residual arrows: magnification and stride.
+
+    Parameters
+    ----------
+    magnitudes : (n,) float
+        Residual lengths, px.
+    width : int
+        Image width, px.
+
+    Returns
+    -------
+    gain : float
+        A round 1, 2 or 5 x 10^k, the largest that draws the 95th percentile residual at
+        most 3 % of the width long (between 1 and 100,000).
+    step : int
+        Draw every step-th arrow: at most MAX_ARROWS.
+    """
+    p95 = float(np.percentile(magnitudes, 95)) if len(magnitudes) else 0.0
+    raw = float(np.clip(0.03 * width / max(p95, 1e-6), 1, 1e5))
+    decade = 10 ** np.floor(np.log10(raw))
+    gain = float(decade * max(m for m in (1, 2, 5) if decade * m <= raw))
+    return gain, max(1, int(np.ceil(len(magnitudes) / MAX_ARROWS)))
+
+
 def residual_picture(cal, title: str) -> bytes:
-    """Corner residuals over the image (arrows magnified), coloured by size."""
+    """Corner residuals over the image, coloured by size.
+
+    The arrows are magnified so that the 95th percentile residual is drawn at most 3 % of
+    the image width long, and at most MAX_ARROWS of them are drawn (every k-th corner),
+    so that thousands of corners stay readable (:func:`arrow_layout`).
+    """
     from workbench.figures import _figure, figure_png
 
     plt = _figure()
@@ -107,10 +156,21 @@ def residual_picture(cal, title: str) -> bytes:
     pts = np.concatenate([p for p, _ in cal.residuals])
     res = np.concatenate([r for _, r in cal.residuals])
     mag = np.linalg.norm(res, axis=1)
+    gain, step = arrow_layout(mag, W)
+    sel = slice(None, None, step)
     q = ax.quiver(
-        pts[:, 0], pts[:, 1], res[:, 0], -res[:, 1], mag, cmap="viridis", angles="xy", scale_units="xy", scale=1 / 200
+        pts[sel, 0],
+        pts[sel, 1],
+        res[sel, 0],
+        -res[sel, 1],
+        mag[sel],
+        cmap="viridis",
+        angles="xy",
+        scale_units="xy",
+        scale=1 / gain,
     )
-    fig.colorbar(q, ax=ax, fraction=0.046, pad=0.04).set_label("residual (px); arrows x200")
+    shown = f"; 1 in {step} of {len(pts)} corners" if step > 1 else ""
+    fig.colorbar(q, ax=ax, fraction=0.046, pad=0.04).set_label(f"residual (px); arrows x{gain:g}{shown}")
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
     ax.set_aspect("equal")
@@ -141,6 +201,10 @@ def run_camera(args) -> int:
         "k3_fixed": cal.k3_fixed,
         "corner_coverage": cal.coverage,
         "tilt_spread_deg": cal.tilt_spread_deg,
+        # standard deviations of fx, fy, cx, cy (px): what calibrate check measures drift against
+        "intrinsics_std": dict(zip(INTRINSICS, map(float, cal.std), strict=True)),
+        "intrinsics_std_opencv": dict(zip(INTRINSICS, map(float, cal.std_opencv), strict=True)),
+        "view_rms_limit_px": cal.view_limit_px,
         "warnings": cal.warnings,
         # photos as paths relative to the profile's folder (each with its sha256): the profile travels
         "views": [{**v, "name": recorded_path(v["name"], out.parent)} for v in cal.per_view],
@@ -217,24 +281,53 @@ def _measure(scan: Path, board: dict, dpi: float):
         raise WorkbenchError(str(exc) if str(exc).startswith(str(scan)) else f"{scan}: {exc}") from None
 
 
-def _camera_drift(path: Path, board: dict, K: np.ndarray, dist: np.ndarray) -> float:
-    """Reprojection RMS (px) of one photo of the board with the stored intrinsics; errors name the photo."""
-    img = _gray(path)
-    px, ids, problem = detect_corners(img, board)
-    if problem or len(ids) < 8:
-        raise WorkbenchError(f"{path}: {problem or f'too few corners of the board ({len(ids)}, need 8)'}")
-    obj = np.column_stack([np.asarray(board["charuco_corners"]["board_mm"])[ids], np.zeros(len(ids))])
-    try:
-        _, rvec, tvec = cv2.solvePnP(obj, px, K, dist, flags=cv2.SOLVEPNP_SQPNP)
-        rvec, tvec = cv2.solvePnPRefineLM(obj, px, K, dist, rvec, tvec)
-        proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
-    except cv2.error:
-        raise WorkbenchError(f"{path}: no pose of the board from its {len(ids)} corners (on one line?)") from None
-    return float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - px) ** 2, axis=1))))
+def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[str], str]:
+    """The camera half of ``calibrate check``: what drifted (empty when within tolerance), and on what."""
+    K = np.asarray(prof["K"], dtype=np.float64)
+    problem = intrinsics_problem(K, *prof["image_size"])
+    if problem:
+        raise WorkbenchError(f"{path}: {problem}")
+    images = [(str(p), _gray(Path(p))) for p in args.inputs]
+    c = check_camera(images, board, prof, args.tolerance_px, args.tolerance_sigma)
+    used = sum(v["used"] for v in c.per_photo)
+    for v in c.per_photo:
+        name = Path(v["name"]).name
+        if not v["used"]:
+            log(f"left out {v['name']}: {v['reason']}")
+        elif v["rms_px"] is None:
+            log(f"{name}: no pose of the board with the stored intrinsics: DRIFT")
+        else:
+            log(
+                f"{name}: reprojection RMS {v['rms_px']:.3f} px with the stored intrinsics "
+                f"(limit {c.limit_px:.2f} px): {'OK' if v['ok'] else 'DRIFT'}"
+            )
+    r = c.remeasured
+    if c.why_not:
+        log(f"fx, fy, cx, cy not all re-measured ({c.why_not})")
+    if r is not None:
+        names = r["measured"]
+        parts = [f"{k} {r[k]['value']:.2f} ({r[k]['delta']:+.2f} px, {r[k]['z']:+.1f} sigma)" for k in names]
+        held = "" if len(names) == len(INTRINSICS) else ", principal point and aspect held"
+        log(
+            f"re-measured on {r['views']} photos{held} (RMS {r['rms_px']:.3f} px): {', '.join(parts)}; "
+            f"largest shift across the image {r['ray_shift_px']:.2f} px "
+            f"(tolerance {c.tolerance_sigma:g} sigma): {'DRIFT' if any('re-measured' in d for d in c.drift) else 'OK'}"
+        )
+        if not r["profile_uncertainty"]:
+            log("the profile records no uncertainty of its intrinsics (made before it did): the photos' alone counts")
+    left_out = len(c.per_photo) - used
+    return c.drift, f"{used} photos" + (f" ({left_out} left out)" if left_out else "")
 
 
 def run_check(args) -> int:
     log = _log(args)
+    for flag, v in (
+        ("--tolerance-pct", args.tolerance_pct),
+        ("--tolerance-px", args.tolerance_px),
+        ("--tolerance-sigma", args.tolerance_sigma),
+    ):
+        if v is not None and not (np.isfinite(v) and v > 0):
+            raise UsageError(f"{flag} {v:g}: must be a positive number")
     path = Path(args.profile)
     what = "profile of workbench calibrate (camera-profile or printer-profile)"
     prof = read_json(path, what, schemas.CALIBRATION_PROFILE)
@@ -242,36 +335,29 @@ def run_check(args) -> int:
     check(prof, schemas.CALIBRATION_KINDS[kind], path)
     board_path = resolve_recorded(prof["board"]["file"], path)
     board = load_board(board_path)
+    if kind == "camera-profile":
+        drift, on = _check_camera(args, path, prof, board, log)
+        if drift:
+            raise WorkbenchError(f"{path.name}: the camera drifted: {'; '.join(drift)}: recalibrate")
+        log(f"{path.name}: within tolerance on {on}")
+        return 0
     failures = []
     for item in args.inputs:
         p = Path(item)
-        if kind == "printer-profile":
-            _check_dpi(p, prof["dpi"])
-            m = _measure(p, board, prof["dpi"])
-            dx, dy = 100 * (m.scale_x - prof["scale_x"]), 100 * (m.scale_y - prof["scale_y"])
-            ok = max(abs(dx), abs(dy)) <= args.tolerance_pct
-            log(
-                f"{p.name}: scale drift x {dx:+.3f} %, y {dy:+.3f} % (tolerance {args.tolerance_pct} %): "
-                f"{'OK' if ok else 'DRIFT'}"
-            )
-        else:
-            K, dist = np.asarray(prof["K"], dtype=np.float64), np.asarray(prof["dist"], dtype=np.float64)
-            problem = intrinsics_problem(K, *prof["image_size"])
-            if problem:
-                raise WorkbenchError(f"{path}: {problem}")
-            rms = _camera_drift(p, board, K, dist)
-            ok = rms <= args.tolerance_px
-            log(
-                f"{p.name}: reprojection RMS {rms:.3f} px with the stored intrinsics "
-                f"(tolerance {args.tolerance_px} px): "
-                f"{'OK' if ok else 'DRIFT'}"
-            )
+        _check_dpi(p, prof["dpi"])
+        m = _measure(p, board, prof["dpi"])
+        dx, dy = 100 * (m.scale_x - prof["scale_x"]), 100 * (m.scale_y - prof["scale_y"])
+        ok = max(abs(dx), abs(dy)) <= args.tolerance_pct
+        log(
+            f"{p.name}: scale drift x {dx:+.3f} %, y {dy:+.3f} % (tolerance {args.tolerance_pct} %): "
+            f"{'OK' if ok else 'DRIFT'}"
+        )
         if not ok:
             failures.append(p.name)
     if failures:
         raise WorkbenchError(
             f"calibration drifted beyond tolerance in {len(failures)} of {len(args.inputs)} "
-            f"({', '.join(failures)}): recalibrate"
+            f"({name_list(failures)}): recalibrate"
         )
     log(f"{path.name}: within tolerance on all {len(args.inputs)} inputs")
     return 0

@@ -22,7 +22,7 @@ from workbench.figures import stretch_figure, views_figure
 from workbench.job import load_job
 from workbench.jsonfile import recorded_path
 from workbench.mesh.io import format_obj
-from workbench.printing.boards import definition, fixture_from_job
+from workbench.printing.boards import colour_chart_from_job, definition, fixture_from_job
 
 
 def add_parser(sub) -> None:
@@ -161,6 +161,9 @@ def run(args) -> int:
             )
         },
         "warnings": warnings,
+        # the surface no view owns (faces no view claims): what `workbench suggest-views` proposes views for
+        "undecorated_mm2": result.undecorated[0],
+        "undecorated_share": result.undecorated[1],
         "views": stats,
         "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
@@ -233,9 +236,11 @@ def run(args) -> int:
             png if plain else png_bytes(read_image(v.image, f"{job.path}: views[{i}].image", job.print.background))
         )
     spec, origin, footprint = fixture_from_job(job.fixture, result.V, result.F, f"{job.path}: fixture")
-    fixture = definition(
-        spec, "fixture", origin_mm=origin, extra={"job": info["job"], "footprint_board_mm": footprint.tolist()}
-    )
+    extra = {"job": info["job"], "footprint_board_mm": footprint.tolist()}
+    chart = colour_chart_from_job(job.fixture, spec, origin)
+    if chart is not None:  # the colour chart's slot beside the board: validate's colour QA reads it
+        extra["colour_chart"] = chart
+    fixture = definition(spec, "fixture", origin_mm=origin, extra=extra)
     files[out / "fixture.json"] = (json.dumps(fixture, indent=1) + "\n").encode()
     timings = {**result.timings_s, "write": time.perf_counter() - t0}
     info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
@@ -245,6 +250,11 @@ def run(args) -> int:
         f"print {flat.width_mm:.2f} x {flat.height_mm:.2f} mm, {cols} x {rows} px at {grid.dpi:g} dpi; "
         + "; ".join(f"{s['name']} {100 * s['print_share']:.1f} %" for s in stats)
         + f"; background {100 * info['print']['background_share']:.1f} %"
+    )
+    left_mm2, left_share = result.undecorated
+    log(
+        f"undecorated: {100 * left_share:.1f} % of the surface ({left_mm2:.0f} mm²) no view owns"
+        + (f"; `workbench suggest-views {args.job}` proposes views for it" if left_mm2 > 0 else "")
     )
     if over:
         log(f"warning: {over:.1f} mm² of the surface stretch beyond the material's limit {limit:g}")

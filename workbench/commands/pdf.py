@@ -11,12 +11,21 @@ import numpy as np
 from workbench import schemas
 from workbench.atomic import check_outputs, write_files
 from workbench.design_dir import design_files, read_design_json
-from workbench.errors import WorkbenchError
+from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import boundary_loops
 from workbench.options import Number
 from workbench.printing.paper import parse_paper
-from workbench.printing.pdf import FilmPage, PrinterProfile, load_printer_profile, print_pdf, print_pdf_pages
+from workbench.printing.pdf import (
+    CUT_SPOT,
+    FilmPage,
+    PdfxOptions,
+    PrinterProfile,
+    load_printer_profile,
+    print_pdf_pages,
+)
+
+MIN_PPI = 150.0
 
 
 def add_parser(sub) -> None:
@@ -27,7 +36,10 @@ def add_parser(sub) -> None:
             "Write the print of a design directory as a PDF: the texture at exactly width_mm x height_mm, "
             "a bleed beyond the trim, crop marks at the four corners, registration crosshairs, 100 mm scale "
             "bars along x and y, a 10 mm check square and a line identifying the job. Print it at 100 %% "
-            "(actual size). A printer profile pre-compensates the printer's own scale error."
+            "(actual size). A printer profile pre-compensates the printer's own scale error. The file is a "
+            "PDF/X-4 (ISO 15930-7): PDF 1.6, an OutputIntent with the output ICC profile, XMP metadata, fonts "
+            "embedded, the print ICC-tagged sRGB (or converted to CMYK with --cmyk), the cut line an "
+            "overprinting spot colour."
         ),
     )
     p.add_argument("design", metavar="DESIGN_DIR", help="output directory of workbench design")
@@ -52,8 +64,70 @@ def add_parser(sub) -> None:
         action="store_true",
         help="leave out the cut line (the film's outline in the spot colour CutContour)",
     )
+    p.add_argument(
+        "--output-profile",
+        metavar="PROFILE.icc",
+        help="the output ICC profile of the press or printer (the shop's), carried in the PDF/X OutputIntent "
+        "(default: the bundled workbench-coated-pt1.icc, a model of ISO 12647-2 paper type 1 coated offset)",
+    )
+    p.add_argument(
+        "--cmyk",
+        action="store_true",
+        help="convert the print to CMYK through the output profile (relative colorimetric, black point "
+        "compensation) instead of leaving it ICC-tagged sRGB for the RIP; reports the total ink",
+    )
+    p.add_argument(
+        "--max-ink",
+        action=Number,
+        lo=100,
+        hi=400,
+        default=300.0,
+        metavar="PERCENT",
+        help="with --cmyk: the most ink a pixel may carry, C+M+Y+K in percent (default 300)",
+    )
+    p.add_argument(
+        "--cut-spot-name",
+        default=CUT_SPOT,
+        metavar="NAME",
+        help=f"the cut line's spot colour (default {CUT_SPOT}; PerfCutContour to perforate, or your RIP's name)",
+    )
+    p.add_argument(
+        "--min-ppi",
+        action=Number,
+        lo=0,
+        hi=1e6,
+        default=MIN_PPI,
+        metavar="PPI",
+        help="warn when the print's resolution on the part (dpi divided by the film's largest stretch) falls "
+        f"below this (default {MIN_PPI:g} ppi)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
+
+
+def resolution_warnings(info: dict, min_ppi: float) -> list[str]:
+    """Where the film's stretch brings the print's resolution on the part under ``min_ppi``.
+
+    The film stretches by s (3D length / print length) where it is formed over the part:
+    a print of d dpi has d / s pixels per inch there. design.json records the stretch's
+    area-weighted range, for the whole print and per film; the largest stretch is the
+    lowest effective resolution.
+    """
+    dpi = float(info["print"]["dpi"])
+    films = info.get("films") or [{"name": None, "stretch": info.get("stretch")}]
+    out = []
+    for f in films:
+        stretch = (f.get("stretch") or {}).get("max")
+        if not isinstance(stretch, int | float) or not stretch > 0:
+            continue
+        ppi = dpi / stretch
+        if ppi < min_ppi:
+            where = f"film {f['name']}: " if f.get("name") else ""
+            out.append(
+                f"{where}the print's {dpi:g} dpi is {ppi:.0f} ppi on the part where the film stretches most "
+                f"(x {stretch:.2f}), under {min_ppi:g} ppi: print at {np.ceil(min_ppi * stretch):.0f} dpi or more"
+            )
+    return out
 
 
 def load_design(directory: Path) -> tuple[dict, np.ndarray, np.ndarray | None]:
@@ -141,39 +215,50 @@ def run(args) -> int:
     name = job.get("name") or Path(args.design).name
     bleed = args.bleed_mm if args.bleed_mm is not None else pr["bleed_mm"]
     margin = args.margin_mm if args.margin_mm is not None else pr["margin_mm"]
+    for key, v in (("--bleed-mm", args.bleed_mm), ("--margin-mm", args.margin_mm)):
+        # the design's own values are checked where design.json is read
+        if v is not None and not (np.isfinite(v) and 0 <= v <= 50):
+            raise UsageError(f"{key} {v:g}: must be between 0 and 50 mm")
+    if not (np.isfinite(args.max_ink) and 100 <= args.max_ink <= 400):
+        raise UsageError(f"--max-ink {args.max_ink:g}: must be between 100 and 400 percent")
+    if not (np.isfinite(args.min_ppi) and args.min_ppi >= 0):
+        raise UsageError(f"--min-ppi {args.min_ppi:g}: must be a resolution in ppi, 0 or more")
+    spot = args.cut_spot_name
+    if not spot or not spot.isascii() or not spot.isprintable() or any(ch in spot for ch in " /()<>[]{}%#"):
+        raise UsageError(f"--cut-spot-name {spot!r}: give a plain name, e.g. CutContour or PerfCutContour")
+    pdfx = PdfxOptions(
+        output_profile=Path(args.output_profile) if args.output_profile else None,
+        cmyk=args.cmyk,
+        max_ink_pct=args.max_ink,
+        cut_spot=spot,
+    )
     out = Path(args.output) if args.output else Path("prints") / f"{name}.pdf"
-    # the design folder's files and the profile: `-o DESIGN/print.png` would destroy the design
-    inputs = [*design_files(Path(args.design)), *([Path(args.printer_profile)] if args.printer_profile else [])]
+    # the design folder's files and the profiles: `-o DESIGN/print.png` would destroy the design
+    inputs = [*design_files(Path(args.design)), *(Path(p) for p in (args.printer_profile, args.output_profile) if p)]
     check_outputs(out, inputs=inputs)
     if info.get("films"):
         pages = film_pages(Path(args.design), info)
-        pdf, sheets = print_pdf_pages(
-            pages, pr["dpi"], name, job.get("sha256", "unknown"), paper, bleed, margin, profile, cut=not args.no_cut
-        )
-        write_files({out: pdf}, inputs=inputs)
-        log(f"wrote {out}: {len(pages)} films, one page each ({', '.join(sorted({s.paper for s in sheets}))})")
-        log("print at 100 % (actual size, no fit-to-page) and check that both bars measure 100 mm")
-        return 0
-    outline = None if args.no_cut else film_outline(Path(args.design) / "flat.obj")
-    pdf, sheet = print_pdf(
-        rgb,
-        pr["dpi"],
-        pr["width_mm"],
-        pr["height_mm"],
-        name,
-        job.get("sha256") or "unknown",
-        paper,
-        bleed,
-        margin,
-        profile,
-        outline_mm=outline,
-        cut=not args.no_cut,
-        film=film,
+    else:
+        outline = None if args.no_cut else film_outline(Path(args.design) / "flat.obj")
+        pages = [FilmPage(rgb, pr["width_mm"], pr["height_mm"], outline, film)]
+    pdf, sheets, ink = print_pdf_pages(
+        pages, pr["dpi"], name, job.get("sha256") or "unknown", paper, bleed, margin, profile, not args.no_cut, pdfx
     )
     write_files({out: pdf}, inputs=inputs)
-    log(
-        f"wrote {out}: {pr['width_mm']:.2f} x {pr['height_mm']:.2f} mm on {sheet.paper}, bleed {bleed:g} mm, "
-        f"printer profile {profile.name}"
-    )
+    if len(pages) > 1:
+        log(f"wrote {out}: {len(pages)} films, one page each ({', '.join(sorted({s.paper for s in sheets}))})")
+    else:
+        log(
+            f"wrote {out}: {pr['width_mm']:.2f} x {pr['height_mm']:.2f} mm on {sheets[0].paper}, bleed {bleed:g} mm, "
+            f"printer profile {profile.name}"
+        )
+    log(f"PDF/X-4, output profile {pdfx.output_profile or 'workbench-coated-pt1.icc (bundled)'}")
+    if ink is not None:
+        log(
+            f"CMYK: total ink at most {ink.max_pct:.0f} % (limit {ink.max_ink_pct:g} %; {ink.max_pct_before:.0f} % out "
+            f"of the profile, {100 * ink.limited_share:.1f} % of the pixels limited), p99 {ink.p99_pct:.0f} %"
+        )
+    for w in resolution_warnings(info, args.min_ppi):
+        print(f"warning: {w}", file=sys.stderr, flush=True)
     log("print at 100 % (actual size, no fit-to-page) and check that both bars measure 100 mm")
     return 0

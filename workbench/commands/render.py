@@ -32,7 +32,9 @@ def add_parser(sub) -> None:
             "Render the decorated part of a design directory, on its fixture plate, from a designed view, a "
             "camera file or an orbit position. Writes PHOTO.png (or .jpg) and PHOTO.json: the truth (K, "
             "distortion, R, t, image size, every imperfection), in the form of a camera profile. --previews "
-            "writes one image per designed view, one from a generic viewpoint and a contact sheet."
+            "writes one image per designed view, one from a generic viewpoint and a contact sheet. --renderer "
+            "mitsuba renders the same scene with Mitsuba 3's path tracer (pip install mitsuba) instead of the "
+            "workbench's own rasteriser: an independent image formation for the tests of validate."
         ),
     )
     p.add_argument("design", metavar="DESIGN_DIR")
@@ -66,8 +68,22 @@ def add_parser(sub) -> None:
         lo=1,
         hi=8,
         integer=True,
-        default=2,
-        help="samples per pixel along each axis (default 2)",
+        help="samples per pixel along each axis (default 2; --renderer workbench)",
+    )
+    p.add_argument(
+        "--renderer",
+        choices=("workbench", "mitsuba"),
+        default="workbench",
+        help="workbench (default): the project's rasteriser; mitsuba: Mitsuba 3's path tracer (scalar_rgb, CPU), "
+        "--shading, --light, --ambient, --gloss and --shininess becoming its lamp, sky and film coating",
+    )
+    p.add_argument(
+        "--spp",
+        action=Number,
+        lo=1,
+        hi=1 << 16,
+        integer=True,
+        help="samples per pixel (default 16; --renderer mitsuba)",
     )
     g = p.add_argument_group("imperfections (all off by default)")
     g.add_argument("--realistic", action="store_true", help="blur 1 px, noise 3, JPEG 90, shading, vignetting 0.15")
@@ -86,11 +102,7 @@ def add_parser(sub) -> None:
         help="film rotated about the print's centre, counter-clockwise",
     )
     g.add_argument(
-        "--film-scale-pct",
-        action=Number,
-        lo=-50,
-        hi=100,
-        help="film uniformly larger by this percentage (-50 to 100)",
+        "--film-scale-pct", action=Number, lo=-50, hi=100, help="film uniformly larger by this percentage (-50 to 100)"
     )
     g.add_argument("--print-scale-pct", metavar="SX,SY", help="printer scale error in x and y, percent")
     g.add_argument("--distortion", metavar="K1,K2,P1,P2,K3", help="lens distortion (OpenCV order)")
@@ -127,7 +139,25 @@ def add_parser(sub) -> None:
     )
     g.add_argument("--vignetting", action=Number, lo=0, hi=1, help="brightness loss at the corners (0 to 1)")
     g.add_argument("--jpeg-quality", action=Number, lo=1, hi=100, integer=True, help="JPEG round trip at this quality")
-    g.add_argument("--seed", action=Number, lo=0, hi=2**32 - 1, integer=True, default=0, help="noise seed")
+    g.add_argument(
+        "--colour-shift-lab",
+        metavar="DL,DA,DB",
+        help="every colour of the print shifted in CIELAB (D50), e.g. -6,6,8: a wrong ink or profile",
+    )
+    g.add_argument(
+        "--white-balance",
+        metavar="R,G,B",
+        help="a coloured light: linear gains per channel on the whole scene, e.g. 1.1,1,0.85 (warm)",
+    )
+    g.add_argument(
+        "--seed",
+        action=Number,
+        lo=0,
+        hi=2**32 - 1,
+        integer=True,
+        default=0,
+        help="noise seed (and the path tracer's sampler seed)",
+    )
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -138,6 +168,8 @@ LIMITS = {
     "--print-scale-pct": {"lo": -50, "hi": 100},
     "--distortion": {"lo": -100, "hi": 100},
     "--light": {"lo": -1e6, "hi": 1e6},
+    "--colour-shift-lab": {"lo": -50, "hi": 50},
+    "--white-balance": {"lo": 0.1, "hi": 10},
 }
 
 
@@ -208,6 +240,8 @@ def imperfections_from(args) -> Imperfections:
         "gloss": args.gloss,
         "shininess": args.shininess,
         "jpeg_quality": args.jpeg_quality,
+        "colour_shift_lab": _floats(args.colour_shift_lab, 3, "--colour-shift-lab"),
+        "white_balance": _floats(args.white_balance, 3, "--white-balance"),
     }
     kw.update({k: v for k, v in pairs.items() if v is not None})
     kw["seed"] = args.seed
@@ -231,6 +265,10 @@ def imperfections_from(args) -> Imperfections:
     ):
         if key in kw and not lo <= kw[key] <= hi:
             raise UsageError(f"--{key.replace('_', '-')} {kw[key]}: must be between {lo} and {hi}")
+    if "colour_shift_lab" in kw and not all(abs(v) <= 50 for v in kw["colour_shift_lab"]):
+        raise UsageError(f"--colour-shift-lab {args.colour_shift_lab}: each of DL, DA, DB between -50 and 50")
+    if "white_balance" in kw and not all(0.1 <= v <= 10 for v in kw["white_balance"]):
+        raise UsageError(f"--white-balance {args.white_balance}: each gain between 0.1 and 10")
     return Imperfections(**kw)
 
 
@@ -247,14 +285,23 @@ def _size(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
 BYTES_PER_SAMPLE = 80
 
 
-def check_render_fits(width: int, height: int, supersample: int) -> None:
+# peak bytes per photo pixel of a Mitsuba render with a lens (a 2 x 2 times larger ideal RGBA film,
+# its copies, the resampling maps and samples): 4.2 GB peak RSS measured for 4000 x 3000 px
+# (benchmarks/bench_render_mitsuba.py), with a margin
+BYTES_PER_PIXEL_MITSUBA = 400
+
+
+def check_render_fits(width: int, height: int, supersample: int | None, renderer: str = "workbench") -> None:
     """Refuse, before any work, a photo whose buffers would not fit in this machine's memory."""
-    need = width * height * supersample**2 * BYTES_PER_SAMPLE
+    if renderer == "mitsuba":
+        need, knob = width * height * BYTES_PER_PIXEL_MITSUBA, ""
+    else:
+        need, knob = width * height * supersample**2 * BYTES_PER_SAMPLE, f" with --supersample {supersample}"
     have = physical_memory()
     if need > 0.7 * have:
         raise WorkbenchError(
-            f"--size {width}x{height} with --supersample {supersample} needs about {need / 2**30:,.1f} GiB; "
-            f"this machine has {have / 2**30:.1f} GiB available: lower --size or --supersample"
+            f"--size {width}x{height}{knob} needs about {need / 2**30:,.1f} GiB; "
+            f"this machine has {have / 2**30:.1f} GiB available: lower --size" + (" or --supersample" if knob else "")
         )
 
 
@@ -267,6 +314,8 @@ def check_camera_options(args) -> None:
             flag = "--" + key.replace("_", "-")
             source = {"--camera": "the camera file", "--view": "the view", "--previews": "the previews"}[given]
             raise UsageError(f"{flag} does not apply to {given}: {source} fixes the image")
+    if args.fov_deg is not None and not 0 < args.fov_deg < 180:
+        raise UsageError(f"--fov-deg {args.fov_deg:g}: must be between 0 and 180")
     for key in ("fov_deg", "size"):
         if getattr(args, key) is not None and args.intrinsics is not None:
             raise UsageError(
@@ -274,7 +323,46 @@ def check_camera_options(args) -> None:
             )
 
 
-def truth(camera: Camera, imp: Imperfections, design: Design, source: str, out: Path) -> dict:
+def check_renderer_options(args) -> None:
+    """Each renderer's own sampling option is refused with the other, not ignored; fills in the defaults."""
+    if args.renderer == "mitsuba":
+        if args.supersample is not None:
+            raise UsageError("--supersample does not apply to --renderer mitsuba: give --spp (samples per pixel)")
+        if args.spp is None:
+            args.spp = 16
+        if not 1 <= args.spp <= 4096:
+            raise UsageError(f"--spp {args.spp}: between 1 and 4096 samples per pixel")
+    else:
+        if args.spp is not None:
+            raise UsageError("--spp applies to --renderer mitsuba; the workbench renderer takes --supersample")
+        if args.supersample is None:
+            args.supersample = 2
+        if not 1 <= args.supersample <= 8:
+            raise UsageError("--supersample: between 1 and 8")
+
+
+def renderer_info(args) -> dict:
+    """PHOTO.json's record of what made the photo (the truth itself does not depend on it)."""
+    if args.renderer == "mitsuba":
+        from workbench.render.mitsuba import VARIANT, load_mitsuba
+
+        mi = load_mitsuba()
+        return {"name": "mitsuba", "version": mi.__version__, "variant": VARIANT, "spp": args.spp, "seed": args.seed}
+    return {"name": "workbench", "supersample": args.supersample}
+
+
+def make_photo(args, scene, cam: Camera, imp: Imperfections) -> np.ndarray:
+    """The photo by the renderer ``args.renderer`` asks for; (H, W, 3) uint8 RGB."""
+    if args.renderer == "mitsuba":
+        from workbench.render.mitsuba import render_photo_mitsuba  # Mitsuba is optional: imported when asked for
+
+        return render_photo_mitsuba(scene, cam, imp, spp=args.spp, seed=args.seed)
+    return render_photo(scene, cam, imp, args.supersample)
+
+
+def truth(
+    camera: Camera, imp: Imperfections, design: Design, source: str, out: Path, renderer: dict | None = None
+) -> dict:
     """PHOTO.json: a camera profile (K, dist, image_size) with the pose and every imperfection."""
     return {
         "K": camera.K.tolist(),
@@ -294,6 +382,7 @@ def truth(camera: Camera, imp: Imperfections, design: Design, source: str, out: 
             "design_json_sha256": hashlib.sha256((design.dir / "design.json").read_bytes()).hexdigest(),
         },
         "software": {"name": "workbench", "version": __version__},
+        **({"renderer": renderer} if renderer else {}),
     }
 
 
@@ -309,12 +398,14 @@ def encode(rgb: np.ndarray, path: Path, imp: Imperfections) -> bytes:
 
 def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    check_renderer_options(args)
     imp = imperfections_from(args)
     check_camera_options(args)
     design = Design(Path(args.design))
+    renderer = renderer_info(args)  # Mitsuba missing: said before any work
     fixture = not args.no_fixture
     if args.previews:
-        return previews(args, design, imp, fixture, log)
+        return previews(args, design, imp, fixture, log, renderer)
     if args.view:
         cam = design.view_camera(args.view)
         if args.size:
@@ -345,23 +436,19 @@ def run(args) -> int:
     check_outputs(out, out.with_suffix(".json"), inputs=inputs)
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         raise UsageError(f"-o {out}: photos are written as .png or .jpg")
-    check_render_fits(cam.width, cam.height, args.supersample)
+    check_render_fits(cam.width, cam.height, args.supersample, args.renderer)
     try:
-        rgb = render_photo(design.scene(imp, fixture), cam, imp, args.supersample)
+        rgb = make_photo(args, design.scene(imp, fixture), cam, imp)
     except WorkbenchError as exc:  # "the camera sees nothing": say which camera
         raise WorkbenchError(f"--{source}: {exc}") from None
-    write_files(
-        {
-            out: encode(rgb, out, imp),
-            out.with_suffix(".json"): (json.dumps(truth(cam, imp, design, source, out), indent=1) + "\n").encode(),
-        },
-        inputs=inputs,
-    )
+    record = truth(cam, imp, design, source, out, renderer)
+    photo = {out: encode(rgb, out, imp), out.with_suffix(".json"): (json.dumps(record, indent=1) + "\n").encode()}
+    write_files(photo, inputs=inputs)
     log(f"wrote {out} ({cam.width} x {cam.height}) and {out.with_suffix('.json')}")
     return 0
 
 
-def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> int:
+def previews(args, design: Design, imp: Imperfections, fixture: bool, log, renderer: dict | None = None) -> int:
     out = Path(args.output) if args.output else design.dir / "previews"
     check_output_dir(out, design_files(design.dir))
     files, tiles = {}, []
@@ -376,10 +463,10 @@ def previews(args, design: Design, imp: Imperfections, fixture: bool, log) -> in
         )
     )
     for name, cam in cams:
-        rgb = render_photo(scene, cam, imp, args.supersample)
+        rgb = make_photo(args, scene, cam, imp)
         files[out / f"{safe_name(name)}.png"] = png_bytes(rgb)
         files[out / f"{safe_name(name)}.json"] = (
-            json.dumps(truth(cam, imp, design, f"preview {name}", out / name), indent=1) + "\n"
+            json.dumps(truth(cam, imp, design, f"preview {name}", out / name, renderer), indent=1) + "\n"
         ).encode()
         h = 300
         tile = cv2.resize(rgb, (int(round(rgb.shape[1] * h / rgb.shape[0])), h), interpolation=cv2.INTER_AREA)

@@ -1,4 +1,12 @@
-"""The calibrated print PDF: the design at true size, bleed, crop and registration marks, scale bars."""
+"""The calibrated print PDF: the design at true size, bleed, crop and registration marks, scale bars.
+
+The print PDF is a PDF/X-4 (ISO 15930-7) file, what a print shop's preflight expects: PDF 1.6,
+an OutputIntent (``GTS_PDFX``) carrying the output ICC profile, XMP metadata naming PDF/X-4,
+every font embedded (DejaVu Sans, shipped with matplotlib), the print image ICC-tagged
+(sRGB, for late binding in the RIP) or converted to CMYK through the output profile, the
+marks in black ink only, and the cut line a spot colour that overprints. ReportLab writes
+the page; :func:`pdfx` adds with pikepdf what ReportLab cannot write.
+"""
 
 from __future__ import annotations
 
@@ -153,6 +161,9 @@ class _Page:
         c.scale(PT_PER_MM / profile.scale_x, PT_PER_MM / profile.scale_y)
         c.translate(-sheet_w / 2, -sheet_h / 2)
         c.setLineWidth(LINE_PT / PT_PER_MM)
+        # marks and text in the black ink alone: a hairline on four plates would not register
+        c.setStrokeColorCMYK(0, 0, 0, 1)
+        c.setFillColorCMYK(0, 0, 0, 1)
 
     def to_pdf(self, x: float, y: float) -> tuple[float, float]:
         """Physical mm on the sheet → PDF points (what page boxes are given in)."""
@@ -168,7 +179,7 @@ class _Page:
         self.c.line(x0, y0, x1, y1)
 
     def text(self, x, y, s, size=2.2, anchor="left"):
-        self.c.setFont("Helvetica", size)
+        self.c.setFont(embedded_font(), size)
         {"left": self.c.drawString, "centre": self.c.drawCentredString, "right": self.c.drawRightString}[anchor](
             x, y, s
         )
@@ -219,6 +230,28 @@ def check_square(page: _Page, x: float, y: float) -> None:
     """A 10 mm square outline with its size written under it."""
     page.c.rect(x, y, CHECK_MM, CHECK_MM, stroke=1, fill=0)
     page.text(x + CHECK_MM / 2, y - 3.0, "10 mm", size=1.8, anchor="centre")
+
+
+FONT = "DejaVuSans"
+
+
+def embedded_font() -> str:
+    """The name of the text font, registered with ReportLab as an embedded TrueType font.
+
+    DejaVu Sans ships with matplotlib (a dependency; its licence allows embedding and
+    redistribution). ReportLab embeds the subset of glyphs a document uses; the standard
+    14 fonts (Helvetica) would not be embedded, which PDF/X forbids.
+    """
+    from reportlab.pdfbase import pdfmetrics
+    from reportlab.pdfbase.ttfonts import TTFont
+
+    if FONT not in pdfmetrics.getRegisteredFontNames():
+        import matplotlib
+
+        pdfmetrics.registerFont(
+            TTFont(FONT, str(Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"))
+        )
+    return FONT
 
 
 # The spot colour print-and-cut workflows cut along (its on-screen stand-in: magenta).
@@ -273,8 +306,12 @@ def _cut_layer(canvas) -> None:
     canvas.setPageCallBack(add_to_page)
 
 
-def cut_line(page: _Page, trim, outline_mm: np.ndarray | None) -> None:
-    """The cut line: the outline (or the trim) stroked in the spot colour ``CutContour``, on its own layer."""
+def cut_line(page: _Page, trim, outline_mm: np.ndarray | None, spot: str = CUT_SPOT) -> None:
+    """The cut line: the outline (or the trim) stroked in a spot colour (``CutContour``), on its own layer.
+
+    The stroke overprints (ExtGState ``/OP true``, overprint mode 1): the process plates
+    under it keep the print, so a RIP that strips the cut plate leaves no white hairline.
+    """
     from reportlab.lib.colors import CMYKColorSep
 
     x0, y0, x1, y1 = trim
@@ -283,7 +320,9 @@ def cut_line(page: _Page, trim, outline_mm: np.ndarray | None) -> None:
     _cut_layer(c)
     c.addLiteral(f"/OC /{_CUT_LAYER_RESOURCE} BDC")
     c.saveState()
-    c.setStrokeColor(CMYKColorSep(0, 1, 0, 0, spotName=CUT_SPOT, density=1))
+    c.setStrokeColor(CMYKColorSep(0, 1, 0, 0, spotName=spot, density=1))
+    c.setStrokeOverprint(True)
+    c.setOverprintMask(1)
     c.setLineWidth(CUT_LINE_MM)
     c.setLineJoin(1)
     path = c.beginPath()
@@ -310,6 +349,7 @@ def print_pdf(
     outline_mm: np.ndarray | None = None,
     cut: bool = True,
     film: np.ndarray | None = None,
+    pdfx: PdfxOptions | None = None,
 ) -> tuple[bytes, PrintSheet]:
     """The print PDF of a design.
 
@@ -341,6 +381,8 @@ def print_pdf(
         The pixels inside the film's outline (a free outline); the bleed then follows
         the outline (nearest pixel inside repeated outward) and nothing is printed
         beyond it. None: the film is the whole rectangle.
+    pdfx : PdfxOptions, optional
+        Output profile, colour conversion and cut spot name (default: :class:`PdfxOptions`).
 
     Returns
     -------
@@ -350,8 +392,214 @@ def print_pdf(
         Where everything went (physical mm).
     """
     page = FilmPage(rgb, width_mm, height_mm, outline_mm, film)
-    pdf, sheets = print_pdf_pages([page], dpi, job_name, job_sha256, paper, bleed_mm, margin_mm, profile, cut)
+    pdf, sheets, _ = print_pdf_pages([page], dpi, job_name, job_sha256, paper, bleed_mm, margin_mm, profile, cut, pdfx)
     return pdf, sheets[0]
+
+
+@dataclass(frozen=True)
+class PdfxOptions:
+    """What makes the print PDF a print shop's PDF/X-4.
+
+    Attributes
+    ----------
+    output_profile : Path or None
+        The output ICC profile (the shop's press or printer, CMYK or RGB), carried in the
+        OutputIntent. None: :data:`workbench.printing.icc.DEFAULT_CMYK_PROFILE`.
+    cmyk : bool
+        Convert the print to CMYK through the output profile (relative colorimetric with
+        black point compensation) instead of leaving it ICC-tagged sRGB for the RIP.
+    max_ink_pct : float
+        With ``cmyk``: the most ink a pixel may carry (C + M + Y + K, percent); above it
+        C, M and Y are scaled down, K kept.
+    cut_spot : str
+        The cut line's spot colour name (``CutContour``; ``PerfCutContour`` to perforate).
+    """
+
+    output_profile: Path | None = None
+    cmyk: bool = False
+    max_ink_pct: float = 300.0
+    cut_spot: str = CUT_SPOT
+
+
+@dataclass(frozen=True)
+class InkReport:
+    """Total ink (C + M + Y + K, percent) over the film's pixels of a CMYK print.
+
+    Attributes
+    ----------
+    max_pct_before, max_pct : float
+        Largest total ink out of the profile, and after the limit.
+    p99_pct : float
+        99th percentile after the limit.
+    limited_share : float
+        Share of the film's pixels whose ink the limit reduced.
+    max_ink_pct : float
+        The limit.
+    """
+
+    max_pct_before: float
+    max_pct: float
+    p99_pct: float
+    limited_share: float
+    max_ink_pct: float
+
+
+def limit_ink(cmyk: np.ndarray, max_ink_pct: float) -> np.ndarray:
+    """Scale C, M and Y down where C + M + Y + K exceeds the limit (K kept: it holds the shadows' detail).
+
+    Parameters
+    ----------
+    cmyk : (..., 4) uint8
+        Ink coverage, 255 = 100 %.
+    max_ink_pct : float
+        Limit, percent (at least 100: K alone always fits).
+
+    Returns
+    -------
+    (..., 4) uint8
+        Every pixel at or under the limit (rounded down, never over).
+    """
+    c = cmyk.astype(np.float64)
+    limit = np.floor(max_ink_pct / 100 * 255 + 1e-9)
+    cmy, k = c[..., :3], c[..., 3:]
+    room = np.maximum(limit - k, 0)
+    total = cmy.sum(axis=-1, keepdims=True)
+    scaled = cmy * np.where(total > room, room / np.maximum(total, 1e-12), 1.0)
+    base = np.floor(scaled + 1e-9)
+    # the levels rounding down lost go back to the inks with the largest remainders: the
+    # total lands on the limit itself, never above it
+    deficit = np.where(total > room, room - base.sum(axis=-1, keepdims=True), 0)
+    rank = np.argsort(np.argsort(-(scaled - base), axis=-1), axis=-1)
+    base += rank < deficit
+    return np.concatenate([base, k], axis=-1).astype(np.uint8)
+
+
+def _xmp(pdf, title: str) -> None:
+    """XMP metadata naming PDF/X-4, consistent with the document information dictionary."""
+    import hashlib
+
+    import pikepdf
+
+    # the same document, the same id: reproducible bytes
+    doc_id = "uuid:" + hashlib.sha256(title.encode()).hexdigest()[:32]
+    with pdf.open_metadata(set_pikepdf_as_editor=False, update_docinfo=False) as meta:
+        # ReportLab writes /Trapped, which load_from_docinfo does not map (pdf:Trapped is set below)
+        meta.load_from_docinfo({k: v for k, v in pdf.docinfo.items() if k not in ("/Trapped", "/GTS_PDFXVersion")})
+        meta["pdfxid:GTS_PDFXVersion"] = "PDF/X-4"
+        meta["pdf:Trapped"] = "False"
+        meta["xmpMM:DocumentID"] = doc_id
+        meta["xmpMM:InstanceID"] = doc_id
+        meta["xmpMM:VersionID"] = "1"
+        meta["xmpMM:RenditionClass"] = "default"
+        meta["xmp:MetadataDate"] = meta["xmp:ModifyDate"]
+    # the information dictionary says the same (keys with no XMP twin that load_from_docinfo would know)
+    pdf.docinfo[pikepdf.Name.Trapped] = pikepdf.Name("/False")
+    pdf.docinfo[pikepdf.Name.GTS_PDFXVersion] = pikepdf.String("PDF/X-4")
+
+
+def finish_pdfx(data: bytes, opts: PdfxOptions) -> tuple[bytes, InkReport | None]:
+    """Make ReportLab's PDF a PDF/X-4: OutputIntent, ICC-tagged or CMYK images, XMP.
+
+    Parameters
+    ----------
+    data : bytes
+        The PDF ReportLab wrote (PDF 1.6, fonts embedded, marks in DeviceCMYK).
+    opts : PdfxOptions
+        Output profile, CMYK conversion, ink limit.
+
+    Returns
+    -------
+    pdf : bytes
+        Reproducible (deterministic document id).
+    ink : InkReport or None
+        With ``opts.cmyk``.
+
+    Raises
+    ------
+    WorkbenchError
+        The output profile is missing, unreadable, or not for CMYK or RGB output.
+    """
+    import zlib
+
+    import pikepdf
+    from PIL import Image, ImageCms
+
+    from workbench.errors import WorkbenchError
+    from workbench.printing import icc
+
+    path = Path(opts.output_profile) if opts.output_profile is not None else icc.DEFAULT_CMYK_PROFILE
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: no such output profile (--output-profile: the shop's ICC profile)")
+    profile = path.read_bytes()
+    space, desc = icc.profile_info(profile, str(path))
+    if space not in ("CMYK", "RGB"):
+        raise WorkbenchError(f"{path}: a {space} profile; the output profile must be for CMYK or RGB output")
+    if opts.cmyk and space != "CMYK":
+        raise WorkbenchError(f"{path}: an RGB profile; --cmyk needs a CMYK output profile")
+    pdf = pikepdf.open(io.BytesIO(data))
+    dest = pdf.make_stream(profile, N=4 if space == "CMYK" else 3)
+    pdf.Root.OutputIntents = pikepdf.Array(
+        [
+            pikepdf.Dictionary(
+                Type=pikepdf.Name.OutputIntent,
+                S=pikepdf.Name.GTS_PDFX,
+                OutputConditionIdentifier=pikepdf.String("Custom"),
+                OutputCondition=pikepdf.String(desc or path.stem),
+                Info=pikepdf.String(desc or path.stem),
+                RegistryName=pikepdf.String("http://www.color.org"),
+                DestOutputProfile=dest,
+            )
+        ]
+    )
+    srgb = pdf.make_stream(icc.srgb_profile(), N=3, Alternate=pikepdf.Name.DeviceRGB)
+    srgb_cs = pikepdf.Array([pikepdf.Name.ICCBased, srgb])
+    to_cmyk = None
+    if opts.cmyk:
+        to_cmyk = ImageCms.buildTransform(
+            ImageCms.createProfile("sRGB"),
+            ImageCms.ImageCmsProfile(io.BytesIO(profile)),
+            "RGB",
+            "CMYK",
+            renderingIntent=ImageCms.Intent.RELATIVE_COLORIMETRIC,
+            flags=ImageCms.Flags.BLACKPOINTCOMPENSATION,
+        )
+    totals, before = [], []
+    for page in pdf.pages:
+        for img in page.get_images().values():
+            if img.get("/ColorSpace") != pikepdf.Name.DeviceRGB:
+                continue
+            if to_cmyk is None:
+                img.ColorSpace = srgb_cs
+                continue
+            rgb = np.asarray(pikepdf.PdfImage(img).as_pil_image().convert("RGB"))
+            cmyk = np.asarray(ImageCms.applyTransform(Image.fromarray(rgb), to_cmyk))
+            limited = limit_ink(cmyk, opts.max_ink_pct)
+            inside = np.ones(rgb.shape[:2], bool)
+            if "/SMask" in img:
+                inside = np.asarray(pikepdf.PdfImage(img.SMask).as_pil_image().convert("L")) > 0
+            before.append(cmyk[inside].astype(np.int32).sum(axis=1))
+            totals.append(limited[inside].astype(np.int32).sum(axis=1))
+            img.write(zlib.compress(limited.tobytes(), 6), filter=pikepdf.Name.FlateDecode)
+            img.ColorSpace = pikepdf.Name.DeviceCMYK
+            for key in ("/DecodeParms", "/Decode"):
+                if key in img:
+                    del img[key]
+    title = str(pdf.docinfo.get("/Title", ""))
+    _xmp(pdf, title + str(pdf.docinfo.get("/Subject", "")))
+    out = io.BytesIO()
+    pdf.save(out, deterministic_id=True, object_stream_mode=pikepdf.ObjectStreamMode.preserve)
+    ink = None
+    if to_cmyk is not None:
+        b = np.concatenate(before) / 2.55 if before else np.zeros(1)
+        t = np.concatenate(totals) / 2.55 if totals else np.zeros(1)
+        ink = InkReport(
+            max_pct_before=float(b.max()),
+            max_pct=float(t.max()),
+            p99_pct=float(np.percentile(t, 99)),
+            limited_share=float(np.mean(t < b - 1e-9)),
+            max_ink_pct=opts.max_ink_pct,
+        )
+    return out.getvalue(), ink
 
 
 @dataclass(frozen=True)
@@ -379,15 +627,20 @@ def print_pdf_pages(
     margin_mm: float = 10.0,
     profile: PrinterProfile = PrinterProfile(),
     cut: bool = True,
-) -> tuple[bytes, list[PrintSheet]]:
+    pdfx: PdfxOptions | None = None,
+) -> tuple[bytes, list[PrintSheet], InkReport | None]:
     """The print PDF of a design with one page per film (arguments as :func:`print_pdf`).
 
     Returns
     -------
     pdf : bytes
+        A PDF/X-4 file.
     sheets : list of PrintSheet
         Per page.
+    ink : InkReport or None
+        With ``pdfx.cmyk``: the total ink of the converted print.
     """
+    pdfx = pdfx or PdfxOptions()
     from reportlab.pdfgen import canvas as rl_canvas
 
     buf = io.BytesIO()
@@ -397,7 +650,8 @@ def print_pdf_pages(
         pagesize=(sheets[0].page_w * PT_PER_MM, sheets[0].page_h * PT_PER_MM),
         invariant=1,
         pageCompression=1,
-        pdfVersion=(1, 5),  # optional content (the cut line's layer)
+        pdfVersion=(1, 6),  # PDF/X-4 is PDF 1.6 (optional content, the cut line's layer: 1.5)
+        initialFontName=embedded_font(),  # else every page lists Helvetica, not embedded
     )
     sizes = "; ".join(f"{p.width_mm:.2f} x {p.height_mm:.2f} mm" for p in pages)
     c.setTitle(f"workbench print: {job_name}")
@@ -408,13 +662,14 @@ def print_pdf_pages(
     c.setViewerPreference("PrintScaling", "None")
     for film_page, sheet in zip(pages, sheets, strict=True):
         c.setPageSize((sheet.page_w * PT_PER_MM, sheet.page_h * PT_PER_MM))
-        _draw_page(c, film_page, sheet, dpi, job_name, job_sha256, bleed_mm, profile, cut)
+        _draw_page(c, film_page, sheet, dpi, job_name, job_sha256, bleed_mm, profile, cut, pdfx.cut_spot)
         c.showPage()
     c.save()
-    return buf.getvalue(), sheets
+    pdf, ink = finish_pdfx(buf.getvalue(), pdfx)
+    return pdf, sheets, ink
 
 
-def _draw_page(c, fp: FilmPage, sheet: PrintSheet, dpi, job_name, job_sha256, bleed_mm, profile, cut) -> None:
+def _draw_page(c, fp: FilmPage, sheet: PrintSheet, dpi, job_name, job_sha256, bleed_mm, profile, cut, spot) -> None:
     """Everything on one film's page: texture with its bleed, cut line, marks, bars, the note line."""
     from PIL import Image
     from reportlab.lib.utils import ImageReader
@@ -451,7 +706,7 @@ def _draw_page(c, fp: FilmPage, sheet: PrintSheet, dpi, job_name, job_sha256, bl
     c.restoreState()
 
     if cut:
-        cut_line(page, sheet.trim, outline_mm)
+        cut_line(page, sheet.trim, outline_mm, spot)
     crop_marks(page, sheet.trim, b)
     registration_marks(page, sheet.trim, b)
     scale_bar(page, *sheet.bar_x, vertical=False)

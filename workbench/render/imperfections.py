@@ -59,6 +59,11 @@ class Imperfections:
         Seed of the noise.
     defects : tuple of str
         Local film defects (:mod:`workbench.render.defects` specification strings).
+    colour_shift_lab : (3,) float
+        Every colour of the print shifted by (ΔL*, Δa*, Δb*) in CIELAB D50 (a wrong ink,
+        profile or press): the truth for colour QA.
+    white_balance : (3,) float
+        Linear gains per channel on the whole scene (part and fixture alike): a coloured light.
     """
 
     film_offset_mm: tuple[float, float] = (0.0, 0.0)
@@ -80,6 +85,8 @@ class Imperfections:
     jpeg_quality: int | None = None
     seed: int = 0
     defects: tuple = ()
+    colour_shift_lab: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self):

@@ -72,8 +72,59 @@ def board_texture(definition: dict) -> tuple[np.ndarray, float]:
     ppm = BOARD_PX_PER_MM
     img = spec.opencv().generateImage((int(round(bw * ppm)), int(round(bh * ppm))), marginSize=0, borderBits=1)
     m = int(round(PLATE_MARGIN_MM * ppm))
-    img = cv2.copyMakeBorder(img, m, m, m, m, cv2.BORDER_CONSTANT, value=255)
-    return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB), ppm
+    extra = int(round(plate_extension_mm(definition) * ppm))
+    img = cv2.copyMakeBorder(img, m, m + extra, m, m, cv2.BORDER_CONSTANT, value=255)
+    img = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB)
+    chart = definition.get("colour_chart")
+    if chart is not None:
+        paint_chart(img, chart, ppm, m)
+    return img, ppm
+
+
+def plate_extension_mm(definition: dict) -> float:
+    """How far the plate reaches beyond the board's bottom margin to hold the colour chart (0: no chart)."""
+    chart = definition.get("colour_chart")
+    if chart is None:
+        return 0.0
+    bh = definition["squares"][1] * definition["square_mm"]
+    return max(chart["frame_board_mm"][3] + PLATE_MARGIN_MM / 2 - (bh + PLATE_MARGIN_MM), 0.0)
+
+
+def paint_chart(img: np.ndarray, chart: dict, ppm: float, margin_px: int) -> None:
+    """Paint a ColorChecker on the plate image, in place: its black frame and each patch's reference sRGB.
+
+    The patches take their colours from the definition's CIELAB D50 values
+    (:func:`workbench.printing.boards.chart_srgb`), so a render carries the chart's truth.
+    Pixel (i, j) of the plate image covers board mm [(j - m) / ppm, (j + 1 - m) / ppm]: a
+    rectangle is painted on the pixels whose centres it holds.
+    """
+    from workbench.printing.boards import chart_srgb
+
+    def span(a_mm, b_mm):
+        return int(np.ceil(a_mm * ppm + margin_px - 0.5)), int(np.ceil(b_mm * ppm + margin_px - 0.5))
+
+    x0, y0, x1, y1 = chart["frame_board_mm"]
+    (j0, j1), (i0, i1) = span(x0, x1), span(y0, y1)
+    img[i0:i1, j0:j1] = chart_srgb([[20.0, 0.0, 0.0]])[0]  # the chart's frame: a matte black
+    rgb = chart_srgb([p["lab_d50"] for p in chart["patches"]])
+    for p, colour in zip(chart["patches"], rgb, strict=True):
+        c = np.asarray(p["corners_board_mm"])
+        (j0, j1), (i0, i1) = span(c[0, 0], c[1, 0]), span(c[0, 1], c[2, 1])
+        img[i0:i1, j0:j1] = colour
+
+
+def shift_colours(rgb: np.ndarray, shift_lab) -> np.ndarray:
+    """Every colour of an sRGB image shifted in CIELAB D50 by (ΔL*, Δa*, Δb*), back to sRGB (clipped); uint8.
+
+    Computed per distinct colour (prints have few), then looked up.
+    """
+    from workbench.validate.colour import lab_to_linear_srgb, linear_srgb_to_lab, srgb_decode, srgb_encode
+
+    flat = rgb.reshape(-1, 3)
+    colours, inverse = np.unique(flat, axis=0, return_inverse=True)
+    lab = linear_srgb_to_lab(srgb_decode(colours / 255.0)) + np.asarray(shift_lab, dtype=np.float64)
+    out = np.clip(np.round(srgb_encode(np.maximum(lab_to_linear_srgb(lab), 0)) * 255), 0, 255).astype(np.uint8)
+    return out[inverse.ravel()].reshape(rgb.shape)
 
 
 def build_scene(
@@ -121,6 +172,8 @@ def build_scene(
         q[vertex_film == film - 1] -= [dx, dy]
     uv = q * ppm - 0.5
     normals = vertex_normals(V, F)
+    if any(imp.colour_shift_lab):
+        print_rgb = shift_colours(print_rgb, imp.colour_shift_lab)
     if imp.defects:
         # the film's defects live in its texture: every lookup of the print shows them
         print_rgb = apply_defects(print_rgb, dpi, [Defect.parse(d) for d in imp.defects])
@@ -148,6 +201,9 @@ def build_scene(
 def board_scene(definition: dict, origin_mm=(0.0, 0.0, 0.0)) -> Scene:
     """A printed ChArUco board (with a white margin) lying flat, its top edge towards +y.
 
+    With a ``colour_chart`` in the definition, the plate reaches on under the board and
+    carries the chart where the definition puts it.
+
     Board point (x, y) (board frame: x right, y down, mm) is at origin + (x, -y, 0).
 
     Parameters
@@ -166,7 +222,7 @@ def board_scene(definition: dict, origin_mm=(0.0, 0.0, 0.0)) -> Scene:
     img, bppm = board_texture(definition)
     m = PLATE_MARGIN_MM
     bw = definition["squares"][0] * definition["square_mm"]
-    bh = definition["squares"][1] * definition["square_mm"]
+    bh = definition["squares"][1] * definition["square_mm"] + plate_extension_mm(definition)
     o = np.asarray(origin_mm, dtype=np.float64)
     corners = np.array([[-m, -m], [bw + m, -m], [bw + m, bh + m], [-m, bh + m]])
     V = np.stack([o[0] + corners[:, 0], o[1] - corners[:, 1], np.full(4, o[2])], axis=1)
@@ -369,10 +425,16 @@ def render_linear(scene: Scene, camera: Camera, imp: Imperfections, supersample:
 
 
 def finish(img: np.ndarray, imp: Imperfections) -> np.ndarray:
-    """Sensor and file effects on a linear image (float, 0 to 255): vignetting, exposure,
-    gamma, blur, noise, quantisation, JPEG."""
+    """Sensor and file effects on a linear image (float, 0 to 255): the light's colour (white
+    balance), vignetting, exposure, gamma, blur, noise, quantisation, JPEG."""
     H, W = img.shape[:2]
     out = img.astype(np.float32)
+    wb = np.asarray(imp.white_balance, dtype=np.float64)
+    if not np.allclose(wb, 1.0):
+        # the light's colour multiplies linear light (the image holds sRGB-encoded values)
+        from workbench.validate.colour import srgb_decode, srgb_encode
+
+        out = (255.0 * srgb_encode(srgb_decode(out / 255.0) * wb)).astype(np.float32)
     if imp.vignetting:
         yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
         r2 = ((xx - (W - 1) / 2) ** 2 + (yy - (H - 1) / 2) ** 2) / (((W - 1) / 2) ** 2 + ((H - 1) / 2) ** 2)

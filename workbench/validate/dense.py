@@ -24,6 +24,7 @@ Conventions: print pixel (i, j) of the analysis grid has its centre at
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -39,8 +40,29 @@ MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at
 REGISTRATION_BLUR_PX = 1.0  # both images smoothed alike before the flow (as the tiles are)
 NORM_SIGMA_PX = 6.0  # window of the local exposure normalisation before the flow
 TENSOR_SIGMA_PX = 3.0  # window of the structure tensor
-MIN_EDGE = 4.0  # structure-tensor eigenvalue (grey levels² per px²) of a usable edge
-MIN_TWO_WAY = 4.0  # smaller eigenvalue for the full vector
+# structure-tensor eigenvalue (grey levels² per px², in the photo's contrast at its resolution)
+# where the dense flow is the pixel's own: DIS fills weakly textured areas from their
+# neighbours (its smoothness term), so below this the flow there is theirs, however low the
+# noise (measured: a 1 mm bubble's flow spread 3 mm into plain paper below it). It is about
+# an edge of 10 grey levels' contrast, the least a designer draws on purpose.
+MIN_EDGE = 4.0
+MIN_TWO_WAY = 4.0  # the same for the smaller eigenvalue: the full vector
+# a defect is significant when the misregistration (or colour residual) exceeds the tolerance
+# by more than this many of its standard uncertainties: one-sided 0.13 % per pixel, so a perfect
+# photo's chance exceedances are single pixels, which the defects' opening removes
+SIGNIFICANCE_Z = 3.0
+# the least noise assumed, grey levels: 8-bit quantisation of the photo and of the print
+# (0.29 each) and their resampling through the warp
+NOISE_FLOOR = 0.5
+# the gain a pixel may have of its own beyond the exposure fit: shading within a crease (seen
+# on the face mask: 0.63 of the fitted brightness over 8 mm² under the jaw)
+SHADING = 1.6
+# the dense flow's own accuracy floor, grid px: DIS (medium preset) on locally normalised
+# 8-bit images errs by 0.02 to 0.04 px RMS on band-limited textures however low the noise
+# (measured in tests/test_uncertainty.py: 0.040 px for features 1.5 px across, 0.019 px for
+# 3 px, at noise 1, where the least-squares bound is 0.005 px); the larger is taken
+FLOW_FLOOR_PX = 0.04
+UNRESOLVED_KEEP = 0.25  # share of the print's gradient energy a photo must keep to resolve its detail
 EXPOSURE_SIGMA_PX = 40.0  # window of the local gain/offset fit: larger than any defect it must not absorb
 COLOUR_TOL = 40.0  # grey levels (0-255) beyond the exposure model that make a colour defect
 SATURATED = 250  # a channel this bright is clipped: a highlight
@@ -54,7 +76,8 @@ DEPTH_STEP_BAND_PX = 3.0  # photo pixels not scored on each side of such a step,
 MAX_GRAZING = 3.0  # a photo pixel covering more print pixels than this (along its long axis) is too oblique
 
 # states of a print pixel in one photo, in increasing order of what it says (the combined map keeps the highest)
-OFF_PART, NOT_SEEN, OCCLUDED, GRAZING, EDGE, SHADOWED, HIGHLIGHT, COLOUR_ONLY, NORMAL, FULL, DEFECT = range(11)
+OFF_PART, NOT_SEEN, OCCLUDED, GRAZING, EDGE, SHADOWED, HIGHLIGHT = range(7)
+COLOUR_ONLY, UNRESOLVED, NORMAL, FULL, DEFECT = range(7, 12)
 STATE_NAMES = [
     "off the part",
     "not seen",
@@ -63,12 +86,13 @@ STATE_NAMES = [
     "at the edge of what is seen",
     "deep shadow",
     "highlight",
-    "measured: colour only (no texture)",
+    "measured: colour only (too little texture for the photo's noise)",
+    "measured: colour only (detail finer than the photo resolves)",
     "measured: colour and shift across an edge",
     "measured: colour and full shift",
     "defective",
 ]
-MEASURED = (COLOUR_ONLY, NORMAL, FULL, DEFECT)
+MEASURED = (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL, DEFECT)
 
 
 @dataclass
@@ -180,6 +204,9 @@ def warp_to_print(
         measure) or FULL (seen: to be scored).
     scale : float
         Photo pixels per grid pixel (median over the part; below 1 the photo is coarser).
+    footprint : (rows, cols) float32
+        Photo pixels per grid pixel at each grid pixel, along the grid axis the photo samples
+        least (obliquity included): how finely the photo sees the print there.
     """
     rows, cols = grid.X.shape[:2]
     on = np.isfinite(grid.X[..., 0])
@@ -209,7 +236,7 @@ def warp_to_print(
     # a fold in front of what lies behind it), the blur spreads the nearer surface's colour
     # over the other: a band there, measured in the photo, is not scored
     pre_blur = 0.5 * np.sqrt(scale * scale - 1.0) if scale > 1.5 else 0.0
-    steps = depth_steps(pdepth, DEPTH_STEP_BAND_PX + 2.0 * pre_blur)
+    steps = depth_steps(pdepth, DEPTH_STEP_BAND_PX + 2.0 * pre_blur, float(cam.K[0, 0]))
     at = inside_ideal & (st == FULL)
     ix = np.clip(np.rint(xy[at, 0]).astype(np.int64), 0, ideal.width - 1)
     iy = np.clip(np.rint(xy[at, 1]).astype(np.int64), 0, ideal.height - 1)
@@ -219,7 +246,8 @@ def warp_to_print(
         # a grid pixel whose photo footprint is much thinner along one axis than the other
         oblique = np.maximum(along_x, along_y) / np.minimum(along_x, along_y) > MAX_GRAZING
     state[(state == FULL) & oblique] = GRAZING
-    return warped, state, scale
+    footprint = np.where(ok, np.minimum(along_x, along_y), 0.0).astype(np.float32)
+    return warped, state, scale, footprint
 
 
 def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth: np.ndarray):
@@ -268,7 +296,7 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
     return xy, lens, framed(lens), framed(xy), shown
 
 
-def depth_steps(depth: np.ndarray, radius_px: float) -> np.ndarray:
+def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) -> np.ndarray:
     """Photo pixels near a step in depth: the part's outline, or one surface in front of another.
 
     Parameters
@@ -277,6 +305,13 @@ def depth_steps(depth: np.ndarray, radius_px: float) -> np.ndarray:
         Depth buffer of the part in the undistorted photo camera, mm (+inf where no part).
     radius_px : float
         Width of the band on each side of a step, photo pixels.
+    fx : float, optional
+        The camera's focal length, pixels. With it, a step is a depth change between
+        neighbours larger than any scored surface has: one pixel spans z / fx mm at depth z,
+        so a surface seen at the largest obliquity that is scored (cos θ = 1 / MAX_GRAZING)
+        changes depth by tan θ · z / fx per pixel; a step is twice that (a neck 30 mm
+        behind a jaw seen from 900 mm is 3 %, under the relative DEPTH_STEP). Without it,
+        a relative jump of DEPTH_STEP.
 
     Returns
     -------
@@ -289,7 +324,13 @@ def depth_steps(depth: np.ndarray, radius_px: float) -> np.ndarray:
     # a smooth surface changes depth by a fraction of a percent per pixel up to grazing
     # angles that are not scored anyway; the background, or a surface behind a fold,
     # by far more
-    step = (far - near > DEPTH_STEP * near).astype(np.uint8)
+    if fx is None:
+        limit = DEPTH_STEP * near
+    else:
+        tan_max = np.sqrt(MAX_GRAZING**2 - 1.0)
+        # the 3 x 3 window spans two pixels each way
+        limit = np.minimum(DEPTH_STEP, 2.0 * 2.0 * tan_max / fx) * near
+    step = (far - near > limit).astype(np.uint8)
     r = max(int(np.ceil(radius_px)), 1)
     return cv2.dilate(step, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
 
@@ -475,7 +516,7 @@ def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     return l1, l2, e1.astype(np.float32)
 
 
-def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray) -> np.ndarray:
+def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray, normalised: bool = False):
     """Where each photo pixel's content sits in the design: misregistration per pixel, grid px.
 
     DIS optical flow from the warped photo to the print, both normalised for local
@@ -492,17 +533,22 @@ def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray
     scored : (H, W) bool
         Where the photo has data.
 
+    normalised : bool
+        Also return the two normalised images the flow compared.
+
     Returns
     -------
     (H, W, 2) float32
         Misregistration m, grid pixels (x right, y down).
+    ref_n, photo_n : (H, W) uint8
+        With ``normalised``: the print and the photo as the flow saw them.
     """
     r = local_normalise(ref_gray, NORM_SIGMA_PX)
     w = local_normalise(warped_gray, NORM_SIGMA_PX)
     w = np.where(scored, w, r)
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
     g = dis.calc(w, r, None)
-    return -g
+    return (-g, r, w) if normalised else -g
 
 
 def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma: float):
@@ -593,6 +639,11 @@ class DenseResult:
         not measured).
     shift_mm : (rows, cols) float32
         Its length on the surface, mm (NaN where not measured).
+    sigma_mm : (rows, cols) float32
+        Standard uncertainty of ``shift_mm``, mm on the surface (NaN where not measured):
+        the photo's noise through the texture the photo resolves there, what the model does
+        not explain (a PSF or colour the design does not predict), and the flow's
+        forward-backward disagreement.
     colour_residual : (rows, cols) float32
         Largest channel residual after the exposure fit, grey levels (NaN where not scored).
     missing : (rows, cols) bool
@@ -607,9 +658,18 @@ class DenseResult:
         vector, 1 the component across an edge, 0 nothing.
     defects : list of dict
         Each defect: centre_mm (print), area_mm2 (print), area_surface_mm2, bbox_mm, kind,
-        peak_mm and mean_mm (misregistration), colour_peak (grey levels).
+        peak_mm and mean_mm (misregistration), colour_peak (grey levels), significance_z and
+        confidence.
     blur_px : float
         The photo's blur on the grid, sigma.
+    noise : float
+        The photo's noise on the grid, grey levels (standard deviation at the flow's scale).
+    resolution : dict
+        How finely the photo samples the print (photo px per surface mm, median), what it
+        cannot resolve (share of the scored print) and the resolution that would resolve it.
+    detection_limit : dict
+        The smallest defects this photo can find: area (mm² on the print) and misregistration
+        (mm on the surface, median over what it measures).
     """
 
     warped: np.ndarray
@@ -623,12 +683,233 @@ class DenseResult:
     blur_px: float
     flow_px: np.ndarray
     texture: np.ndarray
+    sigma_mm: np.ndarray | None = None
+    noise: float = 0.0
+    resolution: dict | None = None
+    detection_limit: dict | None = None
+
+
+def flow_uncertainty(
+    pred_s: np.ndarray, photo_s: np.ndarray, weight: np.ndarray, window_px: float, correlation_px: float = 1.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
+    """Standard uncertainty of a local flow estimate, along the weakest and the strongest direction.
+
+    A flow estimated over a window with weights w is a least-squares fit of the photo's
+    grey levels to the model's moved by d: photo ≈ model + ∇model · d. With residuals of
+    variance σ² that are independent from pixel to pixel (noise), its covariance is
+    σ² (Σ w ∇∇ᵀ)⁻¹ (Σ w² ∇∇ᵀ) (Σ w ∇∇ᵀ)⁻¹ = σ² / (N T), with T the window's structure
+    tensor (a weighted mean) and N = (Σ w)² / Σ w² = 4π s² the window's effective number
+    of pixels (Gaussian window of sigma s). A residual the model does not explain (its PSF,
+    shading or colour differ from the photo's) is not independent from pixel to pixel: it
+    is correlated over the photo's blur c, so the window holds only M = s² / c² independent
+    samples of it (at least 1). So, along an eigenvector of T with eigenvalue λ,
+    var = σ_n² / (N λ) + max(r² - σ_n², 0) / (M λ), where r² is the window's mean squared
+    residual and σ_n the photo's noise; plus the flow's own floor, FLOW_FLOOR_PX², which
+    no texture or noise level goes below.
+
+    Parameters
+    ----------
+    pred_s : (H, W) float32
+        The model of the photo (the print moved by the flow, blurred like the photo, in the
+        photo's exposure), grey levels, smoothed like the images the flow compares.
+    photo_s : (H, W) float32
+        The photo on the print, smoothed alike.
+    weight : (H, W) bool
+        Pixels that may inform the estimate.
+    window_px : float
+        The flow's window, Gaussian sigma, grid px.
+    correlation_px : float
+        Over how far the model's error is correlated: the photo's blur, grid px (at least 1).
+
+    Returns
+    -------
+    sigma_weak, sigma_strong : (H, W) float32
+        Uncertainty of the full vector (along the weakest direction) and of the component
+        across the dominant edge, grid px (inf without texture).
+    e1 : (H, W, 2) float32
+        The dominant edge's normal.
+    noise : float
+        σ_n, grey levels: the robust spread of the residual over ``weight`` (a median, which
+        edges and defects, a minority, do not move), at least NOISE_FLOOR.
+    l1, l2 : (H, W) float32
+        The structure tensor's eigenvalues, grey levels² per px².
+    """
+    res = photo_s - pred_s
+    w = weight.astype(np.float32)
+    noise = float(1.4826 * np.median(np.abs(res[weight]))) if weight.any() else NOISE_FLOOR
+    noise = max(noise, NOISE_FLOOR)
+    sw = cv2.GaussianBlur(w, (0, 0), window_px) + 1e-6
+    r2 = cv2.GaussianBlur(res * res * w, (0, 0), window_px) / sw
+    mismatch = np.maximum(r2 - noise * noise, 0.0)
+    l1, l2, e1 = structure_tensor(pred_s, window_px)
+    n_eff = 4.0 * np.pi * window_px * window_px
+    m_eff = max(1.0, (window_px / max(correlation_px, 1.0)) ** 2)
+    floor2 = FLOW_FLOOR_PX * FLOW_FLOOR_PX
+    with np.errstate(divide="ignore", invalid="ignore"):
+        weak = np.sqrt(noise * noise / (n_eff * l2) + mismatch / (m_eff * l2) + floor2)
+        strong = np.sqrt(noise * noise / (n_eff * l1) + mismatch / (m_eff * l1) + floor2)
+    weak = np.where(np.isfinite(weak), weak, np.inf).astype(np.float32)
+    strong = np.where(np.isfinite(strong), strong, np.inf).astype(np.float32)
+    return weak, strong, e1, noise, l1, l2
+
+
+def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray) -> np.ndarray:
+    """How far the flow from the photo to the print and the flow back disagree, grid px.
+
+    With m the misregistration at the photo's pixel y (its content was designed at
+    z = y - m), the flow back from the print, b (print(z) ≈ photo(z + b(z))), carries z back
+    to y: b(y - m(y)) = m(y) where both are right. Where the texture is ambiguous (repeated
+    strokes, detail the photo does not resolve) the two flows settle on different answers.
+
+    Parameters
+    ----------
+    flow_m : (H, W, 2) float32
+        Misregistration from :func:`dense_flow`, grid px.
+    ref_n, photo_n : (H, W) uint8
+        The locally normalised print and photo the forward flow compared.
+
+    Returns
+    -------
+    (H, W) float32
+        |b(y - m(y)) - m(y)|, grid px.
+    """
+    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+    # print(x) ≈ photo(x + b(x)): b carries a print pixel to where the photo shows it
+    b = dis.calc(ref_n, photo_n, None)
+    H, W = flow_m.shape[:2]
+    jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
+    back = cv2.remap(b, jj - flow_m[..., 0], ii - flow_m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    bx, by = back[..., 0], back[..., 1]
+    return np.hypot(bx - flow_m[..., 0], by - flow_m[..., 1]).astype(np.float32)
+
+
+BLUR_LEVELS = (0.0, 0.75, 1.0, 1.5, 2.0, 3.0, 4.5, 6.0)  # grid px: the blurs a local PSF is rounded to
+
+
+def local_psf(blur: float, scale: float, footprint: np.ndarray) -> np.ndarray:
+    """The photo's blur at each grid pixel, Gaussian sigma in grid px.
+
+    ``blur`` is measured over the whole photo, where it samples the print at ``scale``
+    photo pixels per grid pixel (its median); a lens's blur is fixed in photo pixels, so
+    where the photo samples the print at ``footprint`` it is ``blur · scale / footprint``
+    (and never less than ``blur``: the print itself is no sharper than measured).
+
+    Parameters
+    ----------
+    blur : float
+        Measured blur, grid px.
+    scale : float
+        Median photo px per grid px.
+    footprint : (H, W) float
+        Photo px per grid px per pixel (0: not seen).
+
+    Returns
+    -------
+    (H, W) float32
+        At most BLUR_LEVELS[-1].
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.where(footprint > 0, blur * scale / footprint, blur)
+    return np.clip(np.maximum(b, blur), 0.0, BLUR_LEVELS[-1]).astype(np.float32)
+
+
+def blur_levels(sigma: np.ndarray) -> np.ndarray:
+    """Index into BLUR_LEVELS of the level nearest each sigma; (H, W) int8."""
+    levels = np.asarray(BLUR_LEVELS, np.float32)
+    return np.digitize(sigma, 0.5 * (levels[1:] + levels[:-1])).astype(np.int8)
+
+
+def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """An image blurred by a Gaussian whose sigma varies over it (rounded to BLUR_LEVELS).
+
+    Parameters
+    ----------
+    img : (H, W) or (H, W, C) float32
+    sigma : (H, W) float
+        Per pixel, grid px.
+
+    Returns
+    -------
+    Same shape as ``img``.
+    """
+    k = blur_levels(sigma)
+    present = np.unique(k)
+    out = None
+    for i in present:
+        s = float(BLUR_LEVELS[i])
+        b = cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
+        if out is None:
+            out = b.copy() if len(present) > 1 else b
+        else:
+            m = k == i
+            out[m] = b[m]
+    return out
+
+
+def gradient_energy(gray: np.ndarray, blur_px: float) -> np.ndarray:
+    """Local gradient energy of an image blurred by ``blur_px``: the structure tensor's trace, grey levels² per px²."""
+    b = cv2.GaussianBlur(gray, (0, 0), blur_px) if blur_px > 0 else gray
+    gx = cv2.Sobel(b, cv2.CV_32F, 1, 0, ksize=3) / 8
+    gy = cv2.Sobel(b, cv2.CV_32F, 0, 1, ksize=3) / 8
+    return cv2.GaussianBlur(gx * gx + gy * gy, (0, 0), TENSOR_SIGMA_PX)
+
+
+def unresolved_detail(ref_gray: np.ndarray, blur_px: np.ndarray, min_texture: float):
+    """Where the print has detail that the photo's blur there cannot resolve, and the blur that would.
+
+    Detail finer than about two of the photo's pixels loses most of its gradient in the
+    photo; the flow there follows the photo's PSF rather than the print. A print pixel is
+    unresolved where the print has texture (gradient energy ``min_texture``) and the print
+    blurred like the photo keeps less than UNRESOLVED_KEEP of it.
+
+    Parameters
+    ----------
+    ref_gray : (H, W) float32
+        The print, grey levels.
+    blur_px : (H, W) float
+        The photo's blur on the grid at each pixel (:func:`local_psf`), Gaussian sigma, grid px.
+    min_texture : float
+        Gradient energy (grey levels² per px², structure-tensor trace) that counts as detail.
+
+    Returns
+    -------
+    unresolved : (H, W) bool
+    needed_blur : (H, W) float32
+        Where unresolved, the largest blur (grid px) at which the detail would keep
+        UNRESOLVED_KEEP of its energy (0.5: not even then): the photo's blur must come down to
+        it; 0.5 elsewhere.
+    """
+    energy = gradient_energy(ref_gray, 0.5)
+    H, W = ref_gray.shape
+    k = blur_levels(blur_px)
+    candidates = (energy >= min_texture) & (blur_px > 0.5) & (k > 0)
+    unresolved = np.zeros((H, W), bool)
+    needed = np.full((H, W), 0.5, np.float32)
+    if not candidates.any():
+        return unresolved, needed
+    top = int(k[candidates].max())
+    kept = {}
+    for i in range(1, top + 1):
+        e = gradient_energy(ref_gray, float(BLUR_LEVELS[i]))
+        m = candidates & (k == i)
+        unresolved[m] = e[m] < UNRESOLVED_KEEP * energy[m]
+        kept[i] = e
+    for i in range(1, top + 1):
+        # the detail survives this level's blur: a photo this sharp would resolve it
+        ok = unresolved & (kept[i] >= UNRESOLVED_KEEP * energy)
+        needed[ok] = BLUR_LEVELS[i]
+    return unresolved, needed
 
 
 def analyse(
-    grid: PrintGrid, warped: np.ndarray, state: np.ndarray, tolerance_mm: float, scale: float = 1.0
+    grid: PrintGrid,
+    warped: np.ndarray,
+    state: np.ndarray,
+    tolerance_mm: float,
+    scale: float = 1.0,
+    footprint: np.ndarray | None = None,
 ) -> DenseResult:
-    """Dense misregistration, colour residuals, masks and defects of one photo on the print.
+    """Dense misregistration with its uncertainty, colour residuals, masks and defects of one photo on the print.
 
     Parameters
     ----------
@@ -638,11 +919,15 @@ def analyse(
     state : (rows, cols) uint8
         Its visibility states.
     tolerance_mm : float
-        Misregistration beyond this (mm on the surface) is a defect.
+        Misregistration beyond this (mm on the surface) by more than SIGNIFICANCE_Z of its
+        uncertainty is a defect.
     scale : float
         Photo pixels per grid pixel (:func:`warp_to_print`): where the photo is coarser than
         the grid, both images are smoothed to its resolution before the flow (detail the photo
         cannot resolve would otherwise move edges).
+    footprint : (rows, cols) float, optional
+        Photo pixels per grid pixel at each grid pixel (:func:`warp_to_print`); ``scale``
+        everywhere when not given.
 
     Returns
     -------
@@ -669,15 +954,22 @@ def analyse(
     # that blur first is not: misregistration makes more blur look better)
     reg = max(REGISTRATION_BLUR_PX, REGISTRATION_BLUR_PX / max(scale, 1e-3))
     rgb_ = cv2.GaussianBlur(rg, (0, 0), reg)
-    m = dense_flow(rgb_, cv2.GaussianBlur(pg, (0, 0), reg), seen & ~sat)
+    pgb_ = cv2.GaussianBlur(pg, (0, 0), reg)
+    m, ref_n, pho_n = dense_flow(rgb_, pgb_, seen & ~sat, normalised=True)
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
     H, W = rg.shape
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     moved = cv2.remap(ref, jj - m[..., 0], ii - m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat)
-    if blur:
-        moved = cv2.GaussianBlur(moved, (0, 0), blur)
+    # the blur where the photo samples the print coarser than its median (a surface seen
+    # obliquely or from farther): a photo pixel spans 1 / footprint grid pixels there, so its
+    # blur on the grid grows in proportion (one blur for a whole photo of a deep part made
+    # the creases seen at a slant "colour defects": the print's detail the photo cannot show)
+    fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
+    # (rounded to the level of the median where the photo is not scored: nothing there asks for more)
+    local_blur = np.where(inner, local_psf(blur, scale, fp), np.float32(blur))
+    moved = blur_locally(moved, local_blur)
     # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)
     gain, offset = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
@@ -698,23 +990,50 @@ def analyse(
     state[highlight] = HIGHLIGHT
     state[shadow] = SHADOWED
     scored = state == FULL
-    # what the flow can know, from the print's own texture (blurred like the photo)
-    l1, l2, e1 = structure_tensor(rgb_, TENSOR_SIGMA_PX)
-    full = scored & (l2 >= MIN_TWO_WAY)
-    normal = scored & ~full & (l1 >= MIN_EDGE)
+    # what the flow can know there: the photo's noise and what the model does not explain,
+    # through the texture the photo resolves (the model is the print blurred like the photo,
+    # in the photo's own contrast), and where the flow back disagrees, half that disagreement
+    pred_s = cv2.GaussianBlur(cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY), (0, 0), reg)
+    weak, strong, e1, noise, l1, l2 = flow_uncertainty(
+        pred_s, pgb_, scored & (weight > 0), TENSOR_SIGMA_PX, max(1.0, float(np.hypot(blur, reg)))
+    )
+    fb = forward_backward(m, ref_n, pho_n)
+    weak = np.hypot(weak, 0.5 * fb)
+    strong = np.hypot(strong, 0.5 * fb)
+    # surface mm per grid px: print mm times the film's local stretch
+    mm_per_px = (grid.surface_per_print / grid.px_per_mm).astype(np.float32)
+    # a pixel measures misregistration where the flow there is its own (MIN_EDGE) and its
+    # uncertainty lets a shift of twice the tolerance stand out at SIGNIFICANCE_Z
+    # (σ ≤ tolerance / Z); the full vector where the weakest direction does, the component
+    # across the edge where only that one does
+    usable = tolerance_mm / SIGNIFICANCE_Z
+    # (the flow compares locally normalised images, so whether it is the pixel's own depends
+    # on the print's texture, not on the photo's exposure)
+    p1, p2, _ = structure_tensor(rgb_, TENSOR_SIGMA_PX, direction=False)
+    full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
+    normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
+    # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
+    unresolved, needed_blur = unresolved_detail(rg, local_blur, MIN_EDGE)
+    unresolved &= scored
+    full &= ~unresolved
+    normal &= ~unresolved
     shift = np.full((H, W, 2), np.nan, np.float32)
     shift[full] = m[full]
     mn = (m * e1).sum(axis=2, keepdims=True) * e1  # the component across the edge
     shift[normal] = mn[normal]
+    state[scored & ~full & ~normal] = COLOUR_ONLY
+    state[unresolved] = UNRESOLVED
     state[full] = FULL
     state[normal] = NORMAL
     texture = np.zeros((H, W), np.uint8)
     texture[normal] = 1
     texture[full] = 2
-    state[scored & ~full & ~normal] = COLOUR_ONLY
-    # surface mm: print mm times the film's local stretch
-    shift_mm = np.hypot(shift[..., 0], shift[..., 1]) / grid.px_per_mm * grid.surface_per_print
-    colour = np.where(scored, res, np.nan).astype(np.float32)
+    shift_mm = np.hypot(shift[..., 0], shift[..., 1]) * mm_per_px
+    sigma_mm = np.full((H, W), np.nan, np.float32)
+    sigma_mm[full] = (weak * mm_per_px)[full]
+    sigma_mm[normal] = (strong * mm_per_px)[normal]
+    colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
+    colour = np.where(colour_scored, res, np.nan).astype(np.float32)
     # ink missing: the photo matches the bare film's colour, the design does not
     film = np.asarray(FILM_RGB, np.float32)
     film_pred = gain * film + offset
@@ -722,34 +1041,119 @@ def analyse(
     # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
     step = film_pred - pred
     step2 = (step * step).sum(axis=2)
-    inked = scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
+    inked = colour_scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
     with np.errstate(invalid="ignore", divide="ignore"):
         alpha = np.where(inked, ((pho - pred) * step).sum(axis=2) / step2, 0.0)
     alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
     # beyond what blur and the flow's residual error explain: at an edge a fraction of a pixel
     # of either changes the colour by a share of the edge's contrast, so the tolerance grows
-    # with the model's gradient (half a pixel's worth of it)
+    # with the model's gradient (half a pixel's worth of it); and beyond the photo's noise at
+    # SIGNIFICANCE_Z (the largest of three channels' noise is about 1.5 σ)
     gx = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 1, 0, ksize=3) / 8))
     gy = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 0, 1, ksize=3) / 8))
-    colour_bad = scored & (res > COLOUR_TOL + 0.5 * np.hypot(gx, gy))
-    missing = colour_bad & (alpha > 0.5)
-    # a defect's extent from the flow's own vector wherever there is texture: along an edge
-    # the normal component of a shift parallel to it is 0, which bounds the shift from below
-    # only, and would cut a bubble into stripes
-    # (only where a window of about a millimetre has texture in two directions: along a long
-    # straight line the flow's tangential part is unconstrained)
+    colour_noise = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
+    # (half a pixel: of the grid, or of the photo where it samples the print coarser, as
+    # where it sees the surface at a slant: it places the print no better than that)
+    with np.errstate(divide="ignore"):
+        position = np.maximum(0.5, np.where(fp > 0, 0.5 / fp, 0.5)).astype(np.float32)
+    colour_limit = COLOUR_TOL + position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
+    # light, not ink: a crease's own shading changes faster than the exposure fit's window
+    # follows, and scales every channel alike; so the colour test allows each pixel a gain of
+    # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
+    # over a grey ink is twice its brightness, over a colour another hue)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k_px = (pho * pred).sum(axis=2) / np.maximum((pred * pred).sum(axis=2), 1.0)
+    k_px = np.clip(np.nan_to_num(k_px, nan=1.0), 1.0 / SHADING, SHADING)[..., None]
+    res_raw = res
+    res = _residual(pho, k_px * pred)
+    colour = np.where(colour_scored, res, np.nan).astype(np.float32)
+    # (a step towards the bare film's colour is ink gone whatever gain might mimic it: film
+    # white over a light ink is a gain of 1.2)
+    gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
+    colour_bad = (colour_scored & (res > colour_limit)) | gone
+    missing = gone
+    # a defect's extent from the flow's own vector wherever a window of about a millimetre
+    # has texture in two directions: along an edge the normal component of a shift parallel
+    # to it is 0, which bounds the shift from below only, and would cut a bubble into stripes
+    # (along a long straight line the flow's tangential part is unconstrained: there the
+    # measured component is used)
     _, l2_wide, _ = structure_tensor(rgb_, 4 * TENSOR_SIGMA_PX, direction=False)
-    m_mm = np.hypot(m[..., 0], m[..., 1]) / grid.px_per_mm * grid.surface_per_print
-    m_use = np.where(l2_wide >= MIN_TWO_WAY, m_mm, shift_mm)
-    shift_bad = (full | normal) & (m_use > tolerance_mm)
-    # the honest measure (full vector, or the component across an edge) beyond the tolerance:
-    # a region without any of it is the flow's guess along edges, not a defect
-    evidence = (full | normal) & (shift_mm > tolerance_mm)
-    labels, defects = find_defects(shift_bad, colour_bad, missing, shift_mm, res, grid, alpha, evidence)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wide_sigma = np.sqrt(noise * noise / (4 * np.pi * (4 * TENSOR_SIGMA_PX) ** 2 * l2_wide)) * mm_per_px
+    wide_ok = (l2_wide >= MIN_TWO_WAY) & (np.nan_to_num(wide_sigma, nan=np.inf) <= usable)
+    m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
+    m_use = np.where(wide_ok, m_mm, shift_mm)
+    s_use = np.where(wide_ok, np.maximum(np.nan_to_num(sigma_mm, nan=0.0), np.nan_to_num(wide_sigma)), sigma_mm)
+    shift_bad = (full | normal) & (m_use > tolerance_mm + SIGNIFICANCE_Z * s_use)
+    # the honest measure (full vector, or the component across an edge) significantly beyond
+    # the tolerance: a region without any of it is the flow's guess along edges, not a defect
+    z_shift = (shift_mm - tolerance_mm) / sigma_mm
+    evidence = (full | normal) & (z_shift > SIGNIFICANCE_Z)
+    z_colour = (res - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
+    labels, defects = find_defects(
+        shift_bad,
+        colour_bad,
+        missing,
+        shift_mm,
+        res,
+        grid,
+        alpha,
+        evidence,
+        z_shift,
+        z_colour,
+        TENSOR_SIGMA_PX,
+        m_mm,
+        scored,
+    )
     # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
-    state[(labels > 0) & np.isin(state, (COLOUR_ONLY, NORMAL, FULL))] = DEFECT
+    state[(labels > 0) & np.isin(state, (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL))] = DEFECT
+    # how finely the photo samples the print, and what it cannot resolve
+    photo_px_per_mm = np.where(scored, fp / mm_per_px, np.nan)
+    median_res = float(np.nanmedian(photo_px_per_mm)) if scored.any() else None
+    needed, factor = None, None
+    if unresolved.any():
+        # the photo's blur scales with its pixel: to bring it from ``blur`` down to what the
+        # detail needs, the photo needs blur / needed_blur times as many pixels per mm
+        k = local_blur[unresolved] / needed_blur[unresolved]
+        factor = float(np.percentile(k, 90))
+        needed = median_res * factor if median_res else None
+    n_scored = max(int(scored.sum()), 1)
+    resolution = {
+        "photo_px_per_mm": median_res,
+        "unresolved_share": float(unresolved.sum() / n_scored),
+        "needed_resolution_factor": factor,
+        "needed_photo_px_per_mm": needed,
+        "note": (
+            "detail of the print finer than about two photo pixels (strokes of small text) is "
+            "'unresolved': its misregistration is not measured; a photo needed_resolution_factor times as "
+            "fine (needed_photo_px_per_mm on the median) would resolve 90 % of it"
+        ),
+    }
+    med_sigma = float(np.nanmedian(sigma_mm)) if np.isfinite(sigma_mm).any() else None
+    # a defect must cover MIN_DEFECT_MM2 and span a few photo pixels each way (the opening
+    # and closing in find_defects work on 3 x 3 grid pixels) to be found
+    px_mm = (1.0 / median_res) if median_res else None
+    detection = {
+        "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),
+        "min_shift_mm": (tolerance_mm + SIGNIFICANCE_Z * med_sigma) if med_sigma is not None else None,
+        "significance_z": SIGNIFICANCE_Z,
+    }
     return DenseResult(
-        warped, state, shift, shift_mm.astype(np.float32), colour, missing, labels, defects, blur, m, texture
+        warped,
+        state,
+        shift,
+        shift_mm.astype(np.float32),
+        colour,
+        missing,
+        labels,
+        defects,
+        blur,
+        m,
+        texture,
+        sigma_mm,
+        noise,
+        resolution,
+        detection,
     )
 
 
@@ -779,7 +1183,21 @@ def _filled(region: np.ndarray) -> np.ndarray:
     return out.astype(bool) | region
 
 
-def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: PrintGrid, alpha=None, evidence=None):
+def find_defects(
+    shift_bad,
+    colour_bad,
+    missing,
+    shift_mm,
+    colour_res,
+    grid: PrintGrid,
+    alpha=None,
+    evidence=None,
+    z_shift=None,
+    z_colour=None,
+    window_px: float = TENSOR_SIGMA_PX,
+    extent=None,
+    measured=None,
+):
     """Connected regions of excess misregistration or colour residual, sized on the print.
 
     Parameters
@@ -797,6 +1215,17 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
     evidence : (H, W) bool, optional
         Where the misregistration actually measured (full vector, or the component across
         an edge) exceeds the tolerance; a shift region needs a quarter of its pixels there.
+    z_shift, z_colour : (H, W) float, optional
+        Per pixel, by how many standard uncertainties the misregistration and the colour
+        residual exceed their tolerances.
+    window_px : float
+        The flow's window (Gaussian sigma, grid px): pixels closer than about its size share
+        their evidence, so a region of n pixels holds n / (4π window²) independent ones.
+    extent, measured : (H, W) float and bool, optional
+        The misregistration that sizes a shift region (mm; the flow's own vector, which DIS
+        spreads evenly over plain patches and across the region's edge) and where the photo
+        is scored: a region extends over the scored pixels around it where ``extent`` is at
+        least half its median.
 
     Returns
     -------
@@ -812,7 +1241,9 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
     both = cv2.morphologyEx(sb | cb, cv2.MORPH_CLOSE, k3)
     n, lab = cv2.connectedComponents(both, connectivity=8)
     px_mm2 = 1.0 / grid.px_per_mm**2
-    found = []
+    # each region's kind and pixels; a shift region grown to where the flow reaches half its
+    # shift, and shift regions that grow into one another merged (one bubble, one defect)
+    regions = []
     for k in range(1, n):
         region = lab == k
         s_px, c_px = region & (sb > 0), region & (cb > 0)
@@ -825,9 +1256,33 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
         # tests); ink that is gone leaves a lot, and drags the flow around it too
         if nc >= 0.2 * ns:
             kind = "missing" if (region & missing).sum() > 0.5 * nc else "colour"
-            sized = c_px
         else:
             kind = "shift"
+            if extent is not None:
+                # found by significance, sized at half its height: the flow ramps from the slid
+                # region's shift to 0 over the flow's window, and crosses half of it at the
+                # region's edge whatever the tolerance (the tolerance's threshold would size a
+                # large slide too large and a slide just above the tolerance too small)
+                level = 0.5 * float(np.median(extent[s_px]))
+                _, lab_h = cv2.connectedComponents(((extent >= level) & measured).astype(np.uint8), connectivity=8)
+                hit = np.unique(lab_h[s_px])
+                s_px = np.isin(lab_h, hit[hit > 0]) | s_px
+        regions.append([kind, region, s_px, c_px, ns, nc])
+    merged: list = []
+    for r in sorted(regions, key=lambda r: -int(r[2].sum())):
+        if r[0] == "shift":
+            into = next((m for m in merged if m[0] == "shift" and (m[2] & r[2]).any()), None)
+            if into is not None:
+                into[1] |= r[1]
+                into[2] |= r[2]
+                into[4] += r[4]
+                continue
+        merged.append(r)
+    found = []
+    for kind, region, s_px, c_px, ns, nc in merged:
+        if kind != "shift":
+            sized = c_px
+        else:
             # a shift shows only where there is texture: the slid region's plain patches between
             # its edges belong to it too (a closing of SHIFT_CLOSE_MM: 1.5 mm made a 12 mm bubble
             # 10 % too large, none left a 6 mm one 15 % too small; 1 mm: -1 % and -12 %)
@@ -849,6 +1304,13 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
             float(((ii + 0.5) * wts).sum() / wts.sum() / grid.px_per_mm),
         ]
         sm = shift_mm[region & np.isfinite(shift_mm)]
+        # the region's significance: its mean excess in standard uncertainties, times the
+        # square root of its independent measurements; the confidence is the one-sided
+        # normal probability that the excess is not chance
+        zmap = z_colour if kind != "shift" else z_shift
+        zs = zmap[sized & np.isfinite(zmap)] if zmap is not None else np.zeros(0)
+        n_ind = max(1.0, len(zs) / (4 * np.pi * window_px * window_px))
+        z = float(np.clip(np.mean(zs), 0, None) * np.sqrt(n_ind)) if len(zs) else None
         found.append(
             {
                 "kind": kind,
@@ -864,6 +1326,8 @@ def find_defects(shift_bad, colour_bad, missing, shift_mm, colour_res, grid: Pri
                 "peak_mm": float(sm.max()) if len(sm) else None,
                 "mean_mm": float(sm.mean()) if len(sm) else None,
                 "colour_peak": float(np.nanmax(colour_res[region])) if nc else 0.0,
+                "significance_z": z,
+                "confidence": (float(0.5 * math.erfc(-z / math.sqrt(2))) if z is not None else None),
                 "shift_area_mm2": ns * px_mm2,
                 "colour_area_mm2": nc * px_mm2,
                 "_mask": _filled(region),
@@ -894,3 +1358,36 @@ def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> 
             },
         }
     return out
+
+
+def placement_samples(dr: DenseResult, grid: PrintGrid, max_sigma_mm: float, stride: int = 4):
+    """Print points the dense field measures accurately, and where the photo shows their content.
+
+    Parameters
+    ----------
+    dr : DenseResult
+    grid : PrintGrid
+    max_sigma_mm : float
+        Largest uncertainty (mm on the surface) of a pixel taken.
+    stride : int
+        Every ``stride``-th pixel along each axis (neighbours share their flow window).
+
+    Returns
+    -------
+    p_design, p_shown : (n, 2) float
+        Print mm (x right, y down): the content designed at p_design shows at p_shown.
+    shift_mm : (n,) float
+        The misregistration there, mm on the surface.
+    windows : float
+        How many independent flow windows the accurate pixels hold (all of them, not only
+        the ``stride`` samples).
+    """
+    ok = (dr.texture == 2) & np.isfinite(dr.sigma_mm) & (dr.sigma_mm <= max_sigma_mm)
+    windows = float(ok.sum()) / (4.0 * np.pi * TENSOR_SIGMA_PX**2)
+    sub = np.zeros_like(ok)
+    sub[::stride, ::stride] = True
+    ii, jj = np.nonzero(ok & sub)
+    # the photo's pixel y shows the content designed at y - m (grid px; centres at + 0.5)
+    y = np.stack([jj + 0.5, ii + 0.5], axis=1) / grid.px_per_mm
+    m = dr.flow_px[ii, jj].astype(np.float64) / grid.px_per_mm
+    return y - m, y, dr.shift_mm[ii, jj].astype(np.float64), windows

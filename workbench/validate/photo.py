@@ -21,8 +21,17 @@ from workbench.validate import dense, pictures
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
-from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, photo_verdict
-from workbench.validate.score import TILE, _bilinear, score, view_surface, warp_photo
+from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, MIN_DENSE_WINDOWS, MIN_TILES, photo_verdict
+from workbench.validate.score import (
+    TILE,
+    TILE_SIGMA_SHARE,
+    _bilinear,
+    fit_film,
+    printed_view,
+    score,
+    view_surface,
+    warp_photo,
+)
 
 
 def sha256(path: Path) -> str:
@@ -155,21 +164,24 @@ def validate_photo(
             view_surface(cam, design.V, design.F, design.flat, p["height_mm"], design.owner, vi, p["dpi"] / 25.4),
             design.view_image(vi),
         )
-    surface, view_rgb = cache[vi]
+        cache[vi] += (printed_view(cache[vi][0], design.rgb, p["dpi"] / 25.4, cache[vi][1]),)
+    surface, view_rgb = cache[vi][:2]
     clock.append(time.perf_counter())  # pose
     warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
     p = design.info["print"]
     clock.append(time.perf_counter())  # warps
-    sc = score(view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]))
+    sc = score(
+        view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]), tolerance_mm, cache[vi][2]
+    )
     if "grid" not in cache:
         cache["grid"] = dense.print_grid(
             design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
         )
     grid = cache["grid"]
     clock.append(time.perf_counter())  # tiles
-    on_print, state, scale = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
+    on_print, state, scale, footprint = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
-    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale)
+    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint)
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
     entry.update(
         {
@@ -196,6 +208,25 @@ def validate_photo(
         edges = cache["seams"]
         seen = seams_seen(edges.X, design.view_camera(name), surface, valid)
         entry["seams"] = seam_misregistration(edges, entry["films"], films, p["dpi"] / 25.4, seen)
+    entry["misregistration_source"] = "tiles"
+    if len(sc.shift_mm) < MIN_TILES:
+        # too few tiles: where the dense field measures enough accurately, it measures placement
+        pd_, ps_, smm, windows = dense.placement_samples(dr, grid, TILE_SIGMA_SHARE * tolerance_mm)
+        entry["dense_windows"] = round(windows, 1)
+        if windows >= MIN_DENSE_WINDOWS and len(smm) >= 4:
+            film = fit_film(pd_, ps_, (p["image_width_mm"], p["image_height_mm"]))
+            entry.update(
+                {
+                    "misregistration_source": "dense",
+                    "misregistration_mm": stats(smm),
+                    "film_offset_mm": film["offset_mm"],
+                    "film_rotation_deg": film["rotation_deg"],
+                    "film_scale_pct": film["scale_pct"],
+                    "film_fit_rms_mm": film["rms_mm"],
+                }
+            )
+        else:
+            entry["misregistration_source"] = None
     clock.append(time.perf_counter())  # dense analysis
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
@@ -256,6 +287,11 @@ def dense_summary(dr, grid, design: Design, sc, surface) -> dict:
     return {
         "grid_px_per_mm": grid.px_per_mm,
         "blur_px": dr.blur_px,
+        "noise_grey_levels": dr.noise,
+        "uncertainty_mm": stats(dr.sigma_mm[np.isfinite(dr.sigma_mm)]),
+        "significance_z": dense.SIGNIFICANCE_Z,
+        "resolution": dr.resolution,
+        "detection_limit": dr.detection_limit,
         "misregistration_mm": stats(dr.shift_mm[measured_shift]),
         "misregistration_full_vector_mm": stats(dr.shift_mm[full & measured_shift]),
         "note": (

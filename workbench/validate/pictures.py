@@ -18,6 +18,7 @@ STATE_COLOURS = np.array(
         (60, 60, 60),  # deep shadow
         (250, 230, 60),  # highlight
         (150, 200, 150),  # measured: colour only
+        (120, 190, 200),  # measured: colour only, detail unresolved
         (70, 170, 90),  # measured: colour and normal shift
         (20, 120, 40),  # measured: colour and full shift
         (220, 30, 30),  # defective

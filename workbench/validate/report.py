@@ -328,13 +328,31 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
                 line += f"; agrees with the {ag['tiles']} tiles to a median of {ag['median_mm']:.3f} mm"
             c.drawString(20 * mm, top, f"{line}; measured: {cov}")
             top -= 4.2 * mm
+            # what this photo can judge: its noise, resolution and the smallest defect it finds
+            lim = dn.get("detection_limit") or {}
+            res = dn.get("resolution") or {}
+            if lim:
+                line = (
+                    f"photo noise {dn.get('noise_grey_levels') or 0:.1f} grey levels, "
+                    f"{res.get('photo_px_per_mm') or 0:.1f} px/mm on the part; finds defects from "
+                    f"{lim['min_area_mm2']:.1f} mm² and misregistration beyond {lim.get('min_shift_mm') or 0:.2f} mm "
+                    f"(z = {lim['significance_z']:g})"
+                )
+                if res.get("needed_photo_px_per_mm"):
+                    line += (
+                        f"; {100 * res['unresolved_share']:.1f} % too fine for the photo "
+                        f"(needs {res['needed_photo_px_per_mm']:.0f} px/mm, x{res['needed_resolution_factor']:.1f})"
+                    )
+                c.drawString(20 * mm, top, line)
+                top -= 4.2 * mm
         for d in (e.get("defects") or [])[:6]:
             c.drawString(
                 24 * mm,
                 top,
                 f"{d['id']}. {d['kind']} at x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f} mm: "
                 f"{d['area_mm2']:.1f} mm², misregistration peak {d['peak_mm'] or 0:.2f} mm, "
-                f"mean {d['mean_mm'] or 0:.2f} mm",
+                f"mean {d['mean_mm'] or 0:.2f} mm"
+                + (f", confidence {100 * d['confidence']:.2f} %" if d.get("confidence") is not None else ""),
             )
             top -= 3.8 * mm
         top -= 2 * mm

@@ -12,27 +12,40 @@ MIN_SSIM = 0.5
 # the tiles for half the part painted over, 82 % and more for an intact film 2 mm off)
 MIN_MATCHED_SHARE = 0.7
 MAX_DEFECT_MM2 = 4.0
+# with fewer than MIN_TILES tiles, the dense field measures placement where it holds at least
+# this many independent accurate flow windows (each about a millimetre across): four times the
+# tiles' minimum, since a window holds about a tenth of a tile's pixels
+MIN_DENSE_WINDOWS = 4 * MIN_TILES
+TOO_LITTLE_TEXTURE = "too little texture to measure misregistration here; add texture or a calibration film"
 
 
 def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
     """The acceptance rule, as it goes into validation.json and the QA report."""
+    z = dense.SIGNIFICANCE_Z
     return {
         "text": (
             f"FAIL when any defect is larger than {max_defect_mm2:g} mm² on the print, or the misregistration "
-            f"p95 (tiles) exceeds {tolerance_mm:g} mm, or the decoration does not match the design (fewer than "
-            f"{MIN_TILES} tiles match, or SSIM < {MIN_SSIM}, or fewer than {100 * MIN_MATCHED_SHARE:.0f} % of the "
-            "view's textured tiles match); otherwise PASS. A defect is a connected region of "
-            f"at least {dense.MIN_DEFECT_MM2:g} mm² where the dense misregistration exceeds {tolerance_mm:g} mm, "
-            f"or where the colour differs from the design by more than {dense.COLOUR_TOL:g} grey levels after a "
-            "local gain and offset fit per channel and a blur matched to the photo. Highlights, deep shadows, "
-            "surface turned away from the camera and the photo's pixels along the part's outline and its folds "
-            "are masked, not scored."
+            f"p95 exceeds {tolerance_mm:g} mm (from the tiles; with fewer than {MIN_TILES} tiles, from the dense "
+            f"field where it is accurate), or the decoration does not match the design (SSIM < {MIN_SSIM}, or "
+            f"fewer than {100 * MIN_MATCHED_SHARE:.0f} % of the view's textured tiles match); INVALID when neither "
+            f"tiles nor the dense field can measure misregistration ({TOO_LITTLE_TEXTURE}); otherwise PASS. Tiles "
+            "and dense pixels count by their own uncertainty against the photo's measured noise, not by a fixed "
+            "contrast. A defect is a connected region of "
+            f"at least {dense.MIN_DEFECT_MM2:g} mm² where the dense misregistration exceeds {tolerance_mm:g} mm "
+            f"by more than {z:g} standard uncertainties (one-sided, 0.13 % per pixel), or where the colour "
+            f"differs from the design by more than {dense.COLOUR_TOL:g} grey levels beyond what the photo's "
+            "noise, its local blur and a half-pixel placement explain, after a local gain and offset fit per "
+            "channel; each defect carries its significance and confidence. Highlights, deep shadows, "
+            "surface turned away from the camera, the photo's pixels along the part's outline and its folds, "
+            "and detail finer than the photo resolves are masked, not scored for misregistration."
         ),
         "tolerance_mm": tolerance_mm,
         "max_defect_mm2": max_defect_mm2,
         "min_defect_mm2": dense.MIN_DEFECT_MM2,
         "colour_tolerance_grey_levels": dense.COLOUR_TOL,
+        "significance_z": z,
         "min_tiles": MIN_TILES,
+        "min_dense_windows": MIN_DENSE_WINDOWS,
         "min_ssim": MIN_SSIM,
         "min_matched_tile_share": MIN_MATCHED_SHARE,
     }
@@ -44,8 +57,9 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
     Parameters
     ----------
     entry : dict
-        The photo's entry: ``tiles``, ``tiles_examined``, ``ssim``, ``misregistration_mm``
-        and ``defects`` (each with ``kind``, ``area_mm2``, ``centre_mm``).
+        The photo's entry: ``tiles``, ``tiles_examined``, ``ssim``, ``misregistration_mm``,
+        ``misregistration_source`` ("tiles", "dense" or None) and ``defects`` (each with
+        ``kind``, ``area_mm2``, ``centre_mm``).
     tolerance_mm : float
         Largest accepted misregistration, mm on the surface.
     max_defect_mm2 : float
@@ -58,20 +72,24 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
     """
     tiles, examined, sim = entry["tiles"], entry["tiles_examined"], entry["ssim"]
     big = [d for d in entry["defects"] if d["area_mm2"] > max_defect_mm2]
-    if tiles < MIN_TILES or sim < MIN_SSIM:
+    if sim < MIN_SSIM:
         return "FAIL", (
             f"the decoration does not match the design (SSIM {sim:.2f}, {tiles} tiles "
             "matched): wrong print, or badly damaged"
         )
-    if tiles < MIN_MATCHED_SHARE * examined:
+    if tiles < MIN_TILES and entry.get("misregistration_source") != "dense":
+        # the decoration matches (SSIM) but nothing measures where it lies
+        return "INVALID", f"{TOO_LITTLE_TEXTURE} ({tiles} tiles, SSIM {sim:.2f})"
+    if tiles >= MIN_TILES and tiles < MIN_MATCHED_SHARE * examined:
         return "FAIL", (
             f"only {tiles} of {examined} textured tiles match the design: part of the "
             "decoration is missing, covered or damaged"
         )
     p95 = entry["misregistration_mm"]["p95"]
+    src = "" if entry.get("misregistration_source", "tiles") == "tiles" else " (dense field)"
     why = []
     if p95 > tolerance_mm:
-        why.append(f"misregistration p95 {p95:.3f} mm > tolerance {tolerance_mm} mm")
+        why.append(f"misregistration p95{src} {p95:.3f} mm > tolerance {tolerance_mm} mm")
     if big:
         d = big[0]
         why.append(
@@ -80,7 +98,7 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
         )
     if why:
         return "FAIL", "; ".join(why)
-    return "PASS", f"misregistration p95 {p95:.3f} mm <= tolerance {tolerance_mm} mm, " + (
+    return "PASS", f"misregistration p95{src} {p95:.3f} mm <= tolerance {tolerance_mm} mm, " + (
         f"no defect > {max_defect_mm2:g} mm²"
         if not entry["defects"]
         else f"{len(entry['defects'])} defect(s), none > {max_defect_mm2:g} mm²"

@@ -13,8 +13,20 @@ from workbench.raster import depth_buffer
 from workbench.validate.dense import photo_buffers, surface_in_photo
 
 TILE = 64
-MIN_TEXTURE = 50.0  # smallest structure-tensor eigenvalue of a usable tile (grey levels² per px²)
-MIN_CORRELATION = 0.8  # normalised correlation a registered tile must reach
+# a tile counts when its registration's standard uncertainty, on the surface, is below this
+# share of the tolerance: then the photo's noise moves the tiles' p95 by a few per cent of the
+# tolerance at most, and the film fit over tens of tiles is ten times finer still
+TILE_SIGMA_SHARE = 0.1
+# the correlation a registered tile must reach, as a share of what the photo's noise allows
+# for that tile (a low-contrast tile correlates less however well it is placed)
+MIN_CORRELATION = 0.8
+NOISE_FLOOR = 0.5  # grey levels: the least noise assumed (8-bit quantisation of photo and design)
+# a tile whose correlation has a second peak (beyond an eighth of a tile from the first)
+# within this many standard errors of the correlation of the first is ambiguous: a periodic
+# pattern, rings, lines of text (a lily's rings registered 1.9 mm off without the test)
+AMBIGUITY_Z = 3.0
+ECC_MAX_PX = 250_000  # pixels of the similarity's alignment
+MAX_TILES = 160  # tiles registered per photo at most, spread evenly over the view (about 40 ms each)
 REGISTRATION_BLUR_PX = 1.0
 MARGIN = 24  # largest shift a tile can measure, view pixels
 
@@ -160,6 +172,36 @@ def warp_photo(
     return warped, valid
 
 
+def printed_view(surface: ViewSurface, print_rgb: np.ndarray, px_per_mm: float, view_rgb: np.ndarray) -> np.ndarray:
+    """The view's image as the print carries it: each pixel of the view's own region takes the print's colour there.
+
+    The print samples its views at its own dpi, so what a photo of the part can show is the
+    view's image at the print's resolution, not finer: registered against detail the print
+    does not carry, a tile is pulled by a pixel or two (seen on the face mask at 100 dpi).
+
+    Parameters
+    ----------
+    surface : ViewSurface
+        The view's print coordinates per pixel.
+    print_rgb : (rows, cols, 3) uint8
+        The print.
+    px_per_mm : float
+        Its resolution.
+    view_rgb : (H, W, 3) uint8
+        The view's image (kept where the view does not own the surface).
+
+    Returns
+    -------
+    (H, W, 3) uint8
+    """
+    pm = surface.print_mm
+    # print pixel (i, j) has its centre at ((j + 0.5), (i + 0.5)) / px_per_mm mm
+    mx = np.where(surface.owned, pm[..., 0] * px_per_mm - 0.5, -1e4).astype(np.float32)
+    my = np.where(surface.owned, pm[..., 1] * px_per_mm - 0.5, -1e4).astype(np.float32)
+    out = cv2.remap(np.ascontiguousarray(print_rgb[..., :3]), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return np.where(surface.owned[..., None], out, view_rgb)
+
+
 def _bilinear(field: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Bilinear samples of an (H, W, C) field at points (x, y); NaN propagates."""
     H, W = field.shape[:2]
@@ -192,38 +234,68 @@ def register_tile(template: np.ndarray, image: np.ndarray, x0: int, y0: int) -> 
     Returns
     -------
     d : (2,) float or None
-        Displacement, view pixels; None when the refinement does not settle.
+        Displacement, view pixels; None when the refinement does not settle or the tile is
+        ambiguous.
     cc : float
-        Normalised correlation at ``d``.
+        Normalised correlation at ``d`` (NaN: ambiguous, the correlation has two peaks).
+    sigma : float
+        Standard uncertainty of ``d`` along its least certain direction, view pixels: the
+        fit's own residual variance through its normal equations, s² (JᵀJ)⁻¹ with
+        s² = |r|² / (n - 8) (what the photo's noise and whatever the model does not explain
+        leave in the fit).
     """
     T = template.shape[0]
     window = image[y0 - MARGIN : y0 + T + MARGIN, x0 - MARGIN : x0 + T + MARGIN]
     res = cv2.matchTemplate(window, template, cv2.TM_CCOEFF_NORMED)
     iy, ix = np.unravel_index(int(np.argmax(res)), res.shape)
+    # a second peak nearly as high elsewhere (a periodic pattern, rings, lines of text): the
+    # tile cannot tell which one is its place, whatever the refinement does
+    far = res.copy()
+    r = TILE // 8
+    far[max(iy - r, 0) : iy + r + 1, max(ix - r, 0) : ix + r + 1] = -1.0
+    # (the correlation's standard error over N independent samples is about (1 - cc²) / √N;
+    # the tile's smoothed pixels hold N = T² / (4π s²) of them: a second peak within three
+    # of those of the first is not told apart from it)
+    best = float(res[iy, ix])
+    n_ind = T * T / (4.0 * np.pi * REGISTRATION_BLUR_PX**2)
+    if float(far.max()) > best - AMBIGUITY_Z * max(1.0 - best * best, 0.0) / np.sqrt(n_ind):
+        return None, np.nan, np.inf
     d = np.array([ix - MARGIN, iy - MARGIN], dtype=np.float64)
     jj, ii = np.meshgrid(np.arange(T, dtype=np.float32) + x0, np.arange(T, dtype=np.float32) + y0)
     t = template.astype(np.float64).ravel()
+    # tile coordinates of the core's pixels, -1 to 1
+    u, v = np.meshgrid(np.linspace(-1, 1, T - 4), np.linspace(-1, 1, T - 4))
+    u, v = u.ravel(), v.ravel()
     for _ in range(30):
         warped = cv2.remap(image, jj + np.float32(d[0]), ii + np.float32(d[1]), cv2.INTER_LINEAR)
         gx = cv2.Sobel(warped, cv2.CV_32F, 1, 0, ksize=3) / 8
         gy = cv2.Sobel(warped, cv2.CV_32F, 0, 1, ksize=3) / 8
         core = (slice(2, -2), slice(2, -2))
         w = warped[core].astype(np.float64).ravel()
-        A = np.column_stack([w, np.ones_like(w)])
-        (gain, offset), *_ = np.linalg.lstsq(A, t.reshape(T, T)[core].ravel(), rcond=None)
-        r = t.reshape(T, T)[core].ravel() - (gain * w + offset)
-        J = gain * np.column_stack([gx[core].ravel(), gy[core].ravel()])
+        # gain and offset each a plane over the tile: a curved part's shading changes across
+        # a tile, and a constant gain would read that ramp as a shift of a faint texture
+        A = np.column_stack([w, w * u, w * v, np.ones_like(w), u, v])
+        coef, *_ = np.linalg.lstsq(A, t.reshape(T, T)[core].ravel(), rcond=None)
+        gain = coef[0] + coef[1] * u + coef[2] * v
+        r = t.reshape(T, T)[core].ravel() - A @ coef
+        J = gain[:, None] * np.column_stack([gx[core].ravel(), gy[core].ravel()])
         step = np.linalg.lstsq(J, r, rcond=None)[0]
         # image(x + d + δ) ≈ w + g δ, so r ≈ gain g δ: the step solves J δ = r
         d += step
         if np.abs(step).max() < 1e-4:
             break
     else:
-        return None, 0.0
+        return None, 0.0, np.inf
     wv = w - w.mean()
     tv = t.reshape(T, T)[core].ravel() - t.reshape(T, T)[core].mean()
     cc = float((wv * tv).sum() / np.sqrt((wv * wv).sum() * (tv * tv).sum() + 1e-12))
-    return d, cc
+    s2 = float((r * r).sum()) / max(len(r) - 8, 1)
+    JtJ = J.T @ J
+    try:
+        sigma = float(np.sqrt(s2 * np.linalg.eigvalsh(np.linalg.inv(JtJ)).max()))
+    except np.linalg.LinAlgError:
+        sigma = np.inf
+    return d, cc, sigma
 
 
 @dataclass
@@ -378,7 +450,44 @@ def tile_print_points(surface: ViewSurface, centres: np.ndarray, shifts: np.ndar
     return p0, p1, J, good
 
 
-def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface: ViewSurface, print_size_mm) -> Score:
+def photo_noise(gray: np.ndarray, mask: np.ndarray) -> float:
+    """The photo's noise, grey levels (standard deviation), from its pixels in ``mask``.
+
+    Immerkær's estimator ("Fast noise variance estimation", 1996) made robust: the
+    difference of two Laplacians [[1, -2, 1], [-2, 4, -2], [1, -2, 1]] cancels every
+    image's locally planar part and leaves 6 σ of white noise (the kernel's norm); its
+    median absolute value over the mask (which the minority of pixels on edges does not
+    move), times 1.4826, over 6, is σ.
+
+    Parameters
+    ----------
+    gray : (H, W) float32
+        Grey levels.
+    mask : (H, W) bool
+        Pixels to use.
+
+    Returns
+    -------
+    float
+        σ, at least NOISE_FLOOR.
+    """
+    k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+    resp = cv2.filter2D(gray.astype(np.float32), -1, k)
+    inner = cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    if inner.sum() < 100:
+        return NOISE_FLOOR
+    return max(float(1.4826 * np.median(np.abs(resp[inner])) / 6.0), NOISE_FLOOR)
+
+
+def score(
+    design_rgb: np.ndarray,
+    warped: np.ndarray,
+    valid: np.ndarray,
+    surface: ViewSurface,
+    print_size_mm,
+    tolerance_mm: float = 0.5,
+    printed_rgb: np.ndarray | None = None,
+) -> Score:
     """Misregistration field, similarity, coverage and film fit of a warped photo.
 
     Parameters
@@ -393,6 +502,12 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
         The view's surface points, print coordinates and own region.
     print_size_mm : (2,) float
         Size of the print image, mm (its centre is the film's centre).
+    tolerance_mm : float
+        The misregistration tolerance: a tile counts when its uncertainty on the surface is
+        below TILE_SIGMA_SHARE of it.
+    printed_rgb : (H, W, 3) uint8, optional
+        The view's image as the print carries it (:func:`printed_view`): the tiles' templates
+        (the similarity still compares with the view's image itself).
 
     Returns
     -------
@@ -407,10 +522,25 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
     # (estimating that blur first is not: misregistration makes more blur look better)
     ref = cv2.GaussianBlur(dg, (0, 0), REGISTRATION_BLUR_PX)
     wr = cv2.GaussianBlur(wg, (0, 0), REGISTRATION_BLUR_PX)
-    gx = cv2.Sobel(ref, cv2.CV_32F, 1, 0, ksize=3) / 8
-    gy = cv2.Sobel(ref, cv2.CV_32F, 0, 1, ksize=3) / 8
+    tref = ref
+    if printed_rgb is not None:
+        pgr = cv2.cvtColor(printed_rgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
+        tref = cv2.GaussianBlur(pgr, (0, 0), REGISTRATION_BLUR_PX)
+    gx = cv2.Sobel(tref, cv2.CV_32F, 1, 0, ksize=3) / 8
+    gy = cv2.Sobel(tref, cv2.CV_32F, 0, 1, ksize=3) / 8
     H, W = ref.shape
-    centres, shifts, examined = [], [], 0
+    # the photo's noise after the registration's smoothing: white noise through a Gaussian of
+    # sigma s keeps 1 / (2 √π s) of its standard deviation
+    noise = photo_noise(wg, mask) / (2.0 * np.sqrt(np.pi) * REGISTRATION_BLUR_PX)
+    n_core = (TILE - 4) ** 2
+    # surface mm per view pixel, per pixel: the largest of the two axes' steps
+    with np.errstate(invalid="ignore"):
+        step = np.maximum(
+            np.linalg.norm(np.gradient(surface.X, axis=1), axis=2),
+            np.linalg.norm(np.gradient(surface.X, axis=0), axis=2),
+        )
+    max_sigma_mm = TILE_SIGMA_SHARE * tolerance_mm
+    centres, shifts, examined, candidates = [], [], 0, []
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6)
     # tiles keep clear of the region's border by the largest shift they can measure:
     # a shifted film brings the neighbouring view's content into a band that wide
@@ -419,17 +549,37 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
         for x in range(0, W - TILE + 1, TILE // 2):
             if not clear[y : y + TILE, x : x + TILE].all():
                 continue
-            a, b = gx[y : y + TILE, x : x + TILE], gy[y : y + TILE, x : x + TILE]
-            S = np.array([[(a * a).mean(), (a * b).mean()], [(a * b).mean(), (b * b).mean()]])
-            if np.linalg.eigvalsh(S)[0] < MIN_TEXTURE:
-                continue  # one straight edge fixes only the shift across it
             if y < MARGIN or x < MARGIN or y + TILE + MARGIN > H or x + TILE + MARGIN > W:
                 continue
-            examined += 1
-            d, cc = register_tile(ref[y : y + TILE, x : x + TILE], wr, x, y)
-            if d is not None and cc >= MIN_CORRELATION and np.abs(d).max() < MARGIN - 1:
-                centres.append((x + (TILE - 1) / 2, y + (TILE - 1) / 2))
-                shifts.append(d)
+            a, b = gx[y : y + TILE, x : x + TILE], gy[y : y + TILE, x : x + TILE]
+            S = np.array([[(a * a).mean(), (a * b).mean()], [(a * b).mean(), (b * b).mean()]])
+            # the registration's uncertainty the photo's noise allows, σ / √(N λ_min): one
+            # straight edge (λ_min 0) fixes only the shift across it, and low contrast fixes
+            # it less well than high contrast, in proportion to the noise
+            lam = max(float(np.linalg.eigvalsh(S)[0]), 1e-12)
+            mm_per_px = float(np.nanmedian(step[y : y + TILE, x : x + TILE]))
+            if not np.isfinite(mm_per_px) or noise / np.sqrt(n_core * lam) * mm_per_px > max_sigma_mm:
+                continue
+            candidates.append((y, x, mm_per_px))
+    # evenly thinned in raster order where there are more than MAX_TILES
+    keep = max(1, int(np.ceil(len(candidates) / MAX_TILES)))
+    for y, x, mm_per_px in candidates[::keep]:
+        examined += 1
+        tpl = tref[y : y + TILE, x : x + TILE]
+        d, cc, sigma = register_tile(tpl, wr, x, y)
+        if np.isnan(cc):
+            examined -= 1  # ambiguous: says nothing of whether the decoration matches
+            continue
+        # the correlation a perfectly placed tile reaches under this noise
+        var_t = float(tpl[2:-2, 2:-2].var())
+        cc_noise = np.sqrt(var_t / (var_t + noise * noise))
+        if d is not None and cc >= MIN_CORRELATION * cc_noise and sigma * mm_per_px > max_sigma_mm:
+            # it matches, but too loosely to measure: says nothing of a missing decoration
+            examined -= 1
+            continue
+        if d is not None and cc >= MIN_CORRELATION * cc_noise and np.abs(d).max() < MARGIN - 1:
+            centres.append((x + (TILE - 1) / 2, y + (TILE - 1) / 2))
+            shifts.append(d)
     centres = np.array(centres).reshape(-1, 2)
     shifts = np.array(shifts).reshape(-1, 2)
     film: dict = {}
@@ -450,8 +600,24 @@ def score(design_rgb: np.ndarray, warped: np.ndarray, valid: np.ndarray, surface
     if inner.sum() > 1000:
         aligned = wg
         try:
-            Hm = np.eye(3, dtype=np.float32)
-            _, Hm = cv2.findTransformECC(ref, wr, Hm, cv2.MOTION_HOMOGRAPHY, crit, inner.astype(np.uint8), 1)
+            # at most a quarter megapixel: the homography only needs to align the pair to a
+            # fraction of a pixel for SSIM, which barely moves under small misregistration
+            # (a full-size view took 5 to 15 s)
+            q = max(1, int(np.ceil(np.sqrt(H * W / ECC_MAX_PX))))
+            small = (W // q, H // q)
+            Hs = np.eye(3, dtype=np.float32)
+            _, Hs = cv2.findTransformECC(
+                cv2.resize(ref, small, interpolation=cv2.INTER_AREA),
+                cv2.resize(wr, small, interpolation=cv2.INTER_AREA),
+                Hs,
+                cv2.MOTION_HOMOGRAPHY,
+                crit,
+                cv2.resize(inner.astype(np.uint8), small, interpolation=cv2.INTER_NEAREST),
+                1,
+            )
+            # full-size pixel x is small pixel (x + 0.5) / q - 0.5
+            A = np.array([[1 / q, 0, 0.5 / q - 0.5], [0, 1 / q, 0.5 / q - 0.5], [0, 0, 1]], np.float64)
+            Hm = (np.linalg.inv(A) @ Hs.astype(np.float64) @ A).astype(np.float32)
             aligned = cv2.warpPerspective(wg, Hm, (W, H), flags=cv2.INTER_LINEAR + cv2.WARP_INVERSE_MAP)
         except cv2.error:
             pass

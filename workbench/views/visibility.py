@@ -114,7 +114,7 @@ def faces_facing(V: np.ndarray, F: np.ndarray, center: np.ndarray) -> np.ndarray
     return np.einsum("ij,ij->i", normal, np.asarray(center) - (a + b + c) / 3.0) > 0
 
 
-def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera) -> ViewVisibility:
+def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera, faces: np.ndarray | None = None) -> ViewVisibility:
     """Depth buffer of a view and the faces it sees fully or in part.
 
     Parameters
@@ -125,6 +125,10 @@ def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera) -> ViewVisibil
         Triangles, counter-clockwise seen from the decorated side.
     camera : Camera
         The view.
+    faces : (k,) int, optional
+        Test only these faces (every face still occludes); the others are reported
+        unseen. The same answer for them as without it, in a fraction of the time when
+        only a few faces can matter (suggest-views: those no earlier view sees whole).
 
     Returns
     -------
@@ -133,15 +137,22 @@ def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera) -> ViewVisibil
     xy, z = camera.project(V)
     face_buffer, depth = depth_buffer(xy, z, F, camera.width, camera.height)
     vis = ViewVisibility(camera, depth, face_buffer, np.zeros(len(F), bool), np.zeros(len(F), bool))
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    sub = F if faces is None else F[faces]
+    a, b, c = V[sub[:, 0]], V[sub[:, 1]], V[sub[:, 2]]
     centroid = (a + b + c) / 3.0
-    front = faces_facing(V, F, camera.center)
+    front = faces_facing(V, sub, camera.center)
     samples = np.stack([a, b, c, centroid], axis=1).reshape(-1, 3)
     seen = points_unoccluded(vis, samples).reshape(-1, 4)
     in_buffer = np.zeros(len(F), dtype=bool)
     in_buffer[face_buffer[face_buffer >= 0]] = True
-    vis.full = front & seen.all(axis=1)
-    vis.partial = front & ~vis.full & (seen.any(axis=1) | in_buffer)
+    if faces is not None:
+        in_buffer = in_buffer[faces]
+    full = front & seen.all(axis=1)
+    partial = front & ~full & (seen.any(axis=1) | in_buffer)
+    if faces is None:
+        vis.full, vis.partial = full, partial
+    else:
+        vis.full[faces], vis.partial[faces] = full, partial
     return vis
 
 
@@ -186,21 +197,48 @@ def assign_views(
         0: the view does not claim the face; 1: it claims the whole face; 2: it
         claims the face where it sees it (per-pixel test).
     """
-    from scipy.sparse.csgraph import connected_components
-
     nF = len(face_area)
     status = np.zeros((nF, len(visibilities)), dtype=np.int8)
     taken = np.zeros(nF, dtype=bool)
     for v, (vis, rule) in enumerate(zip(visibilities, regions, strict=True)):
-        cand = (vis.full | vis.partial) & ~taken
-        idx = np.flatnonzero(cand)
-        if len(idx) == 0:
-            continue
-        if rule == "largest":
-            _, label = connected_components(adjacency[idx][:, idx], directed=False)
-            area = np.bincount(label, weights=face_area[idx])
-            # ties go to the lowest label, i.e. the component of the lowest face index
-            idx = idx[label == int(np.argmax(area))]
-        status[idx, v] = np.where(vis.full[idx], 1, 2)
-        taken[idx[vis.full[idx]]] = True
+        status[:, v] = claim_faces(vis, rule, taken, adjacency, face_area)
+        taken |= status[:, v] == 1
     return status
+
+
+def claim_faces(
+    vis: ViewVisibility, rule: str, taken: np.ndarray, adjacency: sp.csr_matrix, face_area: np.ndarray
+) -> np.ndarray:
+    """What one view claims after the views before it (one step of :func:`assign_views`).
+
+    Parameters
+    ----------
+    vis : ViewVisibility
+        The view.
+    rule : {'largest', 'all'}
+        Its region rule.
+    taken : (#F,) bool
+        Faces an earlier view claims and sees whole.
+    adjacency : (#F, #F) sparse
+        Face adjacency (:func:`face_adjacency`).
+    face_area : (#F,) float
+        Surface area per face, mm².
+
+    Returns
+    -------
+    (#F,) int8
+        0: not claimed; 1: claimed whole; 2: claimed where the view sees it.
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    out = np.zeros(len(face_area), dtype=np.int8)
+    idx = np.flatnonzero((vis.full | vis.partial) & ~taken)
+    if len(idx) == 0:
+        return out
+    if rule == "largest":
+        _, label = connected_components(adjacency[idx][:, idx], directed=False)
+        area = np.bincount(label, weights=face_area[idx])
+        # ties go to the lowest label, i.e. the component of the lowest face index
+        idx = idx[label == int(np.argmax(area))]
+    out[idx] = np.where(vis.full[idx], 1, 2)
+    return out

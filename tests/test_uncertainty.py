@@ -1,0 +1,158 @@
+"""What the photo can judge: noise, the flow's uncertainty, detail it cannot resolve, and the verdict on them."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from workbench.validate import dense, rule
+from workbench.validate.score import TILE, photo_noise, register_tile
+
+
+def texture(shape=(400, 400), seed=0, sigma=2.0, contrast=60.0):
+    """Band-limited random texture: grey levels around 128, features about ``sigma`` px across."""
+    rng = np.random.default_rng(seed)
+    t = cv2.GaussianBlur(rng.normal(0.0, 1.0, shape).astype(np.float32), (0, 0), sigma)
+    return (128.0 + contrast * t / t.std()).astype(np.float32)
+
+
+def shifted(img, dx, dy):
+    """The image moved by (dx, dy) px: the content at x shows at x + d (cubic splines; OpenCV's
+    remap rounds positions to 1/32 px, which would be most of what these tests measure)."""
+    from scipy.ndimage import shift
+
+    return shift(img, (dy, dx), order=3, mode="reflect").astype(np.float32)
+
+
+@pytest.mark.parametrize("sigma", [1.0, 3.0, 8.0])
+def test_photo_noise_is_measured_on_a_textured_image(sigma):
+    # Immerkær's estimator, made robust by a median: the texture (a minority of edges) does not
+    # move it; within 15 % of the injected noise
+    img = texture(sigma=6.0) + np.random.default_rng(1).normal(0.0, sigma, (400, 400)).astype(np.float32)
+    got = photo_noise(img, np.ones(img.shape, bool))
+    assert got == pytest.approx(sigma, rel=0.15)
+
+
+@pytest.mark.parametrize(
+    ("noise", "feature_px", "contrast"),
+    [(1.0, 1.5, 40.0), (4.0, 3.0, 40.0), (8.0, 2.0, 15.0), (2.0, 2.0, 15.0)],
+)
+def test_the_flow_uncertainty_predicts_the_flow_error(noise, feature_px, contrast):
+    # a print and a photo of it moved by (0.3, -0.2) px with noise: the flow's error spread
+    # (both images smoothed alike first, as analyse does) matches what flow_uncertainty
+    # predicts from the noise, the texture and the flow's own floor: never more than 35 %
+    # below it (a defect must not be called significant on an underestimate), and not far
+    # above it (the floor is the finest texture's: coarser ones do up to twice better)
+    rng = np.random.default_rng(2)
+    ref = texture(seed=3, sigma=feature_px, contrast=contrast)
+    photo = shifted(ref, 0.3, -0.2) + rng.normal(0.0, noise, ref.shape).astype(np.float32)
+    rs, ps = cv2.GaussianBlur(ref, (0, 0), 1.0), cv2.GaussianBlur(photo, (0, 0), 1.0)
+    scored = np.ones(ref.shape, bool)
+    m = dense.dense_flow(rs, ps, scored)
+    inner = (slice(40, -40), slice(40, -40))
+    err = m[inner] - np.array([0.3, -0.2], np.float32)
+    measured = float(np.sqrt((err**2).mean(axis=-1).mean()))
+    pred_s = cv2.GaussianBlur(shifted(ref, 0.3, -0.2), (0, 0), 1.0)
+    weak, strong, _, got_noise, _, _ = dense.flow_uncertainty(pred_s, ps, scored, dense.TENSOR_SIGMA_PX)
+    # per axis: the mean of the two directions' variances
+    predicted = float(np.sqrt(np.median((weak**2 + strong**2)[inner]) / 2))
+    # the noise after the smoothing: white noise through a Gaussian of sigma 1 keeps 1 / (2 √π)
+    assert got_noise == pytest.approx(max(noise / (2 * np.sqrt(np.pi)), dense.NOISE_FLOOR), rel=0.25)
+    assert 0.4 * predicted <= measured <= 1.35 * predicted, (measured, predicted)
+
+
+def test_an_unexplained_residual_raises_the_uncertainty():
+    # the same pair, the photo's PSF unlike the model's (a box, not a Gaussian): the model's
+    # mismatch enters the uncertainty, noise alone would not explain it
+    ref = texture(seed=4, sigma=1.5, contrast=50.0)
+    photo = cv2.blur(ref, (3, 3))
+    model = cv2.GaussianBlur(ref, (0, 0), 0.6)
+    scored = np.ones(ref.shape, bool)
+    w_match, *_ = dense.flow_uncertainty(model, model + 0.01, scored, dense.TENSOR_SIGMA_PX)
+    w_mis, *_ = dense.flow_uncertainty(model, photo, scored, dense.TENSOR_SIGMA_PX)
+
+    # (beyond the flow's own floor, which both have)
+    def excess(w):
+        return np.sqrt(max(float(np.median(w)) ** 2 - dense.FLOW_FLOOR_PX**2, 0.0))
+
+    assert excess(w_mis) > 3 * excess(w_match)
+
+
+def test_forward_backward_agree_on_a_translation():
+    ref = texture(seed=5, sigma=2.0)
+    photo = shifted(ref, 1.5, 0.5)
+    r = dense.local_normalise(ref, dense.NORM_SIGMA_PX)
+    p = dense.local_normalise(photo, dense.NORM_SIGMA_PX)
+    m = dense.dense_flow(ref, photo, np.ones(ref.shape, bool))
+    fb = dense.forward_backward(m, r, p)
+    assert np.median(fb[40:-40, 40:-40]) < 0.05
+    assert np.median(m[40:-40, 40:-40, 0]) == pytest.approx(1.5, abs=0.05)
+
+
+def test_detail_finer_than_the_photo_resolves_is_unresolved_with_the_blur_that_would():
+    # stripes 1.5 px wide (period 3) and 12 px wide (period 24): a photo blurred by 2 px keeps
+    # the coarse ones, loses the fine; the fine would need a blur of at most about 1 px
+    W = 240
+    x = np.arange(W, dtype=np.float32)
+    fine = 128 + 80 * np.sign(np.sin(2 * np.pi * x / 3.0))
+    coarse = 128 + 80 * np.sign(np.sin(2 * np.pi * x / 24.0))
+    img = np.concatenate([np.tile(fine, (60, 1)), np.tile(coarse, (60, 1))]).astype(np.float32)
+    blur = np.full(img.shape, 2.0, np.float32)
+    unresolved, needed = dense.unresolved_detail(img, blur, dense.MIN_EDGE)
+    assert unresolved[10:50, 20:-20].mean() > 0.95
+    assert not unresolved[70:110, 20:-20].any()
+    assert np.median(needed[10:50, 20:-20]) <= 1.0
+    # a sharp photo resolves both
+    sharp, _ = dense.unresolved_detail(img, np.full(img.shape, 0.5, np.float32), dense.MIN_EDGE)
+    assert not sharp.any()
+
+
+def test_a_periodic_tile_is_ambiguous_and_a_unique_one_registers():
+    # a pure stripe pattern of period 16 px correlates equally well 16 px away: no place of its
+    # own; a random texture registers to its true shift
+    H = W = TILE + 2 * 24 + 40
+    x = np.arange(W, dtype=np.float32)
+    stripes = np.tile(128 + 60 * np.sin(2 * np.pi * x / 16.0), (H, 1)).astype(np.float32)
+    stripes = stripes + 30 * np.sin(2 * np.pi * np.arange(H, dtype=np.float32) / 16.0)[:, None]
+    x0 = y0 = 44
+    d, cc, _ = register_tile(stripes[y0 : y0 + TILE, x0 : x0 + TILE], shifted(stripes, 0.4, 0.0), x0, y0)
+    assert d is None and np.isnan(cc)
+    # (smoothed like score smooths both before registering)
+    # (features of 4 px: on finer ones the bilinear resampling inside the refinement locks the
+    # shift towards whole pixels by a few hundredths, a limit of the tiles stated in their use)
+    tex = cv2.GaussianBlur(texture((H, W), seed=6, sigma=4.0), (0, 0), 1.0)
+    d, cc, sigma = register_tile(tex[y0 : y0 + TILE, x0 : x0 + TILE], shifted(tex, 0.4, -0.3), x0, y0)
+    assert d is not None and np.allclose(d, [0.4, -0.3], atol=0.02) and cc > 0.99 and sigma < 0.02
+
+
+def entry(**kw):
+    base = {
+        "tiles": 40,
+        "tiles_examined": 42,
+        "ssim": 0.95,
+        "misregistration_mm": {"p95": 0.05},
+        "misregistration_source": "tiles",
+        "defects": [],
+    }
+    base.update(kw)
+    return base
+
+
+def test_the_rule_never_calls_a_matching_decoration_a_wrong_print():
+    # few tiles but the decoration matches: the dense field measures placement, or nothing does
+    verdict, why = rule.photo_verdict(entry(tiles=0, tiles_examined=0, misregistration_source="dense"), 0.2, 4.0)
+    assert verdict == "PASS" and "dense field" in why
+    verdict, why = rule.photo_verdict(entry(tiles=2, tiles_examined=2, misregistration_source=None), 0.2, 4.0)
+    assert verdict == "INVALID" and why.startswith(rule.TOO_LITTLE_TEXTURE)
+    # a decoration that does not look like the design is a FAIL whatever the tiles
+    verdict, why = rule.photo_verdict(entry(ssim=0.3), 0.2, 4.0)
+    assert verdict == "FAIL" and "wrong print" in why
+    # part of it gone: many textured tiles, few match
+    verdict, why = rule.photo_verdict(entry(tiles=20, tiles_examined=60), 0.2, 4.0)
+    assert verdict == "FAIL" and "20 of 60" in why
+    # misregistration from the dense field beyond the tolerance fails like the tiles'
+    verdict, why = rule.photo_verdict(
+        entry(tiles=0, misregistration_source="dense", misregistration_mm={"p95": 0.3}), 0.2, 4.0
+    )
+    assert verdict == "FAIL" and "(dense field) 0.300 mm" in why

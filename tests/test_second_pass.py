@@ -523,11 +523,11 @@ def test_a_camera_that_sees_nothing_names_the_camera(work, capsys):
     assert f"--camera {work / 'away.json'}: the camera sees nothing of the object" in one_line(capsys)
 
 
-def test_calibrate_camera_names_its_photos(work, capsys):
+def test_calibrate_camera_names_its_photos(work, capsys, monkeypatch):
     argv = ["calibrate", "camera", work / "photo.png", "--board", TARGET, "-o", work / "cam.json", "-q"]
     assert run(argv) == 1
     line = one_line(capsys)
-    assert f"{work / 'photo.png'} (board {TARGET}): 0 usable views" in line, line
+    assert line.startswith(f"workbench calibrate: error: {TARGET}: 0 usable views") and str(work / "photo.png") in line
 
 
 def png_header(width: int, height: int) -> bytes:
@@ -579,3 +579,15 @@ def test_an_output_named_as_a_folders_file_list_is_refused(work, capsys):
     before = tree(work)
     assert run(["pdf", work / "design", "-o", work / "design" / atomic.MANIFEST, "-q"]) == 1
     assert "list of its files" in one_line(capsys) and tree(work) == before
+
+
+def test_calibrate_camera_names_its_photos_when_its_reason_does_not(work, capsys, monkeypatch):
+    from workbench.commands import calibrate
+
+    def too_few(images, board):
+        raise calibrate.WorkbenchError("2 usable views of the board, need at least 5")
+
+    monkeypatch.setattr(calibrate, "calibrate_camera", too_few)
+    argv = ["calibrate", "camera", work / "photo.png", "--board", TARGET, "-o", work / "cam.json", "-q"]
+    assert run(argv) == 1
+    assert f"{work / 'photo.png'} (board {TARGET}): 2 usable views of the board" in one_line(capsys)

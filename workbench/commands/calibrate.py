@@ -189,9 +189,10 @@ def run_camera(args) -> int:
     images = [(str(p), _gray(Path(p))) for p in args.photos]
     try:
         cal = calibrate_camera(images, board)
-    except WorkbenchError as exc:  # "2 usable views of the board": of which photos, which board
+    except WorkbenchError as exc:  # "2 usable views of the board": of which photos (unless it says), which board
+        named = any(Path(p).name in str(exc) for p in args.photos)
         photos = ", ".join(args.photos[:3]) + (f" and {len(args.photos) - 3} more" if len(args.photos) > 3 else "")
-        raise WorkbenchError(f"{photos} (board {board_path}): {exc}") from None
+        raise WorkbenchError(f"{board_path}: {exc}" if named else f"{photos} (board {board_path}): {exc}") from None
     profile = {
         "kind": "camera-profile",
         "K": cal.K.tolist(),

@@ -537,3 +537,184 @@ def test_calibrate(case, tmp_path, capsys, base):
             photos.append(p)
         argv = ["calibrate", "camera", *photos, "--board", board, "-o", out]
     run(capsys, tmp_path, [*argv, "-q"])
+
+
+# --- outputs and signals (issue 25): every command, its output anywhere, interrupted anywhere ----
+
+FAST_OUT, SLOW_OUT = 2, 100
+FOLDER_COMMANDS = ("flatten", "design", "validate")
+
+
+def output_cases() -> list:
+    """(command, case): FAST_OUT per command by default, SLOW_OUT more marked slow."""
+    out = []
+    for command in COMMANDS:
+        out += [pytest.param(command, i, id=f"{command}-{i}") for i in range(FAST_OUT)]
+        out += [
+            pytest.param(command, i, id=f"{command}-{i}", marks=pytest.mark.slow)
+            for i in range(FAST_OUT, FAST_OUT + SLOW_OUT)
+        ]
+    return out
+
+
+def command_inputs(command: str, root: Path, base: Path) -> tuple[list, list[Path]]:
+    """A command that succeeds, without its output option, and the files it reads (copied under ``root``)."""
+    job = root / "job"
+    job.mkdir()
+    for name in ("part.obj", "top.png", "job.toml"):
+        shutil.copy(base / name, job / name)
+    shutil.copytree(base / "design", root / "design")
+    for name in ("photo.png", "photo.json"):
+        shutil.copy(base / name, root / name)
+    shutil.copy(CALIB / "regression" / "printer-target-scan-300dpi.png", root / "scan.png")
+    shutil.copy(CALIB / "boards" / "printer-target-A5.json", root / "target.json")
+    design_files = sorted(p for p in (root / "design").iterdir() if p.is_file())
+    argv, inputs = {
+        "flatten": (["flatten", job / "part.obj"], [job / "part.obj"]),
+        "design": (["design", job / "job.toml"], [job / n for n in ("job.toml", "part.obj", "top.png")]),
+        "pdf": (["pdf", root / "design"], design_files),
+        "board": (["board", "charuco"], []),
+        "render": (
+            ["render", root / "design", "--orbit", "0,60,250", "--size", "64x48", "--supersample", "1"],
+            design_files,
+        ),
+        "validate": (
+            ["validate", root / "design", root / "photo.png", "--camera", root / "photo.json", "--jobs", "1"],
+            [*design_files, root / "photo.png", root / "photo.json"],
+        ),
+        "calibrate": (
+            ["calibrate", "printer", root / "scan.png", "--board", root / "target.json", "--dpi", "300"],
+            [root / "scan.png", root / "target.json"],
+        ),
+    }[command]
+    return argv, inputs
+
+
+def default_output(command: str, folder: Path) -> Path:
+    return folder / {"pdf": "print.pdf", "board": "board.pdf", "render": "photo.png", "calibrate": "printer.json"}.get(
+        command, "out"
+    )
+
+
+def output_flag(command: str) -> str:
+    return "--out" if command in FOLDER_COMMANDS else "-o"
+
+
+def leftovers(root: Path) -> list[str]:
+    return sorted(str(p) for p in root.rglob("*") if ".tmp-" in p.name or ".old-" in p.name)
+
+
+def digests(paths) -> dict:
+    import hashlib
+
+    return {p: hashlib.sha256(p.read_bytes()).hexdigest() for p in paths}
+
+
+@pytest.mark.parametrize(("command", "case"), output_cases())
+def test_output_anywhere(command, case, tmp_path, capsys, base, monkeypatch):
+    """The output an input, '.', a symlink, a read-only earlier output, a long name, under a file, two of one name:
+    the convention holds, no input changes, nothing temporary stays, and what is not ours is kept."""
+    rng = np.random.default_rng([COMMANDS.index(command), case, 25])
+    argv, inputs = command_inputs(command, tmp_path, base)
+    out = default_output(command, tmp_path / "outs")
+    kind = int(rng.integers(8))
+    kept = target = None
+    if kind == 1 and inputs:  # an input, or its folder
+        target = inputs[int(rng.integers(len(inputs)))]
+        out = target.parent if command in FOLDER_COMMANDS and rng.random() < 0.5 else target
+    elif kind == 2:  # the current folder (folder commands), or a name in it
+        here = tmp_path / "here"
+        here.mkdir()
+        kept = here / "user.txt"
+        kept.write_text("the user's")
+        monkeypatch.chdir(here)
+        out = Path(".") if command in FOLDER_COMMANDS else Path(default_output(command, Path(".")).name)
+    elif kind == 3:  # through a symlink to a folder holding a user's file
+        real = tmp_path / "real"
+        real.mkdir()
+        kept = real / "user.txt"
+        kept.write_text("the user's")
+        (tmp_path / "link").symlink_to(real, target_is_directory=True)
+        out = tmp_path / "link" if command in FOLDER_COMMANDS else default_output(command, tmp_path / "link")
+    elif kind == 4:  # an earlier output made read-only
+        assert main([str(a) for a in [*argv, output_flag(command), out, "-q"]]) == 0
+        for p in out.rglob("*") if out.is_dir() else out.parent.glob(out.stem + ".*"):
+            p.chmod(0o444)
+    elif kind == 5:
+        out = tmp_path / ("x" * int(rng.integers(240, 300)) + ("" if command in FOLDER_COMMANDS else out.suffix))
+    elif kind == 6:
+        (tmp_path / "afile").write_text("a file")
+        out = tmp_path / "afile" / out.name
+    elif kind == 7 and command in ("board", "calibrate"):  # two outputs of one name (board: PDF and definition)
+        out = tmp_path / ("b.json" if command == "board" else "p.json")
+        if command == "calibrate":
+            argv = ["calibrate", "camera", tmp_path / "photo.png", "--board", tmp_path / "target.json"]
+            inputs = [tmp_path / "photo.png", tmp_path / "target.json"]
+            out = tmp_path / "cam.png"
+    before = digests(inputs)
+    status = run(capsys, tmp_path, [*argv, output_flag(command), out, "-q"])
+    assert digests(inputs) == before, "an input changed"
+    assert leftovers(tmp_path) == []
+    if kept is not None:
+        assert kept.read_text() == "the user's"
+    if status == 0:
+        assert (Path(out) / atomic_manifest()).is_file() if command in FOLDER_COMMANDS else Path(out).is_file()
+    if out == target:
+        assert status == 1
+
+
+def atomic_manifest() -> str:
+    from workbench.atomic import MANIFEST
+
+    return MANIFEST
+
+
+@pytest.mark.parametrize(("command", "case"), output_cases())
+def test_signal_anywhere_in_the_write(command, case, tmp_path, capsys, base, monkeypatch):
+    """SIGINT or SIGTERM at a random step of the write: either the earlier output as it was (exit 130, "nothing
+    written") or the new one complete (exit 0, "which is complete"), and never a temporary left."""
+    import os
+    import signal
+
+    from workbench import atomic
+
+    rng = np.random.default_rng([COMMANDS.index(command), case, 26])
+    argv, inputs = command_inputs(command, tmp_path, base)
+    out = default_output(command, tmp_path / "outs")
+    full = [str(a) for a in [*argv, output_flag(command), out, "-q"]]
+    assert main(full) == 0  # an earlier output to keep
+    before, digest = tree(tmp_path), digests(inputs)
+    signum = signal.SIGINT if rng.random() < 0.5 else signal.SIGTERM
+    at = int(rng.integers(1, 16))
+    calls = []
+
+    def step(fn):
+        def wrapped(*a, **k):
+            calls.append(fn)
+            if len(calls) == at:
+                os.kill(os.getpid(), signum)
+            return fn(*a, **k)
+
+        return wrapped
+
+    monkeypatch.setattr(atomic, "_write_file", step(atomic._write_file))
+    monkeypatch.setattr(atomic.os, "replace", step(atomic.os.replace))
+    monkeypatch.setattr(atomic.os, "rename", step(atomic.os.rename))
+    monkeypatch.setattr(atomic, "_link_or_copy", step(atomic._link_or_copy))
+    capsys.readouterr()
+    status = main([*full[:-1], "--quiet"])
+    monkeypatch.undo()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "Traceback" not in "\n".join(err)
+    err = [line for line in err if not line.startswith("warning: ")]  # pdf's resolution warning shows with -q
+    assert leftovers(tmp_path) == [] and digests(inputs) == digest
+    if at > len(calls):  # the write ended before the signal's turn
+        assert status == 0 and err == []
+    elif status == 130:
+        assert err == [f"workbench {command}: interrupted; nothing written"]
+        assert tree(tmp_path) == before
+    else:
+        assert status == 0 and len(err) == 1 and err[0].endswith("which is complete"), err
+        # complete: the files of a full run, no fewer, no more
+        names = set(tree(tmp_path))
+        assert main(full) == 0 and set(tree(tmp_path)) == names

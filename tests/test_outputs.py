@@ -43,8 +43,8 @@ def test_a_malformed_source_date_epoch_is_one_line(monkeypatch, capsys, tmp_path
 @pytest.mark.parametrize(
     ("argv", "fragment"),
     [
-        (["board", "charuco", "--square-mm", "0"], "--square-mm 0: must be a positive size"),
-        (["pdf", "{design}", "--paper", "1000000000x1000000000"], "each side between 0 and 5000 mm"),
+        (["board", "charuco", "--square-mm", "0"], "--square-mm 0: must be positive, at most 1000 mm"),
+        (["pdf", "{design}", "--paper", "1000000000x1000000000"], "1000000000: must be positive, at most 5000 mm"),
         (["render", "{design}", "--orbit", "10,55,330", "--light", "0,0,0"], "a direction cannot be zero"),
         (["render", "{design}", "--orbit", "10,55,330", "-o", "{tmp}/p.bmp"], "photos are written as .png or .jpg"),
         (["render", "{design}"], "workbench render: error: one of the arguments"),

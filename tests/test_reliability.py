@@ -479,28 +479,36 @@ def test_a_failure_while_writing_a_folder_leaves_the_earlier_one_intact(design, 
     assert tree(tmp_path) == before  # the earlier design, its validation notes, no temporary left
 
 
-def test_a_failure_at_the_swap_puts_the_earlier_folder_back(tmp_path, monkeypatch):
+def test_a_failure_at_the_renames_puts_the_earlier_folder_back(tmp_path, monkeypatch):
     from workbench import atomic
     from workbench.errors import WorkbenchError
 
     out = tmp_path / "out"
-    atomic.write_folder(out, {out / "a.txt": b"old a", out / "b.txt": b"old b"})
+    atomic.write_folder(out, {out / "a.txt": b"old a", out / "b.txt": b"old b", out / "c.txt": b"old c"})
     (out / "other.txt").write_text("not ours")
     before = tree(tmp_path)
-    rename = atomic.os.rename
+    replace = atomic.os.replace
 
-    def fail_on_the_new_folder(src, dst):
-        if str(src).endswith(f".out.tmp-{atomic.os.getpid()}"):
+    def fail_on_b(src, dst):
+        if Path(dst).name == "b.txt" and ".workbench.tmp-" in str(src):
             raise OSError(13, "Permission denied")
-        rename(src, dst)
+        replace(src, dst)
 
-    monkeypatch.setattr(atomic.os, "rename", fail_on_the_new_folder)
+    monkeypatch.setattr(atomic.os, "replace", fail_on_b)
+    # a.txt replaced, then b.txt fails: a.txt is put back, c.txt (stale) not removed
     with pytest.raises(WorkbenchError, match="cannot write: Permission denied"):
         atomic.write_folder(out, {out / "a.txt": b"new a", out / "b.txt": b"new b"})
     assert tree(tmp_path) == before
     monkeypatch.undo()
     atomic.write_folder(out, {out / "a.txt": b"new a", out / "b.txt": b"new b"})
-    assert tree(out) == {Path("a.txt"): b"new a", Path("b.txt"): b"new b", Path("other.txt"): b"not ours"}
+    manifest = (out / atomic.MANIFEST).read_bytes()
+    assert tree(out) == {
+        Path("a.txt"): b"new a",
+        Path("b.txt"): b"new b",
+        Path("other.txt"): b"not ours",
+        Path(atomic.MANIFEST): manifest,
+    }
+    assert manifest.decode().splitlines()[1:] == ["a.txt", "b.txt"]
 
 
 def test_a_pair_of_files_is_put_back_when_the_second_rename_fails(tmp_path, monkeypatch):

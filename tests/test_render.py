@@ -177,7 +177,7 @@ def test_previews(tmp_path, default_design):
         (["--camera", "BADCAM"], "K: must be a 3x3 array of finite numbers", 1),
         (["--camera", "AWAY"], "the camera sees nothing of the object", 1),
         (["--camera", "missing.json"], "no such camera file", 1),
-        (["--orbit", "0,30,400", "--blur-px", "-1"], "--blur-px -1.0: must be between 0 and 50", 2),
+        (["--orbit", "0,30,400", "--blur-px", "-1"], "--blur-px -1: must be between 0 and 50", 2),
     ],
 )
 def test_bad_input(tmp_path, capsys, default_design, args, fragment, status):

@@ -1,16 +1,42 @@
-"""All-or-nothing writing of a command's output files, and the names they may take."""
+"""All-or-nothing writing of a command's output files, and the names they may take.
+
+One mechanism serves every command:
+
+- outputs are checked before any work (:func:`check_outputs`, :func:`check_output_dir`) and
+  again at the write: no output is a directory, a name too long for the file system, two
+  outputs of one name, or one of the command's inputs (paths resolved, symlinks followed);
+- files are written to temporary names, flushed, then renamed into place; a failure or an
+  interrupt (Ctrl-C, SIGTERM) before the renames leaves every target as it was and no
+  temporary behind; the renames themselves run with those signals held, so that an interrupt
+  there ends after the output is complete and is reported as such (:func:`signals_handled`);
+- an output folder holds exactly what its last run wrote: a hidden list of them,
+  ``.workbench-files``, tells the next run which files are its own (a stale one is removed)
+  and which are not (a user's file, another command's folder: kept).
+"""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
+import signal
+import stat
+import sys
+import threading
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from workbench.errors import WorkbenchError
 
 # what a file name made from a user's name (a view, a photo) may hold: no separator, no "..", no blank
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]")
+
+MANIFEST = ".workbench-files"
+# the longest name a file system takes (Linux, macOS, Windows: 255 bytes), less what the
+# temporary and backup names add to it (".", ".tmp-", a process id)
+NAME_MAX = 255
+_TEMP_EXTRA = 24
 
 
 def safe_name(name: str) -> str:
@@ -23,27 +49,96 @@ def safe_name(name: str) -> str:
     return "_" + name[1:] if name.startswith(".") else name
 
 
-def check_outputs(*paths: Path) -> None:
-    """Refuse, before any work, output paths that name an existing directory.
+# --- interrupts -------------------------------------------------------------------------------
 
-    Parameters
-    ----------
-    *paths : Path
-        Files a command is about to write.
 
-    Raises
-    ------
-    WorkbenchError
-        Naming the first path that is a directory.
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM, raised where the command was; ``signum`` says which."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signum)
+        self.signum = signum
+
+
+class _Signals:
+    """What the handler needs across calls: signals are the process's, so is this record.
+
+    ``held``: depth of :func:`_held` sections (a signal then waits until the last ends);
+    ``pending``: the signal that arrived while held; ``written``: outputs completed so far
+    by the running command, so that an interrupt after them is not reported as "nothing
+    written".
     """
-    for path in paths:
-        if Path(path).is_dir():
-            raise WorkbenchError(f"{path}: is a directory; give a file name for this output")
+
+    def __init__(self) -> None:
+        self.held = 0
+        self.pending: int | None = None
+        self.written: list[Path] = []
+        self.installed = False
 
 
-def check_output_dir(directory: Path) -> None:
-    """Refuse, before any work, an output folder that is an existing file or lies under one."""
-    directory = Path(directory)
+_SIGNALS = _Signals()
+
+
+def _handler(signum, _frame) -> None:
+    if _SIGNALS.held:
+        _SIGNALS.pending = signum
+        return
+    raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def signals_handled() -> Iterator[list[Path]]:
+    """Run a command with Ctrl-C and SIGTERM raised as :class:`Interrupted` (held during renames).
+
+    Yields the list of outputs the command completes, for its caller to say what an
+    interrupt left. Outside the main thread (where Python allows no handler) it only yields.
+    """
+    _SIGNALS.written = []
+    if threading.current_thread() is not threading.main_thread() or _SIGNALS.installed:
+        yield _SIGNALS.written
+        return
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    for s in previous:
+        signal.signal(s, _handler)
+    _SIGNALS.installed = True
+    try:
+        yield _SIGNALS.written
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        _SIGNALS.installed = False
+        _SIGNALS.pending = None
+
+
+@contextlib.contextmanager
+def _held() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM for the duration (the renames of a write, its clean-up); deliver after."""
+    _SIGNALS.held += 1
+    try:
+        yield
+    finally:
+        _SIGNALS.held -= 1
+        if not _SIGNALS.held and _SIGNALS.pending is not None:
+            signum, _SIGNALS.pending = _SIGNALS.pending, None
+            raise Interrupted(signum)
+
+
+# --- checks before any work -------------------------------------------------------------------
+
+
+def _check_name_lengths(path: Path, what: str = "") -> None:
+    parts = Path(path).parts
+    for k, part in enumerate(parts):
+        n = len(os.fsencode(part))
+        room = NAME_MAX - (_TEMP_EXTRA if k == len(parts) - 1 else 0)
+        if n > room:
+            raise WorkbenchError(
+                f"{what or path}: the name {part[:24]}... is {n} bytes; a file name takes at most {room}"
+            )
+
+
+def _check_parents(directory: Path) -> None:
+    """Refuse a folder for outputs that is a file or lies under one."""
     for d in (directory, *directory.parents):
         if d.exists() and not d.is_dir():
             raise WorkbenchError(f"{d}: is a file; give a directory for the output")
@@ -51,66 +146,175 @@ def check_output_dir(directory: Path) -> None:
             return
 
 
-def _write_temp(path: Path, data: bytes) -> Path:
-    """``data`` in a flushed temporary file beside ``path``; returns the temporary's path."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    return tmp
+def _resolved(path: Path) -> Path:
+    """``path`` made absolute, ``.`` and ``..`` and every symlink along it followed."""
+    return Path(os.path.realpath(os.path.abspath(path)))
+
+
+def _input_files(inputs: Iterable[Path]) -> tuple[dict[Path, Path], dict[Path, Path]]:
+    """Resolved input files and input folders, each to the path as given."""
+    files, folders = {}, {}
+    for p in inputs:
+        if p is None:
+            continue
+        r = _resolved(Path(p))
+        (folders if r.is_dir() else files)[r] = Path(p)
+    return files, folders
+
+
+def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
+    """Refuse, before any work, output files that cannot or must not be written.
+
+    Parameters
+    ----------
+    *paths : Path
+        Files a command is about to write.
+    inputs : iterable of Path
+        Files the command reads (folders among them are for :func:`check_output_dir`):
+        no output may be one of them.
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the first path that is a directory, whose name is too long, that two outputs
+        share (``board -o b.json``: the PDF and its definition) or that is an input.
+    """
+    in_files, _ = _input_files(inputs)
+    seen: dict[Path, Path] = {}
+    for path in paths:
+        path = Path(path)
+        _check_name_lengths(path)
+        if path.is_dir():
+            raise WorkbenchError(f"{path}: is a directory; give a file name for this output")
+        _check_parents(path.parent)
+        if path.name == MANIFEST:
+            raise WorkbenchError(f"{path}: is the name of an output folder's list of its files; give another name")
+        r = _resolved(path)
+        if r in seen:
+            raise WorkbenchError(f"{path}: two outputs of this command would share this name; give another name")
+        seen[r] = path
+        given = in_files.get(r)
+        if given is not None:
+            also = "" if given == path else f" ({given})"
+            raise WorkbenchError(f"{path}: is an input of this command{also}; write the output elsewhere")
+
+
+def check_output_dir(directory: Path, inputs: Iterable[Path] = ()) -> None:
+    """Refuse, before any work, an output folder that cannot or must not be written.
+
+    A file, a folder under a file, a name too long, an input folder itself (``validate
+    --out DESIGN``), or a folder whose earlier run wrote (so that this run would replace
+    or remove) one of the inputs.
+    """
+    directory = Path(directory)
+    _check_name_lengths(directory)
+    _check_parents(directory)
+    in_files, in_folders = _input_files(inputs)
+    r = _resolved(directory)
+    if r in in_folders:
+        also = "" if in_folders[r] == directory else f" ({in_folders[r]})"
+        raise WorkbenchError(f"{directory}: is an input folder of this command{also}; write the output elsewhere")
+    for name in folder_manifest(r):
+        if (r / name) in in_files:
+            raise WorkbenchError(
+                f"{directory}: its earlier output {name} is an input of this command; write the output elsewhere"
+            )
+
+
+# --- writing ----------------------------------------------------------------------------------
 
 
 def _oserror(path: Path, exc: OSError) -> WorkbenchError:
     return WorkbenchError(f"{path}: cannot write: {exc.strerror or exc}")
 
 
-def write_files(files: dict[Path, bytes]) -> None:
+def _write_file(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def _link_or_copy(src: Path, dst: Path) -> None:
+    dst.unlink(missing_ok=True)
+    try:
+        os.link(src, dst)
+    except OSError:  # a file system without hard links
+        shutil.copy2(src, dst)
+
+
+def _rmtree(path: Path) -> None:
+    """Remove ``path`` even where an earlier output made its folders read-only."""
+
+    def retry(func, p, _exc):
+        try:
+            os.chmod(os.path.dirname(p), stat.S_IRWXU)
+            if os.path.isdir(p):
+                os.chmod(p, stat.S_IRWXU)
+            func(p)
+        except OSError:
+            pass
+
+    if not path.exists():
+        return
+    if sys.version_info >= (3, 12):
+        shutil.rmtree(path, onexc=retry)
+    else:  # pragma: no cover
+        shutil.rmtree(path, onerror=retry)
+
+
+def write_files(files: dict[Path, bytes], inputs: Iterable[Path] = ()) -> None:
     """Write several files so that either all appear complete or none changes.
 
     Each file is written to a temporary name beside its target and flushed; only when
-    every one is written are they renamed into place (rename is atomic on POSIX). The
-    targets that existed are kept as hard-linked backups until the last rename, so that a
-    rename failing half-way puts the earlier ones back. For a set of files that makes up
-    an output folder of its own, :func:`write_folder` swaps the whole folder instead.
+    every one is written are they renamed into place (rename is atomic on POSIX), with
+    Ctrl-C and SIGTERM held. The targets that existed are kept as hard-linked backups until
+    the last rename, so that a rename failing half-way puts the earlier ones back. A
+    target that is a symlink is written through (the link stays). For a set of files that
+    makes up an output folder of its own, :func:`write_folder` writes the folder instead.
 
     Parameters
     ----------
     files : dict of Path to bytes
         Target path and content of each file. Parent directories are created.
+    inputs : iterable of Path
+        The command's inputs, which no target may be.
 
     Raises
     ------
     WorkbenchError
-        A file cannot be written; names it.
+        A file cannot be written, or must not (see :func:`check_outputs`); names it.
     """
     # a target that is a directory would fail only at the rename, after others were
     # replaced: refuse it before anything is written
-    check_outputs(*files)
-    temps: list[tuple[Path, Path]] = []
+    check_outputs(*files, inputs=inputs)
+    temps: list[tuple[Path, Path, Path]] = []
     backups: dict[Path, Path | None] = {}
     try:
-        for path, data in files.items():
-            path = Path(path)
+        for given, data in files.items():
+            path = _resolved(Path(given))
+            tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+            temps.append((tmp, path, Path(given)))
             try:
-                temps.append((_write_temp(path, data), path))
+                _write_file(tmp, data)
             except OSError as exc:
-                raise _oserror(path, exc) from None
-        for tmp, path in temps:
-            try:
-                backups[path] = _backup(path)
-                os.replace(tmp, path)
-            except OSError as exc:
-                _restore(backups)
-                raise _oserror(path, exc) from None
-        temps.clear()
+                raise _oserror(Path(given), exc) from None
+        with _held():
+            for tmp, path, given in temps:
+                try:
+                    backups[path] = _backup(path)
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    _restore(backups)
+                    raise _oserror(given, exc) from None
+            temps.clear()
+            _SIGNALS.written.extend(Path(p) for p in files)
     finally:
-        for tmp, _ in temps:
-            tmp.unlink(missing_ok=True)
-        for backup in backups.values():
-            if backup is not None:
-                backup.unlink(missing_ok=True)
+        with _held():
+            for p in [t for t, _, _ in temps] + [b for b in backups.values() if b is not None]:
+                with contextlib.suppress(OSError):
+                    p.unlink(missing_ok=True)
 
 
 def _backup(path: Path) -> Path | None:
@@ -118,11 +322,7 @@ def _backup(path: Path) -> Path | None:
     if not path.exists():
         return None
     backup = path.with_name(f".{path.name}.old-{os.getpid()}")
-    backup.unlink(missing_ok=True)
-    try:
-        os.link(path, backup)
-    except OSError:  # a file system without hard links
-        shutil.copy2(path, backup)
+    _link_or_copy(path, backup)
     return backup
 
 
@@ -138,15 +338,40 @@ def _restore(backups: dict[Path, Path | None]) -> None:
             pass
 
 
-def write_folder(directory: Path, files: dict[Path, bytes]) -> None:
-    """Write a command's output folder all or nothing: a temporary sibling folder, then a swap.
+def folder_manifest(directory: Path) -> list[str]:
+    """The files the last run wrote into ``directory`` (relative, POSIX), from its ``.workbench-files``."""
+    try:
+        text = (directory / MANIFEST).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return []
+    names = []
+    for line in text.splitlines():
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        p = Path(line)
+        # only names inside the folder: a tampered list must not reach outside it
+        if p.parts and not p.is_absolute() and ".." not in p.parts and p.parts[0] != MANIFEST:
+            names.append(p.as_posix())
+    return names
 
-    The files are written into ``.NAME.tmp-PID`` beside ``directory``; entries of an
-    existing ``directory`` that this set does not replace (another command's output kept
-    there, such as ``validation/`` in a design folder) are moved across; then the old
-    folder is renamed aside, the new one into its place, and the old one removed. A
-    failure at any step before the swap leaves ``directory`` as it was and removes the
-    temporary folder.
+
+def _manifest_bytes(names: Iterable[str]) -> bytes:
+    head = "# written by workbench: the next run into this folder replaces these and removes those it does not write\n"
+    return (head + "".join(f"{n}\n" for n in sorted(names))).encode()
+
+
+def write_folder(directory: Path, files: dict[Path, bytes], inputs: Iterable[Path] = ()) -> None:
+    """Write a command's output folder all or nothing; afterwards it holds what this run wrote.
+
+    A new folder is written as a temporary sibling ``.NAME.tmp-PID`` and renamed into
+    place. An existing one (``.``, a symlink to a folder: followed) is updated in place:
+    the new files are written into ``DIR/.workbench.tmp-PID/``, then, with Ctrl-C and
+    SIGTERM held, each is renamed over its target (the old one kept as a hard link until
+    the end) and the files the earlier run wrote that this one does not (its
+    ``.workbench-files``) are removed. Everything else in the folder (a user's file,
+    another command's output such as ``validation/`` in a design folder) is left alone. A
+    failure at any step leaves the folder as it was and no temporary behind.
 
     Parameters
     ----------
@@ -154,59 +379,115 @@ def write_folder(directory: Path, files: dict[Path, bytes]) -> None:
         The output folder (created when missing).
     files : dict of Path to bytes
         Each file's path, inside ``directory``, and content.
+    inputs : iterable of Path
+        The command's inputs: none may be replaced or removed.
 
     Raises
     ------
     WorkbenchError
-        A path outside the folder, a folder that is a file, or a file that cannot be written.
+        A path outside the folder, a folder that is a file, an input at stake, or a file
+        that cannot be written.
     """
-    directory = Path(directory)
-    check_output_dir(directory)
-    check_outputs(*files)
-    rel = {}
+    given = Path(directory)
+    check_output_dir(given, inputs)
+    check_outputs(*files, inputs=inputs)
+    rel: dict[str, bytes] = {}
     for path, data in files.items():
         try:
-            rel[Path(path).relative_to(directory)] = data
+            name = Path(path).relative_to(given)
         except ValueError:
-            raise WorkbenchError(f"{path}: outside the output folder {directory}") from None
-    directory.parent.mkdir(parents=True, exist_ok=True)
-    tmp = directory.with_name(f".{directory.name}.tmp-{os.getpid()}")
-    old = directory.with_name(f".{directory.name}.old-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    moved: list[str] = []
+            raise WorkbenchError(f"{path}: outside the output folder {given}") from None
+        if not name.parts or ".." in name.parts or name.as_posix() == MANIFEST:
+            raise WorkbenchError(f"{path}: not a file name inside the output folder {given}")
+        rel[name.as_posix()] = data
+    directory = _resolved(given)
+    in_files, _ = _input_files(inputs)
+    old = folder_manifest(directory) if directory.is_dir() else []
+    # a stale file is removed only where it really is inside the folder (not through a symlink out of it)
+    stale = [
+        n for n in old if n not in rel and (directory / n).is_file() and directory in _resolved(directory / n).parents
+    ]
+    for n in stale:
+        if directory / n in in_files:
+            raise WorkbenchError(f"{given / n}: is an input of this command; write the output elsewhere")
+    rel[MANIFEST] = _manifest_bytes(n for n in rel)
+    if directory.is_dir():
+        _update_folder(directory, given, rel, stale)
+    else:
+        _new_folder(directory, given, rel)
+
+
+def _new_folder(directory: Path, given: Path, rel: dict[str, bytes]) -> None:
     try:
-        tmp.mkdir()
+        directory.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _oserror(given, exc) from None
+    tmp = directory.with_name(f".{directory.name}.tmp-{os.getpid()}")
+    try:
+        _rmtree(tmp)
         for name, data in rel.items():
             try:
                 _write_file(tmp / name, data)
             except OSError as exc:
-                raise _oserror(directory / name, exc) from None
-        if directory.exists():
-            tops = {n.parts[0] for n in rel}
-            for entry in sorted(os.listdir(directory)):
-                if entry not in tops:
-                    os.rename(directory / entry, tmp / entry)
-                    moved.append(entry)
-            os.rename(directory, old)
-        os.rename(tmp, directory)
-    except (OSError, WorkbenchError) as exc:
-        if old.exists() and not directory.exists():
-            os.rename(old, directory)
-        for entry in moved:  # give the old folder back what it lent the new one
+                raise _oserror(given / name, exc) from None
+        with _held():
             try:
-                os.rename(tmp / entry, directory / entry)
-            except OSError:
-                pass
-        shutil.rmtree(tmp, ignore_errors=True)
-        if isinstance(exc, WorkbenchError):
-            raise
-        raise _oserror(directory, exc) from None
-    shutil.rmtree(old, ignore_errors=True)
+                os.rename(tmp, directory)
+            except OSError as exc:
+                raise _oserror(given, exc) from None
+            _SIGNALS.written.append(given)
+    finally:
+        with _held():
+            _rmtree(tmp)
 
 
-def _write_file(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
+def _update_folder(directory: Path, given: Path, rel: dict[str, bytes], stale: list[str]) -> None:
+    stage = directory / f".workbench.tmp-{os.getpid()}"
+    new, old = stage / "new", stage / "old"
+    # (target, its backup or None) for every change made, in order, to undo them
+    done: list[tuple[Path, Path | None]] = []
+    try:
+        with _held():
+            _rmtree(stage)
+        for name, data in rel.items():
+            try:
+                _write_file(new / name, data)
+            except OSError as exc:
+                raise _oserror(given / name, exc) from None
+        with _held():
+            try:
+                old.mkdir(parents=True)
+                for k, name in enumerate([*rel, *stale]):
+                    target = directory / name
+                    backup = old / str(k)
+                    if target.exists():
+                        _link_or_copy(target, backup)
+                    else:
+                        backup = None
+                    if name in rel:
+                        target.parent.mkdir(parents=True, exist_ok=True)
+                        done.append((target, backup))
+                        os.replace(new / name, target)
+                    else:
+                        done.append((target, backup))
+                        target.unlink()
+            except OSError as exc:
+                for target, backup in reversed(done):
+                    try:
+                        if backup is None:
+                            target.unlink(missing_ok=True)
+                        else:
+                            os.replace(backup, target)
+                    except OSError:
+                        pass
+                raise _oserror(given, exc) from None
+            _SIGNALS.written.append(given)
+            for name in stale:  # folders that held only stale files go with them
+                for parent in (directory / name).parents:
+                    if parent == directory:
+                        break
+                    with contextlib.suppress(OSError):
+                        parent.rmdir()
+    finally:
+        with _held():
+            _rmtree(stage)

@@ -24,6 +24,10 @@ FOV_RANGE_DEG = (2.0, 170.0)
 # what pdf accepts as a printer's scale (workbench.schemas.PRINTER_PROFILE), and a plausible skew
 PRINTER_SCALE = (0.8, 1.25)
 MAX_SKEW_DEG = 2.0
+# what printers do: a laser or inkjet printer's scale error stays within a few tenths of a
+# percent. Beyond 2 %, the likelier cause is the target (printed with fit-to-page, or
+# another board's definition: a 15.9 mm target measured against 15 mm reads +6 %)
+PLAUSIBLE_PRINTER_PCT = 2.0
 COMMON_DPI = (72, 96, 100, 150, 200, 240, 300, 360, 400, 600, 720, 800, 1200, 1600, 2400, 4800)
 
 
@@ -56,6 +60,24 @@ def detect_corners(gray: np.ndarray, definition: dict) -> tuple[np.ndarray, np.n
     if ids is None:
         return np.zeros((0, 2)), np.zeros(0, int), no_corners_reason(gray, spec, len(mids))
     return corners.reshape(-1, 2).astype(np.float64), ids.ravel(), None
+
+
+def printer_scale_warnings(m: PrinterScale) -> list[str]:
+    """Why a measured printer scale that pdf would accept is still unlike a printer's; empty when it is not.
+
+    A scale beyond PLAUSIBLE_PRINTER_PCT in x or y: ``calibrate printer`` says so, and
+    ``--strict`` refuses it until a second scan (``calibrate check``) confirms it.
+    """
+    out = []
+    for axis, s in (("x", m.scale_x), ("y", m.scale_y)):
+        pct = 100 * (s - 1)
+        if abs(pct) > PLAUSIBLE_PRINTER_PCT:
+            out.append(
+                f"scale {axis} {pct:+.2f} % is beyond what printers do (within ±{PLAUSIBLE_PRINTER_PCT:g} %): was the "
+                "target printed at 100 % (no fit to page), and is the board definition this target's? confirm with "
+                "a second scan (workbench calibrate check PROFILE SCAN)"
+            )
+    return out
 
 
 def no_corners_reason(gray: np.ndarray, spec: CharucoSpec, n_markers: int) -> str:

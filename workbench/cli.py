@@ -9,6 +9,8 @@ import sys
 import warnings
 
 from workbench import __version__
+from workbench.atomic import signals_handled
+from workbench.environment import use_writable_caches
 from workbench.errors import UsageError, WorkbenchError
 
 # in the order of `workbench --help`
@@ -53,7 +55,8 @@ def main(argv: list[str] | None = None) -> int:
 
     0 on success, 1 for bad input or a failed run (a file, key or value at fault, a
     calibration that drifted), 2 for a malformed command line (an unknown, missing or
-    out-of-range option), 130 when interrupted. Every error is one line on stderr,
+    out-of-range option), 130 when interrupted (Ctrl-C, SIGTERM) before the output was complete (0
+    after). Every error is one line on stderr,
     ``workbench COMMAND: error: WHAT: why``, and a failed run writes nothing.
     """
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
@@ -65,25 +68,33 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 1
+    use_writable_caches()  # before a command's modules load numba and matplotlib
     args_in = sys.argv[1:] if argv is None else argv
     first = next((a for a in args_in if not a.startswith("-")), None)
     parser = build_parser(first if first in COMMANDS else None)
     # name the subcommand in usage errors too, which argparse reports before `args` exists
     prog = f"workbench {first}" if first in COMMANDS else "workbench"
-    try:
-        args = parser.parse_args(argv)
-        if args.command is None:
-            parser.print_help()
-            return 2
-        prog = f"workbench {args.command}"
-        return _run_quietly(args)
-    except WorkbenchError as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
-        return exc.exit_status
-    except MemoryError:
-        # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
-        print(f"{prog}: error: out of memory; nothing written (lower the resolution or the size)", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted; nothing written", file=sys.stderr)
-        return 130
+    with signals_handled() as written:
+        try:
+            args = parser.parse_args(argv)
+            if args.command is None:
+                parser.print_help()
+                return 2
+            prog = f"workbench {args.command}"
+            return _run_quietly(args)
+        except WorkbenchError as exc:
+            print(f"{prog}: error: {exc}", file=sys.stderr)
+            return exc.exit_status
+        except MemoryError:
+            # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
+            print(f"{prog}: error: out of memory; nothing written (lower the resolution or the size)", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt:
+            # Ctrl-C or SIGTERM: a write undoes itself (no temporary left) unless its renames
+            # were done, and then the output is complete: that is what the user needs to know
+            if written:
+                done = ", ".join(map(str, written))
+                print(f"{prog}: interrupted after writing {done}, which is complete", file=sys.stderr)
+                return 0
+            print(f"{prog}: interrupted; nothing written", file=sys.stderr)
+            return 130

@@ -95,6 +95,8 @@ class DesignResult:
     view_status: np.ndarray | None = None
     films: list[Film] = field(default_factory=list)
     seams: dict | None = None
+    # plausibility warnings found on the way (films that cover little of what they were given)
+    warnings: list[str] = field(default_factory=list)
     undecorated: tuple[float, float] = (0.0, 0.0)
 
 
@@ -169,8 +171,15 @@ class Film:
 ATLAS_GAP_MM = 5.0
 
 
-def _film_regions(job: Job, V, F, status, say) -> list[tuple[str, np.ndarray, FlattenResult, Material, str]]:
-    """Faces and map of each film: split automatically, or as the job gives them."""
+def _film_regions(
+    job: Job, V, F, status, say, warnings: list[str]
+) -> list[tuple[str, np.ndarray, FlattenResult, Material, str]]:
+    """Faces and map of each film: split automatically, or as the job gives them.
+
+    Appends to ``warnings`` a film that keeps less than MIN_FILM_COVERAGE of the faces it
+    was given (one film is one connected disc: faces that meet only at corners are cut to
+    the largest piece) and decorated faces left on no film beyond MAX_BARE_SHARE.
+    """
     area = face_areas(V, F)
     owned = status != 0
     owner_view = np.where(owned.any(axis=1), np.argmax(owned, axis=1), -1)
@@ -216,11 +225,24 @@ def _film_regions(job: Job, V, F, status, say) -> list[tuple[str, np.ndarray, Fl
             flat = flatten(Vs, Fs, options, where, log=say)
         except CrowdingError as exc:
             raise crowding_advice(exc, Vs, Fs, options, where, say) from None
+        kept = float(area[region & wanted].sum() / area[wanted].sum())
+        if kept < MIN_FILM_COVERAGE:
+            warnings.append(
+                f"film {spec.name!r} keeps {100 * kept:.1f} % of the surface it was given "
+                f"({area[region & wanted].sum():.1f} of {area[wanted].sum():.1f} mm²): a film is one piece, "
+                "and faces that meet only at corners (or not at all) are not one piece"
+            )
         claimed |= region
         out.append((spec.name, faces, flat, spec.material, spec.outline))
     left = (owner_view >= 0) & ~claimed
-    if left.any():
-        say(f"warning: {int(left.sum())} decorated faces ({area[left].sum():.0f} mm²) are on no film")
+    decorated = float(area[owner_view >= 0].sum())
+    if decorated > 0 and area[left].sum() > MAX_BARE_SHARE * decorated:
+        warnings.append(
+            f"{100 * area[left].sum() / decorated:.1f} % of the decorated surface ({area[left].sum():.0f} mm²) "
+            "is on no film: the part would be left bare there"
+        )
+    elif left.any():
+        say(f"{int(left.sum())} decorated faces ({area[left].sum():.0f} mm²) are on no film")
     return out
 
 
@@ -242,7 +264,8 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
     cameras, visibilities, status = assign_job_views(job, V, F, images)
     t["views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    regions = _film_regions(job, V, F, status, say)
+    warnings: list[str] = []
+    regions = _film_regions(job, V, F, status, say, warnings)
     t["flatten"] = time.perf_counter() - t0
     owned = status != 0
     film_of_face = np.full(len(F), -1)
@@ -340,6 +363,7 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
         view_status=status,
         films=films,
         seams=seam,
+        warnings=warnings,
         undecorated=undecorated_surface(V, F, status),
     )
 
@@ -397,7 +421,9 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     t: dict[str, float] = {}
     t0 = time.perf_counter()
     V, F = read_mesh(job.object.mesh, job.object.units)
-    images = [read_image(v.image, f"{job.path}: views[{i}].image") for i, v in enumerate(job.views)]
+    images = [
+        read_image(v.image, f"{job.path}: views[{i}].image", job.print.background) for i, v in enumerate(job.views)
+    ]
     t["read"] = time.perf_counter() - t0
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")
 
@@ -408,6 +434,7 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     auto = job.object.corners == "auto"
     options = FlattenOptions(
         corners=None if auto else job.object.corners,
+        corners_from=f"{job.path}: object.corners",
         scale=job.print.scale,
         min_print_mm=0.5 * 25.4 / job.print.dpi,
         outline=job.print.outline,
@@ -553,6 +580,15 @@ MIN_STRETCH = 0.8
 MAX_OFF_STRETCH_SHARE = 0.01
 MAX_BACKGROUND_SHARE = 0.5
 MAX_PRINT_TO_SURFACE = 2.0
+# films: the share of the surface a film was given that it must keep, and the share of the
+# decorated surface that may stay on no film
+MIN_FILM_COVERAGE = 0.9
+MAX_BARE_SHARE = 0.02
+# below this, a print pixel (or a view pixel on the print) is over 2.5 mm: no detail survives
+# (the tests' quick designs print at 20 to 50 dpi, a coarse but legible preview)
+MIN_DPI = 10.0
+# a view that paints less of the print than this is not judged by its resolution
+MIN_VIEW_SHARE = 0.01
 
 
 def background_share(result: DesignResult) -> float:
@@ -565,7 +601,7 @@ def film_area_mm2(flat: FlattenResult) -> float:
     return float(np.abs(signed_areas(flat.uv, flat.F)).sum())
 
 
-def fit_warnings(result: DesignResult, max_stretch: float | None) -> list[str]:
+def fit_warnings(result: DesignResult, max_stretch: float | None, names: list[str] | None = None) -> list[str]:
     """Why this print will not make a good part, one sentence each; empty when it will.
 
     Parameters
@@ -574,12 +610,17 @@ def fit_warnings(result: DesignResult, max_stretch: float | None) -> list[str]:
         A computed design.
     max_stretch : float or None
         The material's stretch limit (3D length / print length); None: no upper check.
+    names : list of str, optional
+        The views' names, for the warnings about them.
 
     Returns
     -------
     list of str
         Warnings: stretch outside [0.8, limit] on more than 1 % of the surface,
-        background over half the print, a print more than twice the developed area.
+        background over half the print, a print more than twice the developed area, a
+        print below MIN_DPI, a view image that paints its share of the print below
+        MIN_DPI (effective resolution: view pixels per print mm), and the films' own
+        (a film that keeps little of its faces, surface on no film).
     """
     flat = result.flat
     ok = ~flat.collapsed
@@ -603,4 +644,21 @@ def fit_warnings(result: DesignResult, max_stretch: float | None) -> list[str]:
             f"the print ({flat.width_mm:.0f} x {flat.height_mm:.0f} mm, {film_area / 100:.0f} cm² of film) is "
             f"{film_area / surface:.1f} times the part's developed area"
         )
+    dpi = result.grid.dpi
+    if dpi < MIN_DPI:
+        out.append(
+            f"the print's {dpi:g} dpi makes pixels of {25.4 / dpi:.2g} mm: below {MIN_DPI:g} dpi no detail shows"
+        )
+    n_film = max(int(result.film.sum()), 1)
+    for v, s in enumerate(result.view_px_per_print_px):
+        share = float((result.owner == v).sum() / n_film)
+        effective = float(s) * dpi  # view pixels per inch of print
+        if share >= MIN_VIEW_SHARE and not effective >= MIN_DPI:
+            name = names[v] if names and v < len(names) else str(v)
+            out.append(
+                f"view {name!r} paints {100 * share:.1f} % of the print at {effective:.2g} dpi (one view pixel "
+                f"spans {25.4 / max(effective, 1e-9):.3g} mm of print): its image is too small for the print "
+                f"(at least {MIN_DPI:g} dpi)"
+            )
+    out.extend(result.warnings)
     return out

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from workbench import schemas
-from workbench.atomic import safe_name
+from workbench.atomic import MANIFEST, folder_manifest, safe_name
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
 from workbench.jsonfile import read_json
@@ -24,6 +24,20 @@ def read_design_json(path: Path, fields: dict = schemas.DESIGN) -> dict:
         if name in names[:k]:
             raise WorkbenchError(f"{path}: views[{k}].name: {name!r} is used twice")
     return info
+
+
+# what workbench design writes, for a folder written before it listed them in .workbench-files
+_DESIGN_FILES = ("design.json", "print.png", "owner.png", "flat.obj", "decorated.obj", "decorated.mtl", "decorated.glb",
+                 "fixture.json", "views.png", "stretch.png", "view-*.png", "print-*.png", "flat-*.obj")  # fmt: skip
+
+
+def design_files(directory: Path) -> list[Path]:
+    """The files of a design folder, with the folder itself: the inputs no output of pdf, render or
+    validate may replace (``render -o DESIGN/print.png``) and no output folder may be."""
+    directory = Path(directory)
+    names = folder_manifest(directory)
+    files = [directory / n for n in names] or [p for pat in _DESIGN_FILES for p in sorted(directory.glob(pat))]
+    return [directory, *files, *([directory / MANIFEST] if names else [])]
 
 
 class Design:
@@ -145,15 +159,67 @@ class Design:
         return cam
 
 
-def read_image(path, what: str) -> np.ndarray:
-    """An image file as RGB uint8, or a WorkbenchError naming it."""
+# the largest view image read: a camera's (today's largest sensors: about 100 Mpx). Decoding
+# needs about 30 bytes a pixel (the file, the image, its colour conversion and the
+# sampling's copies): a 20000 x 20000 px image took 12.5 GB.
+MAX_VIEW_PIXELS = 100_000_000
+
+
+def read_image(path, what: str, background: tuple[int, int, int] = (255, 255, 255)) -> np.ndarray:
+    """An image file as RGB uint8, or a WorkbenchError naming it.
+
+    Parameters
+    ----------
+    path : Path
+        The image (PNG, JPEG, ... any bit depth, grey, RGB or RGBA).
+    what : str
+        The file's role, for errors (``JOB.toml: views[0].image``).
+    background : (3,) int
+        RGB under the transparent pixels of an image with alpha: the print's background,
+        not the black that dropping the alpha channel shows.
+
+    Returns
+    -------
+    (H, W, 3) uint8
+    """
     if Path(path).is_dir():
         raise WorkbenchError(f"{what}: {path} is a directory, not an image")
+    check_image_size(path, what)
     try:
         data = np.fromfile(str(path), dtype=np.uint8)
     except OSError:
         data = np.zeros(0, np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    if img is None:
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if img is None or img.size == 0:
         raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")
+    if img.dtype != np.uint8:  # 16-bit or float: as IMREAD_COLOR would, 8 bits
+        img = np.clip(img.astype(np.float64) / (257.0 if img.dtype == np.uint16 else 1.0 / 255.0), 0, 255)
+        img = np.round(img).astype(np.uint8)
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    if img.shape[2] == 4:
+        alpha = img[..., 3:4].astype(np.float32) / 255.0
+        under = np.asarray(background[::-1], np.float32)  # BGR, as OpenCV reads
+        img = np.round(img[..., :3] * alpha + under * (1.0 - alpha)).astype(np.uint8)
+    elif img.shape[2] != 3:
+        img = cv2.cvtColor(img[..., :1], cv2.COLOR_GRAY2BGR)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def check_image_size(path, what: str) -> None:
+    """Refuse, from its header alone, an image of more than MAX_VIEW_PIXELS pixels."""
+    from PIL import Image
+
+    limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # this check is ours, and says which file
+    try:
+        with Image.open(path) as im:  # the header only: no pixel decoded
+            w, h = im.size
+    except Exception:  # not an image PIL knows: OpenCV says so next
+        return
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
+    if w * h > MAX_VIEW_PIXELS:
+        raise WorkbenchError(
+            f"{what}: {path} is {w} x {h} px ({w * h / 1e6:,.0f} Mpx): more than a view image needs "
+            f"(at most {MAX_VIEW_PIXELS / 1e6:.0f} Mpx, whose decoding alone takes gigabytes): scale it down"
+        )

@@ -325,11 +325,7 @@ def load_job(path: str | Path) -> Job:
     o = _Reader(path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material"})
     corners = o.get("corners")
     if corners is not None and corners != "auto":
-        if not (
-            isinstance(corners, list)
-            and len(corners) == 4
-            and all(isinstance(c, int) and not isinstance(c, bool) for c in corners)
-        ):
+        if not (isinstance(corners, list) and len(corners) == 4 and all(_vertex_index(c) for c in corners)):
             o.fail(f'must be a list of 4 vertex indices or "auto", got {corners!r}', "corners")
         corners = tuple(corners)
     m = _Reader(path, "object.material", o.get("material", {}), {"name", "max_stretch"})
@@ -344,8 +340,13 @@ def load_job(path: str | Path) -> Job:
         scale = ScaleMode.parse(p.string("scale", str(ScaleMode.default(outline))))
     except UsageError as exc:
         p.fail(str(exc).replace("--scale ", ""), "scale")
+    dpi = p.number("dpi", 300.0, lo=0)
+    # a denormal: a print pixel wider than any part, and a division by it overflows; 1e308: the
+    # print's size in pixels overflows before the memory check can refuse it
+    if not 1 <= dpi <= 1e6:
+        p.fail(f"must be from 1 to 1000000 dpi, got {dpi!r}", "dpi")
     spec = PrintSpec(
-        dpi=p.number("dpi", 300.0, lo=0),
+        dpi=dpi,
         scale=scale,
         outline=outline,
         background=_colour(p, "background", "#ffffff"),
@@ -373,6 +374,11 @@ def load_job(path: str | Path) -> Job:
         fixture=fixture,
         films=films,
     )
+
+
+def _vertex_index(c) -> bool:
+    """Whether ``c`` can be a vertex index: a whole number from 0 below 2**31 (a 20-digit one overflowed numpy)."""
+    return isinstance(c, int) and not isinstance(c, bool) and 0 <= c < 2**31
 
 
 def _films(path: Path, top: _Reader, obj: ObjectSpec, spec: PrintSpec, view_names: set[str]):
@@ -416,11 +422,7 @@ def _films(path: Path, top: _Reader, obj: ObjectSpec, spec: PrintSpec, view_name
         if corners is not None:
             if outline != "rectangle":
                 r.fail("corners belong to a rectangle; a free outline has none", "corners")
-            if not (
-                isinstance(corners, list)
-                and len(corners) == 4
-                and all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in corners)
-            ):
+            if not (isinstance(corners, list) and len(corners) == 4 and all(_vertex_index(c) for c in corners)):
                 r.fail(f"must be a list of 4 vertex indices, got {corners!r}", "corners")
             corners = tuple(corners)
         material = obj.material

@@ -10,10 +10,12 @@ from pathlib import Path
 import numpy as np
 
 from workbench import __version__
-from workbench.atomic import write_files
+from workbench.atomic import check_outputs, write_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
+from workbench.options import Number, parse_numbers
 from workbench.printing.boards import (
+    BoardError,
     CharucoSpec,
     ChessboardSpec,
     chessboard_definition,
@@ -50,10 +52,19 @@ def add_parser(sub) -> None:
         "-o", "--output", metavar="FILE.pdf", help="default calib/boards/<kind>.pdf (fixture: prints/<job>-fixture.pdf)"
     )
     p.add_argument("--squares", metavar="NXxNY", help="squares across and down (charuco default 7x5, chessboard 10x7)")
-    p.add_argument("--square-mm", type=float, help="square side, mm")
-    p.add_argument("--marker-mm", type=float, help="marker side, mm (default 0.75 of the square)")
+    size = {"action": Number, "lo": 0, "lo_open": True, "hi": 1000, "unit": "mm"}
+    p.add_argument("--square-mm", **size, help="square side, mm")
+    p.add_argument("--marker-mm", **size, help="marker side, mm (default 0.75 of the square)")
     p.add_argument("--dictionary", default=None, help="ArUco dictionary (default DICT_5X5_250)")
-    p.add_argument("--first-id", type=int, default=None, help="id of the first marker (default 0)")
+    p.add_argument(
+        "--first-id",
+        action=Number,
+        lo=0,
+        hi=2**20,
+        integer=True,
+        default=None,
+        help="id of the first marker (default 0)",
+    )
     p.add_argument(
         "--legacy",
         action="store_true",
@@ -68,11 +79,9 @@ def add_parser(sub) -> None:
 def _squares(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     if text is None:
         return default
-    try:
-        nx, ny = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise UsageError(f"--squares {text!r}: give NXxNY, e.g. 7x5") from None
-    return nx, ny
+    if len(text.lower().split("x")) != 2:
+        raise UsageError(f"--squares {text!r}: give NXxNY, e.g. 7x5")
+    return parse_numbers(text.lower(), 2, "--squares", sep="x", lo=1, hi=1000, integer=True)
 
 
 def board_pdf(
@@ -167,6 +176,7 @@ def run(args) -> int:
     profile = load_printer_profile(args.printer_profile) if args.printer_profile else PrinterProfile()
     extra: dict = {"software": {"name": "workbench", "version": __version__}}
     footprint = origin = chart = None
+    inputs = [Path(args.printer_profile)] if args.printer_profile else []
     if args.kind == "fixture":
         if args.legacy:
             raise UsageError("--legacy is for board charuco: a fixture board is always in today's layout")
@@ -177,6 +187,7 @@ def run(args) -> int:
         from workbench.mesh.validate import check_disc
 
         job = load_job(args.job)
+        inputs += [job.path, job.object.mesh, *(v.image for v in job.views)]
         V, F = read_mesh(job.object.mesh, job.object.units)
         check_disc(V, F, str(job.object.mesh))  # the footprint is the disc's boundary
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
@@ -190,9 +201,6 @@ def run(args) -> int:
     else:
         if args.job is not None:
             raise UsageError(f"board {args.kind} takes options, not a job file")
-        for flag, v in (("--square-mm", args.square_mm), ("--marker-mm", args.marker_mm)):
-            if v is not None and not (np.isfinite(v) and 0 < v <= 1000):
-                raise UsageError(f"{flag} {v:g}: must be a positive size in mm (at most 1000)")
         if args.legacy and args.kind != "charuco":
             raise UsageError(f"--legacy is a ChArUco layout: board {args.kind} has none")
         if args.kind == "chessboard":
@@ -223,6 +231,11 @@ def run(args) -> int:
                     first_id=args.first_id or 0,
                     legacy=bool(args.legacy),
                 )
+        except BoardError as exc:  # every value came from an option (or its default): name it
+            flag = "--" + exc.key.replace("_", "-")
+            given = getattr(args, exc.key, None)
+            given = "" if given is None else f" {given:g}" if isinstance(given, float) else f" {given}"
+            raise UsageError(f"{flag}{given}: {exc}") from None
         except WorkbenchError as exc:  # every value came from an option: a usage error
             raise UsageError(str(exc)) from None
         layout = "-legacy" if args.legacy else ""
@@ -230,6 +243,8 @@ def run(args) -> int:
         pattern = "chessboard" if args.kind == "chessboard" else spec.dictionary + (", legacy layout" * args.legacy)
         title = f"workbench {args.kind} board {squares[0]}x{squares[1]}, {square:g} mm squares, {pattern}"
     out = Path(args.output) if args.output else default_out
+    # `-o b.json`: the PDF and its definition would get one name; the job's files are inputs
+    check_outputs(out, out.with_suffix(".json"), inputs=inputs)
     if "job" in extra:  # relative to the definition's folder, with its hash: the pair travels
         extra["job"]["file"] = recorded_path(extra["job"]["file"], out.parent)
     pdf, page_origin, paper_name = board_pdf(spec, title, paper, profile, footprint, chart)
@@ -239,7 +254,7 @@ def run(args) -> int:
         info = chessboard_definition(spec, page_origin_mm=page_origin, extra=extra)
     else:
         info = definition(spec, args.kind, origin_mm=origin, page_origin_mm=page_origin, extra=extra)
-    write_files({out: pdf, out.with_suffix(".json"): (json.dumps(info, indent=1) + "\n").encode()})
+    write_files({out: pdf, out.with_suffix(".json"): (json.dumps(info, indent=1) + "\n").encode()}, inputs=inputs)
     pattern = "chessboard" if isinstance(spec, ChessboardSpec) else spec.dictionary + (", legacy layout" * spec.legacy)
     log(
         f"wrote {out} ({paper_name}) and {out.with_suffix('.json')}: {spec.squares[0]} x {spec.squares[1]} squares "

@@ -20,11 +20,13 @@ from workbench.calibration import (
     check_printer_scale,
     measure_printer,
     name_list,
+    printer_scale_warnings,
 )
 from workbench.camera import intrinsics_problem
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_dpi
 from workbench.jsonfile import check, read_json, recorded_path, resolve_recorded
+from workbench.options import Number
 from workbench.printing.boards import load_board
 
 
@@ -51,8 +53,13 @@ def add_parser(sub) -> None:
     )
     r.add_argument("scan", metavar="SCAN.png")
     r.add_argument("--board", metavar="BOARD.json", required=True, help="definition of the printed target")
-    r.add_argument("--dpi", type=float, required=True, help="resolution of the scan")
+    r.add_argument("--dpi", action=Number, lo=1, hi=100_000, required=True, help="resolution of the scan")
     r.add_argument("--name", help="printer name shown on pages (default: the profile's file name)")
+    r.add_argument(
+        "--strict",
+        action="store_true",
+        help="treat a scale unlike a printer's (beyond ±2 %%, a wrong target or definition) as an error: exit 1",
+    )
     r.add_argument("-o", "--output", metavar="PROFILE.json", required=True)
     r.add_argument("-q", "--quiet", action="store_true")
     r.set_defaults(run=run_printer)
@@ -64,17 +71,22 @@ def add_parser(sub) -> None:
     )
     k.add_argument("profile", metavar="PROFILE.json")
     k.add_argument("inputs", metavar="PHOTO_OR_SCAN", nargs="+")
-    k.add_argument("--tolerance-pct", type=float, default=0.05, help="printer: largest scale drift (default 0.05 %%)")
+    positive = {"action": Number, "lo": 0, "lo_open": True}
+    k.add_argument(
+        "--tolerance-pct", **positive, hi=100, default=0.05, help="printer: largest scale drift (default 0.05 %%)"
+    )
     k.add_argument(
         "--tolerance-px",
-        type=float,
+        **positive,
+        hi=1000,
         default=None,
         help="camera: largest reprojection RMS of a photo posed with the stored intrinsics "
         "(default: the profile's own limit, 3 x its median view RMS and at least 0.5 px)",
     )
     k.add_argument(
         "--tolerance-sigma",
-        type=float,
+        **positive,
+        hi=1e6,
         default=TOLERANCE_SIGMA,
         help="camera: largest difference between re-measured and stored fx, fy, cx, cy, in standard "
         f"deviations of the two (default {TOLERANCE_SIGMA:g})",
@@ -171,9 +183,16 @@ def run_camera(args) -> int:
     board_path = Path(args.board)
     board = load_board(board_path)
     out = Path(args.output)
-    check_outputs(out, out.with_suffix(".png"))  # before the calibration, not after it
+    inputs = [board_path, *map(Path, args.photos)]
+    # before the calibration, not after it; `-o cam.png` would give the profile and its picture one name
+    check_outputs(out, out.with_suffix(".png"), inputs=inputs)
     images = [(str(p), _gray(Path(p))) for p in args.photos]
-    cal = calibrate_camera(images, board)
+    try:
+        cal = calibrate_camera(images, board)
+    except WorkbenchError as exc:  # "2 usable views of the board": of which photos (unless it says), which board
+        named = any(Path(p).name in str(exc) for p in args.photos)
+        photos = ", ".join(args.photos[:3]) + (f" and {len(args.photos) - 3} more" if len(args.photos) > 3 else "")
+        raise WorkbenchError(f"{board_path}: {exc}" if named else f"{photos} (board {board_path}): {exc}") from None
     profile = {
         "kind": "camera-profile",
         "K": cal.K.tolist(),
@@ -197,7 +216,7 @@ def run_camera(args) -> int:
     pic = residual_picture(
         cal, f"{out.name}: RMS {cal.rms_px:.3f} px over {sum(v['used'] for v in cal.per_view)} views"
     )
-    write_files({out: (json.dumps(profile, indent=1) + "\n").encode(), out.with_suffix(".png"): pic})
+    write_files({out: (json.dumps(profile, indent=1) + "\n").encode(), out.with_suffix(".png"): pic}, inputs=inputs)
     for v in cal.per_view:
         if not v["used"]:
             log(f"left out {v['name']}: {v['reason']}")
@@ -224,9 +243,12 @@ def run_printer(args) -> int:
     board = load_board(board_path)
     _check_dpi(scan_path, args.dpi)
     out = Path(args.output)
-    check_outputs(out)
+    check_outputs(out, inputs=[board_path, scan_path])
     m = _measure(scan_path, board, args.dpi)
     check_printer_scale(m, args.dpi, png_dpi(scan_path.read_bytes()) is not None, str(scan_path))
+    warnings = printer_scale_warnings(m)
+    if warnings and args.strict:
+        raise WorkbenchError(f"{scan_path}: not a printer's scale (--strict): " + "; ".join(warnings))
     profile = {
         "kind": "printer-profile",
         "name": args.name or out.stem,
@@ -235,13 +257,16 @@ def run_printer(args) -> int:
         "skew_deg": m.skew_deg,
         "scan_rotation_deg": m.rotation_deg,
         "fit_rms_mm": m.rms_mm,
+        "warnings": warnings,
         "corners": m.corners,
         "dpi": args.dpi,
         "board": {"file": recorded_path(board_path, out.parent), "sha256": _sha(board_path)},
         "scan": {"file": recorded_path(scan_path, out.parent), "sha256": _sha(scan_path)},
         "software": {"name": "workbench", "version": __version__},
     }
-    write_files({out: (json.dumps(profile, indent=1) + "\n").encode()})
+    write_files({out: (json.dumps(profile, indent=1) + "\n").encode()}, inputs=[board_path, scan_path])
+    for w in warnings:
+        log(f"warning: {w}")
     log(
         f"scale x {100 * (m.scale_x - 1):+.3f} %, y {100 * (m.scale_y - 1):+.3f} %, skew {m.skew_deg:+.3f}°, "
         f"fit {m.rms_mm * 1000:.1f} µm over {m.corners} corners; wrote {out}"

@@ -89,9 +89,10 @@ def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     job = load_job(args.job)
     out = Path(args.out) if args.out else Path(f"design-{safe_name(job.name)}")
-    check_output_dir(out)  # before the minutes of work, not after them
+    inputs = [job.path, job.object.mesh, *(v.image for v in job.views)]
+    check_output_dir(out, inputs)  # before the minutes of work, not after them
     result = design(job, log)
-    warnings = fit_warnings(result, job.object.material.max_stretch)
+    warnings = fit_warnings(result, job.object.material.max_stretch, [v.name for v in job.views])
     if warnings and args.strict:
         raise WorkbenchError(f"{job.path}: the print does not fit the part (--strict): " + "; ".join(warnings))
 
@@ -227,9 +228,12 @@ def run(args) -> int:
                 header=f"workbench {__version__} flat layout of film {f.name} of {job.object.mesh.name}, mm",
             )
     # the view images, so that the design directory alone is enough to validate photos
-    for v in job.views:
+    # (as the design read them: an RGBA image over the print's background, 8 bits)
+    for i, v in enumerate(job.views):
+        png = v.image.read_bytes() if v.image.suffix.lower() == ".png" else b""
+        plain = png[25:26] in (b"\x00", b"\x02") and png[24:25] == b"\x08"  # IHDR: 8-bit grey or RGB, no alpha
         files[out / f"view-{safe_name(v.name)}.png"] = (
-            v.image.read_bytes() if v.image.suffix.lower() == ".png" else png_bytes(read_image(v.image, v.name))
+            png if plain else png_bytes(read_image(v.image, f"{job.path}: views[{i}].image", job.print.background))
         )
     spec, origin, footprint = fixture_from_job(job.fixture, result.V, result.F, f"{job.path}: fixture")
     extra = {"job": info["job"], "footprint_board_mm": footprint.tolist()}
@@ -241,7 +245,7 @@ def run(args) -> int:
     timings = {**result.timings_s, "write": time.perf_counter() - t0}
     info["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
     files[out / "design.json"] = (json.dumps(info, indent=2) + "\n").encode()
-    write_folder(out, files)
+    write_folder(out, files, inputs)
     log(
         f"print {flat.width_mm:.2f} x {flat.height_mm:.2f} mm, {cols} x {rows} px at {grid.dpi:g} dpi; "
         + "; ".join(f"{s['name']} {100 * s['print_share']:.1f} %" for s in stats)

@@ -26,6 +26,7 @@ from workbench.errors import UsageError
 from workbench.figures import stretch_figure
 from workbench.jsonfile import recorded_path
 from workbench.mesh.io import UNITS_MM, format_obj, read_mesh
+from workbench.options import Number, parse_numbers
 
 
 def add_parser(sub) -> None:
@@ -71,7 +72,9 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--dpi",
-        type=float,
+        action=Number,
+        lo=1,
+        hi=10000,
         default=300.0,
         help="print resolution the map must serve: a face printed below half a pixel is crowded (default 300)",
     )
@@ -84,14 +87,10 @@ def parse_corners(text: str | None) -> tuple[int, int, int, int] | None:
     """``'A,B,C,D'`` → four ints; None stays None."""
     if text is None or text == "auto":
         return None
-    parts = text.split(",")
-    try:
-        corners = tuple(int(p) for p in parts)
-    except ValueError:
-        corners = ()
-    if len(corners) != 4:
+    if len(text.split(",")) != 4:
         raise UsageError(f"--corners {text!r}: give four vertex indices, e.g. --corners 0,99,9999,9900")
-    return corners  # type: ignore[return-value]
+    # an index beyond any mesh (2**31) cannot be a vertex; the mesh's own count is checked once it is read
+    return parse_numbers(text, 4, "--corners", lo=0, hi=2**31 - 1, integer=True)  # type: ignore[return-value]
 
 
 def summary(result: FlattenResult) -> dict:
@@ -142,15 +141,19 @@ def run(args) -> int:
 
     if args.outline == "free" and args.corners is not None:
         raise UsageError("--corners belongs to --outline rectangle; a free outline has no corners")
-    if not (np.isfinite(args.dpi) and 1 <= args.dpi <= 10000):
-        raise UsageError(f"--dpi {args.dpi:g}: must be between 1 and 10000")
-    check_output_dir(out)  # before the work, not after it
+    check_output_dir(out, inputs=[mesh_path])  # before the work, not after it
     t0 = time.perf_counter()
     V, F = read_mesh(mesh_path, args.units)
     t_read = time.perf_counter() - t0
     log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
     compared = None
-    options = FlattenOptions(corners=corners, scale=scale, min_print_mm=0.5 * 25.4 / args.dpi, outline=args.outline)
+    options = FlattenOptions(
+        corners=corners,
+        scale=scale,
+        min_print_mm=0.5 * 25.4 / args.dpi,
+        outline=args.outline,
+        corners_from=f"{mesh_path}: --corners",
+    )
     if args.corners == "auto":
         result, compared = flatten_auto_corners(V, F, options, name=str(mesh_path), log=log)
     else:
@@ -197,6 +200,7 @@ def run(args) -> int:
             out / "flatten.json": (json.dumps(info, indent=2) + "\n").encode(),
             out / "flatten.png": png,
         },
+        inputs=[mesh_path],
     )
     log(
         f"{result.width_mm:.3f} x {result.height_mm:.3f} mm ({result.scale}); "

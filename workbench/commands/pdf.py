@@ -9,11 +9,12 @@ import cv2
 import numpy as np
 
 from workbench import schemas
-from workbench.atomic import write_files
-from workbench.design_dir import read_design_json
+from workbench.atomic import check_outputs, write_files
+from workbench.design_dir import design_files, read_design_json
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import boundary_loops
+from workbench.options import Number
 from workbench.printing.paper import parse_paper
 from workbench.printing.pdf import (
     CUT_SPOT,
@@ -47,8 +48,17 @@ def add_parser(sub) -> None:
         "--paper", default="auto", help="A4, A3, letter, ..., auto (default: smallest that fits) or WxH in mm"
     )
     p.add_argument("--printer-profile", metavar="FILE", help="printer scale profile (workbench calibrate printer)")
-    p.add_argument("--bleed-mm", type=float, help="texture beyond the trim (default: the job's, 3 mm)")
-    p.add_argument("--margin-mm", type=float, help="free border to the sheet's edge (default: the job's, 10 mm)")
+    p.add_argument(
+        "--bleed-mm", action=Number, lo=0, hi=50, unit="mm", help="texture beyond the trim (default: the job's, 3 mm)"
+    )
+    p.add_argument(
+        "--margin-mm",
+        action=Number,
+        lo=0,
+        hi=50,
+        unit="mm",
+        help="free border to the sheet's edge (default: the job's, 10 mm)",
+    )
     p.add_argument(
         "--no-cut",
         action="store_true",
@@ -68,7 +78,9 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--max-ink",
-        type=float,
+        action=Number,
+        lo=100,
+        hi=400,
         default=300.0,
         metavar="PERCENT",
         help="with --cmyk: the most ink a pixel may carry, C+M+Y+K in percent (default 300)",
@@ -81,7 +93,9 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--min-ppi",
-        type=float,
+        action=Number,
+        lo=0,
+        hi=1e6,
         default=MIN_PPI,
         metavar="PPI",
         help="warn when the print's resolution on the part (dpi divided by the film's largest stretch) falls "
@@ -219,6 +233,9 @@ def run(args) -> int:
         cut_spot=spot,
     )
     out = Path(args.output) if args.output else Path("prints") / f"{name}.pdf"
+    # the design folder's files and the profiles: `-o DESIGN/print.png` would destroy the design
+    inputs = [*design_files(Path(args.design)), *(Path(p) for p in (args.printer_profile, args.output_profile) if p)]
+    check_outputs(out, inputs=inputs)
     if info.get("films"):
         pages = film_pages(Path(args.design), info)
     else:
@@ -227,7 +244,7 @@ def run(args) -> int:
     pdf, sheets, ink = print_pdf_pages(
         pages, pr["dpi"], name, job.get("sha256") or "unknown", paper, bleed, margin, profile, not args.no_cut, pdfx
     )
-    write_files({out: pdf})
+    write_files({out: pdf}, inputs=inputs)
     if len(pages) > 1:
         log(f"wrote {out}: {len(pages)} films, one page each ({', '.join(sorted({s.paper for s in sheets}))})")
     else:

@@ -14,10 +14,11 @@ from workbench import __version__
 from workbench.atomic import check_output_dir, check_outputs, safe_name, write_files, write_folder
 from workbench.camera import Camera, load_camera, load_camera_profile
 from workbench.design import physical_memory
-from workbench.design_dir import Design
+from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_bytes
 from workbench.jsonfile import recorded_path
+from workbench.options import Number, parse_number, parse_numbers
 from workbench.render.defects import Defect
 from workbench.render.imperfections import REALISTIC, Imperfections
 from workbench.render.photo import render_photo
@@ -50,11 +51,24 @@ def add_parser(sub) -> None:
         "-o", "--output", metavar="PHOTO.png", help="photo file (default photo.png; --previews: DESIGN_DIR/previews)"
     )
     p.add_argument("--size", metavar="WxH", help="image size in pixels (orbit default 1600x1200; view: the view's)")
-    p.add_argument("--fov-deg", type=float, help="horizontal field of view for --orbit (default 40)")
+    p.add_argument(
+        "--fov-deg",
+        action=Number,
+        lo=0,
+        hi=180,
+        lo_open=True,
+        hi_open=True,
+        help="horizontal field of view for --orbit (default 40)",
+    )
     p.add_argument("--intrinsics", metavar="PROFILE.json", help="camera profile (K, dist, image_size) for --orbit")
     p.add_argument("--no-fixture", action="store_true", help="the part alone, without its fixture plate")
     p.add_argument(
-        "--supersample", type=int, help="samples per pixel along each axis (default 2; --renderer workbench)"
+        "--supersample",
+        action=Number,
+        lo=1,
+        hi=8,
+        integer=True,
+        help="samples per pixel along each axis (default 2; --renderer workbench)",
     )
     p.add_argument(
         "--renderer",
@@ -63,7 +77,14 @@ def add_parser(sub) -> None:
         help="workbench (default): the project's rasteriser; mitsuba: Mitsuba 3's path tracer (scalar_rgb, CPU), "
         "--shading, --light, --ambient, --gloss and --shininess becoming its lamp, sky and film coating",
     )
-    p.add_argument("--spp", type=int, help="samples per pixel (default 16; --renderer mitsuba)")
+    p.add_argument(
+        "--spp",
+        action=Number,
+        lo=1,
+        hi=1 << 16,
+        integer=True,
+        help="samples per pixel (default 16; --renderer mitsuba)",
+    )
     g = p.add_argument_group("imperfections (all off by default)")
     g.add_argument("--realistic", action="store_true", help="blur 1 px, noise 3, JPEG 90, shading, vignetting 0.15")
     g.add_argument(
@@ -73,21 +94,39 @@ def add_parser(sub) -> None:
         help="film moved on the part, print coordinates (x right, y down); K:DX,DY moves film K (1-based) of a "
         "design with several films alone (repeatable)",
     )
-    g.add_argument("--film-rotation-deg", type=float, help="film rotated about the print's centre, counter-clockwise")
-    g.add_argument("--film-scale-pct", type=float, help="film uniformly larger by this percentage")
+    g.add_argument(
+        "--film-rotation-deg",
+        action=Number,
+        lo=-360,
+        hi=360,
+        help="film rotated about the print's centre, counter-clockwise",
+    )
+    g.add_argument(
+        "--film-scale-pct", action=Number, lo=-50, hi=100, help="film uniformly larger by this percentage (-50 to 100)"
+    )
     g.add_argument("--print-scale-pct", metavar="SX,SY", help="printer scale error in x and y, percent")
     g.add_argument("--distortion", metavar="K1,K2,P1,P2,K3", help="lens distortion (OpenCV order)")
-    g.add_argument("--blur-px", type=float, help="Gaussian blur sigma, pixels")
-    g.add_argument("--noise", type=float, help="Gaussian noise sigma, grey levels")
-    g.add_argument("--exposure", type=float, help="multiplies intensity")
-    g.add_argument("--gamma", type=float, help="output = input ^ (1 / gamma)")
+    g.add_argument("--blur-px", action=Number, lo=0, hi=50, help="Gaussian blur sigma, pixels")
+    g.add_argument("--noise", action=Number, lo=0, hi=100, help="Gaussian noise sigma, grey levels")
+    g.add_argument("--exposure", action=Number, lo=0, hi=100, help="multiplies intensity")
+    g.add_argument("--gamma", action=Number, lo=0.05, hi=20, help="output = input ^ (1 / gamma)")
     g.add_argument("--shading", action="store_true", default=None, help="Lambertian shading")
     g.add_argument("--light", metavar="X,Y,Z", help="direction towards the light (world)")
-    g.add_argument("--ambient", type=float, help="ambient share of the light (default 0.35)")
+    g.add_argument("--ambient", action=Number, lo=0, hi=1, help="ambient share of the light (default 0.35)")
     g.add_argument(
-        "--gloss", type=float, help="glossy film: strength of the light's specular highlight (0 to 1; 0: matte)"
+        "--gloss",
+        action=Number,
+        lo=0,
+        hi=1,
+        help="glossy film: strength of the light's specular highlight (0 to 1; 0: matte)",
     )
-    g.add_argument("--shininess", type=float, help="Blinn-Phong exponent of the highlight (default 80: small, sharp)")
+    g.add_argument(
+        "--shininess",
+        action=Number,
+        lo=1,
+        hi=10000,
+        help="Blinn-Phong exponent of the highlight (default 80: small, sharp)",
+    )
     g.add_argument(
         "--defect",
         metavar="KIND:...",
@@ -98,8 +137,8 @@ def add_parser(sub) -> None:
             "a line W mm wide), dropout:X,Y,R (ink missing in a disc)"
         ),
     )
-    g.add_argument("--vignetting", type=float, help="brightness loss at the corners (0 to 1)")
-    g.add_argument("--jpeg-quality", type=int, help="JPEG round trip at this quality")
+    g.add_argument("--vignetting", action=Number, lo=0, hi=1, help="brightness loss at the corners (0 to 1)")
+    g.add_argument("--jpeg-quality", action=Number, lo=1, hi=100, integer=True, help="JPEG round trip at this quality")
     g.add_argument(
         "--colour-shift-lab",
         metavar="DL,DA,DB",
@@ -110,21 +149,43 @@ def add_parser(sub) -> None:
         metavar="R,G,B",
         help="a coloured light: linear gains per channel on the whole scene, e.g. 1.1,1,0.85 (warm)",
     )
-    g.add_argument("--seed", type=int, default=0, help="noise seed (and the path tracer's sampler seed)")
+    g.add_argument(
+        "--seed",
+        action=Number,
+        lo=0,
+        hi=2**32 - 1,
+        integer=True,
+        default=0,
+        help="noise seed (and the path tracer's sampler seed)",
+    )
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
+
+
+# what each list option's numbers may be: beyond, a photo is nothing but overflow
+LIMITS = {
+    "--film-offset-mm": {"lo": -1000, "hi": 1000, "unit": "mm"},
+    "--print-scale-pct": {"lo": -50, "hi": 100},
+    "--distortion": {"lo": -100, "hi": 100},
+    "--light": {"lo": -1e6, "hi": 1e6},
+    "--colour-shift-lab": {"lo": -50, "hi": 50},
+    "--white-balance": {"lo": 0.1, "hi": 10},
+}
 
 
 def _floats(text: str | None, n: int, flag: str) -> tuple | None:
     if text is None:
         return None
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != n or not all(np.isfinite(vals)):
-        raise UsageError(f"{flag} {text!r}: give {n} comma-separated numbers")
-    return vals
+    return parse_numbers(text, n, flag, **LIMITS.get(flag, {}))
+
+
+def _orbit(text: str) -> tuple[float, float, float]:
+    """``AZ,EL,DIST``: azimuth and elevation in degrees, distance in mm."""
+    az, el, dist = parse_numbers(text, 3, "--orbit")
+    for value, name, lo, hi in ((az, "azimuth", -3600, 3600), (el, "elevation", -90, 90)):
+        parse_number(str(value), f"--orbit {text}: {name}", lo, hi, unit="degrees")
+    parse_number(str(dist), f"--orbit {text}: distance", 0, 1e6, lo_open=True, unit="mm")
+    return az, el, dist
 
 
 def _direction(text: str | None, flag: str) -> tuple | None:
@@ -214,13 +275,9 @@ def imperfections_from(args) -> Imperfections:
 def _size(text: str | None, default: tuple[int, int]) -> tuple[int, int]:
     if text is None:
         return default
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise UsageError(f"--size {text!r}: give WxH in pixels, e.g. 4000x3000") from None
-    if not (8 <= w <= 20000 and 8 <= h <= 20000):
-        raise UsageError(f"--size {text}: between 8 and 20000 pixels a side")
-    return w, h
+    if len(text.lower().split("x")) != 2:
+        raise UsageError(f"--size {text!r}: give WxH in pixels, e.g. 4000x3000")
+    return parse_numbers(text.lower(), 2, f"--size {text}: a side", sep="x", lo=8, hi=20000, integer=True)
 
 
 # peak bytes per supersample of a render (z-buffer, face ids, barycentrics, colour, lens maps):
@@ -366,7 +423,7 @@ def run(args) -> int:
             imp = Imperfections(**{**imp.to_dict(), "distortion": tuple(cam.dist)})
         source = f"camera {args.camera}"
     else:
-        az, el, dist = _floats(args.orbit, 3, "--orbit")
+        az, el, dist = _orbit(args.orbit)
         intr = load_camera_profile(Path(args.intrinsics)) if args.intrinsics else None
         w, h = _size(args.size, (1600, 1200))
         cam = design.orbit_camera(az, el, dist, w, h, args.fov_deg or 40.0, intr)
@@ -374,20 +431,26 @@ def run(args) -> int:
             imp = Imperfections(**{**imp.to_dict(), "distortion": tuple(intr.dist)})
         source = f"orbit {args.orbit}"
     out = Path(args.output or "photo.png")
-    check_outputs(out, out.with_suffix(".json"))  # before the rendering, not after it
+    inputs = [*design_files(design.dir), *(Path(p) for p in (args.camera, args.intrinsics) if p)]
+    # before the rendering, not after it; `-o DESIGN/print.png` would destroy the design
+    check_outputs(out, out.with_suffix(".json"), inputs=inputs)
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         raise UsageError(f"-o {out}: photos are written as .png or .jpg")
     check_render_fits(cam.width, cam.height, args.supersample, args.renderer)
-    rgb = make_photo(args, design.scene(imp, fixture), cam, imp)
+    try:
+        rgb = make_photo(args, design.scene(imp, fixture), cam, imp)
+    except WorkbenchError as exc:  # "the camera sees nothing": say which camera
+        raise WorkbenchError(f"--{source}: {exc}") from None
     record = truth(cam, imp, design, source, out, renderer)
-    write_files({out: encode(rgb, out, imp), out.with_suffix(".json"): (json.dumps(record, indent=1) + "\n").encode()})
+    photo = {out: encode(rgb, out, imp), out.with_suffix(".json"): (json.dumps(record, indent=1) + "\n").encode()}
+    write_files(photo, inputs=inputs)
     log(f"wrote {out} ({cam.width} x {cam.height}) and {out.with_suffix('.json')}")
     return 0
 
 
 def previews(args, design: Design, imp: Imperfections, fixture: bool, log, renderer: dict | None = None) -> int:
     out = Path(args.output) if args.output else design.dir / "previews"
-    check_output_dir(out)
+    check_output_dir(out, design_files(design.dir))
     files, tiles = {}, []
     scene = design.scene(imp, fixture)
     cams = [(v["name"], design.view_camera(v["name"])) for v in design.info["views"]]
@@ -412,6 +475,6 @@ def previews(args, design: Design, imp: Imperfections, fixture: bool, log, rende
         tiles.append(tile)
     sheet = np.hstack(tiles)
     files[out / "contact_sheet.png"] = png_bytes(sheet)
-    write_folder(out, files)
+    write_folder(out, files, design_files(design.dir))
     log(f"wrote {len(cams)} previews and {out / 'contact_sheet.png'}")
     return 0

@@ -15,6 +15,7 @@ from workbench.design import _read_faces, assign_job_views, read_image
 from workbench.errors import UsageError
 from workbench.job import load_job
 from workbench.mesh.io import read_mesh
+from workbench.options import Number, parse_numbers
 from workbench.views.suggest import (
     Coverage,
     Remaining,
@@ -41,7 +42,9 @@ def add_parser(sub) -> None:
         ),
     )
     p.add_argument("job", metavar="JOB.toml", help="job file (see README: Job file)")
-    p.add_argument("-n", type=int, default=3, metavar="N", help="how many suggestions (default 3)")
+    p.add_argument(
+        "-n", action=Number, lo=1, hi=20, integer=True, default=3, metavar="N", help="how many suggestions (default 3)"
+    )
     p.add_argument("-o", "--output", metavar="FILE.toml", help="write the suggestions, templates and picture")
     p.add_argument(
         "--distance-mm",
@@ -50,24 +53,38 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--min-elevation-deg",
-        type=float,
+        action=Number,
+        lo=-90,
+        hi=90,
         default=-90.0,
         help="lowest camera elevation above the plane normal to --up, degrees (default -90: anywhere)",
     )
     p.add_argument(
         "--up", metavar="X,Y,Z", help="the direction towards the top of every image (default: the first view's)"
     )
-    p.add_argument("--fov-deg", type=float, help="horizontal field of view (default: the whole part in the frame)")
+    p.add_argument(
+        "--fov-deg",
+        action=Number,
+        lo=0,
+        hi=180,
+        lo_open=True,
+        hi_open=True,
+        help="horizontal field of view (default: the whole part in the frame)",
+    )
     p.add_argument("--size", metavar="WxH", help="image size in px (default: what the print's dpi needs)")
     p.add_argument(
         "--max-obliquity-deg",
-        type=float,
+        action=Number,
+        lo=0,
+        hi=90,
         default=60.0,
         help="surface seen more obliquely than this does not count towards the score (default 60)",
     )
     p.add_argument(
         "--min-separation-deg",
-        type=float,
+        action=Number,
+        lo=0,
+        hi=180,
         default=20.0,
         help="least angle between two suggestions' viewing directions (default 20)",
     )
@@ -78,13 +95,11 @@ def add_parser(sub) -> None:
 
 
 def _numbers(flag: str, text: str, counts: tuple[int, ...]) -> list[float]:
-    try:
-        values = [float(x) for x in text.split(",")]
-    except ValueError:
-        values = []
-    if len(values) not in counts or not all(math.isfinite(v) for v in values):
+    n = len(text.split(","))
+    if n not in counts:
         raise UsageError(f"{flag} {text!r}: give {' or '.join(map(str, counts))} comma-separated numbers")
-    return values
+    # lengths and directions beyond a million (mm) are no camera's: their products overflow
+    return list(parse_numbers(text, n, flag, lo=-1e6, hi=1e6))
 
 
 def options_from_args(args) -> SuggestOptions:
@@ -233,8 +248,10 @@ def run(args) -> int:
     options = options_from_args(args)
     job = load_job(args.job)
     out = Path(args.output) if args.output else None
+    inputs = [job.path, job.object.mesh, *(v.image for v in job.views)]
+    inputs += [Path(p) for p in (args.favour, args.avoid) if p]
     if out is not None:
-        check_outputs(out, out.with_name(f"{out.stem}-views.png"))
+        check_outputs(out, out.with_name(f"{out.stem}-views.png"), inputs=inputs)
     V, F = read_mesh(job.object.mesh, job.object.units)
     images = [read_image(v.image, f"{job.path}: views[{i}].image") for i, v in enumerate(job.views)]
     favour = avoid = None
@@ -263,7 +280,7 @@ def run(args) -> int:
     files = {}
     if out is not None:
         templates = [out.with_name(f"{name}.png") for name in names]
-        check_outputs(*templates)
+        check_outputs(*templates, inputs=inputs)
         rel = [os.path.relpath(p.resolve(), job.path.parent) for p in templates]
     else:
         templates, rel = [], [f"{name}.png" for name in names]
@@ -285,6 +302,6 @@ def run(args) -> int:
     files[out.with_name(f"{out.stem}-views.png")] = suggestions_figure(
         rem, suggestions, names, cameras[0], f"{job.name}: {100 * share:.1f} % of the surface undecorated"
     )
-    write_files(files)
+    write_files(files, inputs=inputs)
     log(f"wrote {out}, {', '.join(p.name for p in templates)}{', ' if templates else ''}{out.stem}-views.png")
     return 0

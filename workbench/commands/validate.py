@@ -21,9 +21,10 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import check_output_dir, check_outputs, safe_name, write_folder
 from workbench.camera import load_camera_profile
-from workbench.design_dir import Design
+from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
+from workbench.options import Number
 from workbench.validate import dense, pictures
 from workbench.validate.part import part_summary
 from workbench.validate.photo import sha256, validate_photo
@@ -47,17 +48,31 @@ def add_parser(sub) -> None:
     p.add_argument("--camera", metavar="PROFILE.json", required=True, help="camera profile: K, dist, image_size")
     p.add_argument("--view", metavar="NAME", help="compare with this view (default: the view nearest each photo)")
     p.add_argument(
-        "--tolerance-mm", type=float, default=0.5, help="largest accepted misregistration, p95 (default 0.5)"
+        "--tolerance-mm",
+        action=Number,
+        lo=0,
+        lo_open=True,
+        hi=1000,
+        unit="mm",
+        default=0.5,
+        help="largest accepted misregistration, p95 (default 0.5)",
     )
     p.add_argument(
         "--max-defect-mm2",
-        type=float,
+        action=Number,
+        lo=0,
+        lo_open=True,
+        hi=1e6,
+        unit="mm²",
         default=MAX_DEFECT_MM2,
         help=f"largest accepted local defect, area on the print in mm² (default {MAX_DEFECT_MM2:g})",
     )
     p.add_argument(
         "--jobs",
-        type=int,
+        action=Number,
+        lo=0,
+        hi=1024,
+        integer=True,
         default=0,
         help="photos scored in parallel, one process each (default: every core; 1: in this process)",
     )
@@ -215,9 +230,10 @@ def run(args) -> int:
     jobs = min(jobs, len(args.photos))
     entries, files, states = [], {}, []
     cache: dict = {}
-    check_output_dir(out)
-    check_outputs(out / "validation.json", out / "qa_report.pdf")
     photos = [Path(p) for p in args.photos]
+    inputs = [*design_files(design.dir), profile_path, *photos]
+    check_output_dir(out, inputs)
+    check_outputs(out / "validation.json", out / "qa_report.pdf", inputs=inputs)
     stems = output_stems(photos)
     work = [(p, stem, args.view, args.tolerance_mm, args.max_defect_mm2) for p, stem in zip(photos, stems, strict=True)]
     if jobs > 1:
@@ -266,7 +282,7 @@ def run(args) -> int:
     }
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
     files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"}, pages)
-    write_folder(out, files)
+    write_folder(out, files, inputs)
     log(
         f"{len(entries)} photo(s), part: {part['verdict']}; wrote {out / 'validation.json'} and {out / 'qa_report.pdf'}"
     )

@@ -66,17 +66,21 @@ def choose_corners(V: np.ndarray, F: np.ndarray, loop: np.ndarray) -> tuple[np.n
     if nb < 4:
         raise WorkbenchError(f"the boundary has {nb} vertices; a rectangle needs at least 4")
     seg = np.linalg.norm(V[np.roll(loop, -1)] - V[loop], axis=1)
-    # in fractions of the perimeter, rounded, and turning rounded to 1e-9 rad: the
-    # choice must not depend on the mesh's unit, and round-off must not break ties
-    # (regular grids have many) differently in mm than in m
-    seg = np.round(seg / seg.sum(), 12)
-    perimeter = seg.sum()
-    arc = np.concatenate([[0.0], np.cumsum(seg)[:-1]])
+    # arc length in whole units of 2**-40 of the perimeter, and turning rounded to 1e-9
+    # rad: the choice must not depend on the mesh's unit, and round-off must not break
+    # ties (regular grids have many) differently in mm than in m. Integers, because the
+    # window's ends fall exactly on vertices of regular grids (a 6 mm pitch, a 6 mm
+    # window): in floating point the sums along the two sides of a corner differ in the
+    # last bit, the window took a neighbour on one side and not on the other, and the
+    # corner went to the vertex beside it (101 of 576 regular grids)
+    seg = np.round(seg / seg.sum() * 2.0**40).astype(np.int64)
+    perimeter = int(seg.sum())
+    arc = np.concatenate([[0], np.cumsum(seg)[:-1]])
     kappa = np.round(boundary_turning(V, F, loop), 9)
     # windowed turning via prefix sums over the loop taken three times (wrap-around)
     arc3 = np.concatenate([arc - perimeter, arc, arc + perimeter])
     k3 = np.concatenate([[0.0], np.cumsum(np.tile(kappa, 3))])
-    w = WINDOW * perimeter
+    w = int(round(WINDOW * perimeter))
     lo = np.searchsorted(arc3, arc - w, side="left")
     hi = np.searchsorted(arc3, arc + w, side="right")
     turn = np.round(k3[hi] - k3[lo], 9)

@@ -152,6 +152,10 @@ class FlattenOptions:
     check_overlap : bool
         Refuse a free outline that overlaps itself (the automatic film split turns
         it off to cut the layout instead).
+    corners_from : str or None
+        Where the given corners came from, as an error about them names it (the
+        option ``--corners``, a job's ``JOB.toml: object.corners``); None: the mesh's
+        name and ``corners``.
     """
 
     corners: tuple[int, int, int, int] | None = None
@@ -161,6 +165,7 @@ class FlattenOptions:
     min_print_mm: float = DEFAULT_MIN_PRINT_MM
     outline: str = "rectangle"
     check_overlap: bool = True
+    corners_from: str | None = None
 
 
 @dataclass
@@ -390,7 +395,11 @@ def flatten(
             corners, rule = choose_corners(V, F, loop)
         else:
             corners, rule = np.asarray(options.corners, dtype=np.int64), "given"
-        corner_positions(loop, corners, len(V))
+        try:
+            corner_positions(loop, corners, len(V))
+        except WorkbenchError as exc:
+            where = options.corners_from or f"{name}: corners"
+            raise WorkbenchError(f"{where} {','.join(map(str, corners.tolist()))}: {exc}") from None
         start = int(np.flatnonzero(loop == corners[0])[0])
         loop = np.roll(loop, -start)
         say(f"corners A,B,C,D = {','.join(map(str, corners.tolist()))} ({rule})")

@@ -31,6 +31,14 @@ def dictionary_size(name: str) -> int:
     return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0])
 
 
+class BoardError(WorkbenchError):
+    """An impossible board; ``key``: the field at fault (``squares``, ``marker_mm``, ``dictionary``, ``first_id``)."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(message)
+        self.key = key
+
+
 @dataclass(frozen=True)
 class CharucoSpec:
     """A ChArUco board.
@@ -60,16 +68,20 @@ class CharucoSpec:
     def __post_init__(self):
         nx, ny = self.squares
         if nx < 3 or ny < 3:
-            raise WorkbenchError(f"a ChArUco board needs at least 3 x 3 squares, got {nx} x {ny}")
+            raise BoardError("squares", f"a ChArUco board needs at least 3 x 3 squares, got {nx} x {ny}")
         if not 0 < self.marker_mm < self.square_mm:
-            raise WorkbenchError(f"marker_mm {self.marker_mm} must be between 0 and square_mm {self.square_mm}")
+            raise BoardError(
+                "marker_mm", f"marker_mm {self.marker_mm:g} must be between 0 and square_mm {self.square_mm:g}"
+            )
         if self.dictionary not in DICTIONARIES:
-            raise WorkbenchError(f"unknown ArUco dictionary {self.dictionary!r}; e.g. DICT_5X5_250, DICT_6X6_1000")
+            raise BoardError(
+                "dictionary", f"unknown ArUco dictionary {self.dictionary!r}; e.g. DICT_5X5_250, DICT_6X6_1000"
+            )
         n_markers = (nx * ny) // 2
         size = dictionary_size(self.dictionary)
         if self.first_id < 0 or self.first_id + n_markers > size:
-            raise WorkbenchError(
-                f"{n_markers} markers from id {self.first_id} do not fit in {self.dictionary} ({size} ids)"
+            raise BoardError(
+                "first_id", f"{n_markers} markers from id {self.first_id} do not fit in {self.dictionary} ({size} ids)"
             )
 
     @classmethod

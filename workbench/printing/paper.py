@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 from workbench.errors import UsageError, WorkbenchError
+from workbench.options import parse_number
 
 # portrait width x height, mm
 PAPERS = {
@@ -32,12 +33,13 @@ def parse_paper(text: str) -> str | tuple[float, float]:
     for name in PAPERS:
         if text.lower() == name.lower():
             return name
-    m = re.fullmatch(r"\s*([0-9.]+)\s*[xX]\s*([0-9.]+)\s*(mm)?\s*", text)
+    m = re.fullmatch(r"\s*([0-9.eE+-]+)\s*[xX]\s*([0-9.eE+-]+)\s*(mm)?\s*", text)
     if m:
-        w, h = float(m.group(1)), float(m.group(2))
-        if 0 < w <= MAX_SHEET_MM and 0 < h <= MAX_SHEET_MM:
-            return (w, h)
-        raise UsageError(f"--paper {text!r}: each side between 0 and {MAX_SHEET_MM:g} mm")
+        w, h = (
+            parse_number(v, f"--paper {text!r}: each side", 0, MAX_SHEET_MM, lo_open=True, unit="mm")
+            for v in m.group(1, 2)
+        )
+        return (w, h)
     raise UsageError(f"--paper {text!r}: use {', '.join(PAPERS)}, auto, or WxH in mm (e.g. 300x400)")
 
 

@@ -335,6 +335,11 @@ def render_ideal(scene: Scene, camera: Camera, imp: Imperfections) -> tuple[np.n
     return out, face
 
 
+# the largest area of undistorted image a lens may spread a photo over, in photo areas (a
+# fisheye's is about 4)
+MAX_LENS_SPREAD = 16.0
+
+
 def render_photo(scene: Scene, camera: Camera, imp: Imperfections, supersample: int = 2) -> np.ndarray:
     """A synthetic photo: :func:`render_linear`, then the sensor effects of :func:`finish`; (H, W, 3) uint8 RGB."""
     return finish(render_linear(scene, camera, imp, supersample), imp)
@@ -384,8 +389,17 @@ def render_linear(scene: Scene, camera: Camera, imp: Imperfections, supersample:
         grid = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 1, 2)
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
         und = cv2.undistortPoints(grid, camera.K, dist, None, None, camera.K, crit).reshape(len(gy), len(gx), 2)
-        lo = np.floor(und.reshape(-1, 2).min(axis=0)) - 2
-        hi = np.ceil(und.reshape(-1, 2).max(axis=0)) + 2
+        finite = np.isfinite(und).all()
+        lo = np.floor(und.reshape(-1, 2).min(axis=0)) - 2 if finite else np.zeros(2)
+        hi = np.ceil(und.reshape(-1, 2).max(axis=0)) + 2 if finite else np.full(2, np.inf)
+        spread = float(np.prod(hi - lo) / (W * H))
+        if not spread <= MAX_LENS_SPREAD:
+            # a p1 of 1 spread a 640 x 480 photo over an undistorted image of 20 GB
+            raise WorkbenchError(
+                f"distortion {np.round(dist, 6).tolist()}: the lens would spread the photo over "
+                f"{'an unbounded' if not np.isfinite(spread) else f'{spread:,.0f} times its'} area of undistorted "
+                f"image (at most {MAX_LENS_SPREAD:g}): no lens distorts so much"
+            )
         K2 = camera.K.copy()
         K2[:2, 2] -= lo
         big = Camera(K2, camera.R, camera.t, int(hi[0] - lo[0]), int(hi[1] - lo[1]))

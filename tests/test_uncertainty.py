@@ -145,6 +145,10 @@ def test_the_rule_never_calls_a_matching_decoration_a_wrong_print():
     assert verdict == "PASS" and "dense field" in why
     verdict, why = rule.photo_verdict(entry(tiles=2, tiles_examined=2, misregistration_source=None), 0.2, 4.0)
     assert verdict == "INVALID" and why.startswith(rule.TOO_LITTLE_TEXTURE)
+    # ... but a defect it finds still fails the part
+    big = {"kind": "missing", "area_mm2": 12.0, "centre_mm": [10.0, 20.0]}
+    verdict, why = rule.photo_verdict(entry(tiles=0, misregistration_source=None, defects=[big]), 0.2, 4.0)
+    assert verdict == "FAIL" and "missing, 12.0 mm²" in why and "not measured" in why
     # a decoration that does not look like the design is a FAIL whatever the tiles
     verdict, why = rule.photo_verdict(entry(ssim=0.3), 0.2, 4.0)
     assert verdict == "FAIL" and "wrong print" in why

@@ -78,7 +78,15 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
             "matched): wrong print, or badly damaged"
         )
     if tiles < MIN_TILES and entry.get("misregistration_source") != "dense":
-        # the decoration matches (SSIM) but nothing measures where it lies
+        # the decoration matches (SSIM) but nothing measures where it lies; a defect the photo
+        # does find still fails the part
+        if big:
+            d = big[0]
+            return "FAIL", (
+                f"{len(big)} defect{'s' if len(big) > 1 else ''} > {max_defect_mm2:g} mm² (largest: {d['kind']}, "
+                f"{d['area_mm2']:.1f} mm² at ({d['centre_mm'][0]:.1f}, {d['centre_mm'][1]:.1f}) mm on the print); "
+                f"misregistration not measured: {TOO_LITTLE_TEXTURE}"
+            )
         return "INVALID", f"{TOO_LITTLE_TEXTURE} ({tiles} tiles, SSIM {sim:.2f})"
     if tiles >= MIN_TILES and tiles < MIN_MATCHED_SHARE * examined:
         return "FAIL", (

@@ -186,6 +186,7 @@ def validate_photo(
     entry.update(
         {
             "misregistration_mm": stats(sc.shift_mm),
+            "misregistration_uncertainty_mm": float(np.median(sc.sigma_mm)) if len(sc.sigma_mm) else None,
             "misregistration_px": stats(px_mag),
             "tiles": int(len(sc.shift_mm)),
             "tiles_examined": sc.tiles_examined,
@@ -219,6 +220,7 @@ def validate_photo(
                 {
                     "misregistration_source": "dense",
                     "misregistration_mm": stats(smm),
+                    "misregistration_uncertainty_mm": float(np.nanmedian(dr.sigma_mm)),
                     "film_offset_mm": film["offset_mm"],
                     "film_rotation_deg": film["rotation_deg"],
                     "film_scale_pct": film["scale_pct"],

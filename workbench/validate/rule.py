@@ -25,8 +25,9 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
     return {
         "text": (
             f"FAIL when any defect is larger than {max_defect_mm2:g} mm² on the print, or the misregistration "
-            f"p95 exceeds {tolerance_mm:g} mm (from the tiles; with fewer than {MIN_TILES} tiles, from the dense "
-            f"field where it is accurate), or the decoration does not match the design (SSIM < {MIN_SSIM}, or "
+            f"p95 exceeds {tolerance_mm:g} mm by more than {z:g} times a measurement's uncertainty (from the tiles; "
+            f"with fewer than {MIN_TILES} tiles, from the dense field where it is accurate), or the decoration "
+            f"does not match the design (SSIM < {MIN_SSIM}, or "
             f"fewer than {100 * MIN_MATCHED_SHARE:.0f} % of the view's textured tiles match); INVALID when neither "
             f"tiles nor the dense field can measure misregistration and no defect is found ({TOO_LITTLE_TEXTURE}); "
             "otherwise PASS. Tiles "
@@ -96,9 +97,16 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
         )
     p95 = entry["misregistration_mm"]["p95"]
     src = "" if entry.get("misregistration_source", "tiles") == "tiles" else " (dense field)"
+    # beyond the tolerance by more than SIGNIFICANCE_Z of what one measurement is uncertain by:
+    # a perfect part's p95 must not fail on its tiles' own scatter
+    unc = entry.get("misregistration_uncertainty_mm") or 0.0
+    margin = dense.SIGNIFICANCE_Z * unc
     why = []
-    if p95 > tolerance_mm:
-        why.append(f"misregistration p95{src} {p95:.3f} mm > tolerance {tolerance_mm} mm")
+    if p95 > tolerance_mm + margin:
+        why.append(
+            f"misregistration p95{src} {p95:.3f} mm > tolerance {tolerance_mm} mm"
+            + (f" by more than {dense.SIGNIFICANCE_Z:g} x its uncertainty {unc:.3f} mm" if unc else "")
+        )
     if big:
         d = big[0]
         why.append(

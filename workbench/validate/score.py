@@ -327,6 +327,8 @@ class Score:
         Film placement fitted in print coordinates: offset_mm, rotation_deg, scale_pct, rms_mm.
     tiles_examined : int
         Textured tiles of the region tried; those that matched the design are ``centres``.
+    sigma_mm : (n,) float
+        Each matched tile's standard uncertainty, mm on the surface.
     """
 
     centres: np.ndarray
@@ -337,6 +339,7 @@ class Score:
     blur_px: float
     film: dict = field(default_factory=dict)
     tiles_examined: int = 0
+    sigma_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def estimate_blur(design_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray) -> float:
@@ -549,7 +552,7 @@ def score(
     max_sigma_mm = TILE_SIGMA_SHARE * tolerance_mm
     # the photo's blur beyond the template's, view px (from the whole region, before any tile)
     blur_view = estimate_blur(tref, wr, inner) if inner.sum() > 1000 else 0.0
-    centres, shifts, examined, candidates = [], [], 0, []
+    centres, shifts, sigmas, examined, candidates = [], [], [], 0, []
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6)
     # tiles keep clear of the region's border by the largest shift they can measure:
     # a shifted film brings the neighbouring view's content into a band that wide
@@ -594,7 +597,9 @@ def score(
         if d is not None and cc >= MIN_CORRELATION * cc_noise and np.abs(d).max() < MARGIN - 1:
             centres.append((x + (TILE - 1) / 2, y + (TILE - 1) / 2))
             shifts.append(d)
+            sigmas.append(sigma * mm_per_px)
     centres = np.array(centres).reshape(-1, 2)
+    sigmas = np.array(sigmas, dtype=np.float64)
     shifts = np.array(shifts).reshape(-1, 2)
     film: dict = {}
     shift_mm = np.zeros(len(centres))
@@ -603,7 +608,7 @@ def score(
         X1 = _bilinear(surface.X, centres[:, 0] + shifts[:, 0], centres[:, 1] + shifts[:, 1])
         shift_mm = np.linalg.norm(X1 - X0, axis=1)
         ok = np.isfinite(shift_mm)
-        centres, shifts, shift_mm = centres[ok], shifts[ok], shift_mm[ok]
+        centres, shifts, shift_mm, sigmas = centres[ok], shifts[ok], shift_mm[ok], sigmas[ok]
         if len(centres) >= 4:
             p0, p1, J, good = tile_print_points(surface, centres, shifts)
             if good.sum() >= 4:
@@ -639,4 +644,4 @@ def score(
         design_like = cv2.GaussianBlur(dg, (0, 0), blur) if blur else dg
         gain, off = np.polyfit(aligned[inner], design_like[inner], 1)
         sim = ssim(design_like, aligned * gain + off, inner)
-    return Score(centres, shifts, shift_mm, coverage, sim, float(blur), film, examined)
+    return Score(centres, shifts, shift_mm, coverage, sim, float(blur), film, examined, sigmas)

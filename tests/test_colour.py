@@ -213,7 +213,7 @@ def test_render_options(tmp_path, capsys, scene):
     imp = json.loads(out.with_suffix(".json").read_text())["imperfections"]
     assert imp["colour_shift_lab"] == [-6.0, 6.0, 8.0] and imp["white_balance"] == [1.0, 0.9, 0.72]
     assert main([*args, "--colour-shift-lab", "60,0,0"]) == 2
-    assert "--colour-shift-lab 60,0,0: each of DL, DA, DB between -50 and 50" in capsys.readouterr().err
+    assert "--colour-shift-lab 60: must be between -50 and 50" in capsys.readouterr().err
 
 
 def test_a_broken_chart_in_fixture_json_is_refused(scene, tmp_path):

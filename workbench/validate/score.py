@@ -552,12 +552,6 @@ def score(
     max_sigma_mm = TILE_SIGMA_SHARE * tolerance_mm
     # the photo's blur beyond the template's, view px (from the whole region, before any tile)
     blur_view = estimate_blur(tref, wr, inner) if inner.sum() > 1000 else 0.0
-    # the warped photo's residuals are not independent from view pixel to view pixel: they are
-    # correlated over its blur (a photo coarser than the view is interpolated into it), so a
-    # tile holds T² / (4π c²) independent ones, not T², and a fit's own uncertainty, which
-    # counts them all, is too small by √(4π) c (seen: tiles 1 to 2 px off with a fitted
-    # 0.05 px where the photo's blur in the view was 4 px)
-    correlated = np.sqrt(4.0 * np.pi) * max(blur_view, REGISTRATION_BLUR_PX)
     centres, shifts, sigmas, examined, candidates = [], [], [], 0, []
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6)
     # tiles keep clear of the region's border by the largest shift they can measure:
@@ -576,7 +570,7 @@ def score(
             # it less well than high contrast, in proportion to the noise
             lam = max(float(np.linalg.eigvalsh(S)[0]), 1e-12)
             mm_per_px = float(np.nanmedian(step[y : y + TILE, x : x + TILE]))
-            if not np.isfinite(mm_per_px) or noise / np.sqrt(n_core * lam) * mm_per_px * correlated > max_sigma_mm:
+            if not np.isfinite(mm_per_px) or noise / np.sqrt(n_core * lam) * mm_per_px > max_sigma_mm:
                 continue
             candidates.append((y, x, mm_per_px))
     # evenly thinned in raster order where there are more than MAX_TILES
@@ -585,7 +579,6 @@ def score(
         examined += 1
         tpl = tref[y : y + TILE, x : x + TILE]
         d, cc, sigma = register_tile(tpl, wr, x, y)
-        sigma = sigma * correlated
         if np.isnan(cc):
             examined -= 1  # ambiguous: says nothing of whether the decoration matches
             continue

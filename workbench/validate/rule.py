@@ -53,6 +53,15 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
     }
 
 
+def defects_reason(big: list[dict], max_defect_mm2: float) -> str:
+    """The verdict's words for the defects over the limit (largest first)."""
+    d = big[0]
+    return (
+        f"{len(big)} defect{'s' if len(big) > 1 else ''} > {max_defect_mm2:g} mm² (largest: {d['kind']}, "
+        f"{d['area_mm2']:.1f} mm² at ({d['centre_mm'][0]:.1f}, {d['centre_mm'][1]:.1f}) mm on the print)"
+    )
+
+
 def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tuple[str, str]:
     """PASS or FAIL of one scored photo, and why, from its figures in validation.json.
 
@@ -83,12 +92,7 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
         # the decoration matches (SSIM) but nothing measures where it lies; a defect the photo
         # does find still fails the part
         if big:
-            d = big[0]
-            return "FAIL", (
-                f"{len(big)} defect{'s' if len(big) > 1 else ''} > {max_defect_mm2:g} mm² (largest: {d['kind']}, "
-                f"{d['area_mm2']:.1f} mm² at ({d['centre_mm'][0]:.1f}, {d['centre_mm'][1]:.1f}) mm on the print); "
-                f"misregistration not measured: {TOO_LITTLE_TEXTURE}"
-            )
+            return "FAIL", f"{defects_reason(big, max_defect_mm2)}; misregistration not measured: {TOO_LITTLE_TEXTURE}"
         return "INVALID", f"{TOO_LITTLE_TEXTURE} ({tiles} tiles, SSIM {sim:.2f})"
     if tiles >= MIN_TILES and tiles < MIN_MATCHED_SHARE * examined:
         return "FAIL", (
@@ -108,11 +112,7 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
             + (f" by more than {dense.SIGNIFICANCE_Z:g} x its uncertainty {unc:.3f} mm" if unc else "")
         )
     if big:
-        d = big[0]
-        why.append(
-            f"{len(big)} defect{'s' if len(big) > 1 else ''} > {max_defect_mm2:g} mm² (largest: {d['kind']}, "
-            f"{d['area_mm2']:.1f} mm² at ({d['centre_mm'][0]:.1f}, {d['centre_mm'][1]:.1f}) mm on the print)"
-        )
+        why.append(defects_reason(big, max_defect_mm2))
     if why:
         return "FAIL", "; ".join(why)
     return "PASS", f"misregistration p95{src} {p95:.3f} mm <= tolerance {tolerance_mm} mm, " + (

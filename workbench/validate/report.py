@@ -338,13 +338,17 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
                     f"{lim['min_area_mm2']:.1f} mm² and misregistration beyond {lim.get('min_shift_mm') or 0:.2f} mm "
                     f"(z = {lim['significance_z']:g})"
                 )
-                if res.get("needed_photo_px_per_mm"):
-                    line += (
-                        f"; {100 * res['unresolved_share']:.1f} % too fine for the photo "
-                        f"(needs {res['needed_photo_px_per_mm']:.0f} px/mm, x{res['needed_resolution_factor']:.1f})"
-                    )
                 c.drawString(20 * mm, top, line)
                 top -= 4.2 * mm
+                if res.get("needed_photo_px_per_mm"):
+                    c.drawString(
+                        20 * mm,
+                        top,
+                        f"{100 * res['unresolved_share']:.1f} % of what it sees is detail too fine for it: a photo "
+                        f"{res['needed_resolution_factor']:.1f} times as fine ({res['needed_photo_px_per_mm']:.0f} "
+                        "px/mm) would resolve it",
+                    )
+                    top -= 4.2 * mm
         for d in (e.get("defects") or [])[:6]:
             c.drawString(
                 24 * mm,

@@ -182,7 +182,7 @@ def test_the_command_writes_the_photo_and_its_truth(default_design, tmp_path):
     "extra, message",
     [
         (["--supersample", "2"], "--supersample does not apply to --renderer mitsuba"),
-        (["--spp", "0"], "--spp 0: between 1 and 4096"),
+        (["--spp", "0"], "--spp 0: must be between 1 and 4096"),
     ],
 )
 def test_options_the_path_tracer_cannot_honour_are_refused(default_design, tmp_path, capsys, extra, message):

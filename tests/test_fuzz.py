@@ -269,16 +269,20 @@ def job_inputs(folder: Path) -> None:
     (folder / "job.toml").write_bytes(toml_text(BASE_JOB))
 
 
-@pytest.fixture(scope="module")
-def base(tmp_path_factory):
-    """The small job, its design folder and a photo of it with its truth (a camera profile)."""
-    root = tmp_path_factory.mktemp("fuzz-base")
+def make_base(root):
+    """In ``root``: the small job, its design folder and a photo of it with its truth (a camera profile)."""
     job_inputs(root)
     assert main(["design", str(root / "job.toml"), "--out", str(root / "design"), "-q"]) == 0
     photo = root / "photo.png"
     argv = ["render", root / "design", "--orbit", "0,60,250", "--size", "640x480", "--supersample", "1", "-o", photo]
     assert main([str(a) for a in argv + ["-q"]]) == 0
     return root
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory):
+    """The small job, its design folder and a photo of it with its truth (a camera profile)."""
+    return make_base(tmp_path_factory.mktemp("fuzz-base"))
 
 
 def earlier_output(folder: Path) -> None:

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 import pytest
 from conftest import ROOT, grid_corners
-from test_fuzz import BASE_JOB, job_inputs, toml_text
+from test_fuzz import BASE_JOB, make_base, toml_text
 
 from workbench import atomic
 from workbench.cli import main
@@ -49,13 +49,7 @@ def one_line(capsys) -> str:
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
     """The fuzz suite's small job (60 x 40 mm lid, one 320 x 240 view, 30 dpi), its design and a photo."""
-    root = tmp_path_factory.mktemp("second-pass")
-    job_inputs(root)
-    assert main(["design", str(root / "job.toml"), "--out", str(root / "design"), "-q"]) == 0
-    photo = root / "photo.png"
-    argv = ["render", root / "design", "--orbit", "0,60,250", "--size", "640x480", "--supersample", "1", "-o", photo]
-    assert main([str(a) for a in argv + ["-q"]]) == 0
-    return root
+    return make_base(tmp_path_factory.mktemp("second-pass"))
 
 
 @pytest.fixture

@@ -417,6 +417,15 @@ def write_folder(directory: Path, files: dict[Path, bytes], inputs: Iterable[Pat
         _new_folder(directory, given, rel)
 
 
+def _write_all(root: Path, given: Path, rel: dict[str, bytes]) -> None:
+    """Every file of ``rel`` under ``root``; an error names the file as the user gave it (under ``given``)."""
+    for name, data in rel.items():
+        try:
+            _write_file(root / name, data)
+        except OSError as exc:
+            raise _oserror(given / name, exc) from None
+
+
 def _new_folder(directory: Path, given: Path, rel: dict[str, bytes]) -> None:
     try:
         directory.parent.mkdir(parents=True, exist_ok=True)
@@ -425,11 +434,7 @@ def _new_folder(directory: Path, given: Path, rel: dict[str, bytes]) -> None:
     tmp = directory.with_name(f".{directory.name}.tmp-{os.getpid()}")
     try:
         _rmtree(tmp)
-        for name, data in rel.items():
-            try:
-                _write_file(tmp / name, data)
-            except OSError as exc:
-                raise _oserror(given / name, exc) from None
+        _write_all(tmp, given, rel)
         with _held():
             try:
                 os.rename(tmp, directory)
@@ -449,11 +454,7 @@ def _update_folder(directory: Path, given: Path, rel: dict[str, bytes], stale: l
     try:
         with _held():
             _rmtree(stage)
-        for name, data in rel.items():
-            try:
-                _write_file(new / name, data)
-            except OSError as exc:
-                raise _oserror(given / name, exc) from None
+        _write_all(new, given, rel)
         with _held():
             try:
                 old.mkdir(parents=True)

@@ -29,7 +29,7 @@ from workbench.validate import dense, pictures
 from workbench.validate.part import part_summary
 from workbench.validate.photo import sha256, validate_photo
 from workbench.validate.report import qa_report
-from workbench.validate.rule import MAX_DEFECT_MM2, verdict_rule
+from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, verdict_rule
 
 
 def add_parser(sub) -> None:
@@ -66,6 +66,23 @@ def add_parser(sub) -> None:
         unit="mm²",
         default=MAX_DEFECT_MM2,
         help=f"largest accepted local defect, area on the print in mm² (default {MAX_DEFECT_MM2:g})",
+    )
+    p.add_argument(
+        "--max-delta-e",
+        action=Number,
+        lo=0,
+        lo_open=True,
+        hi=100,
+        unit="ΔE00",
+        default=MAX_DELTA_E,
+        help="largest accepted mean colour difference (CIEDE2000) between the photo, corrected by the fixture's "
+        f"colour chart, and the design's soft proof (default {MAX_DELTA_E:g})",
+    )
+    p.add_argument(
+        "--output-profile",
+        metavar="PROFILE.icc",
+        help="the output ICC profile the print was made with (the one given to workbench pdf): the soft proof "
+        "is the design's colours as that press prints them (default: the design's sRGB as it is)",
     )
     p.add_argument(
         "--jobs",
@@ -184,6 +201,22 @@ def fork_is_safe() -> bool:
     return layer in ("tbb", "workqueue")
 
 
+def read_output_profile(path: Path) -> bytes:
+    """The soft proof's output ICC profile, or an error naming the file."""
+    from workbench.printing.icc import profile_info
+
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: --output-profile: no such file")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise WorkbenchError(f"{path}: --output-profile: {exc.strerror or exc}") from None
+    space, _ = profile_info(data, f"{path}: --output-profile")
+    if space not in ("CMYK", "RGB"):
+        raise WorkbenchError(f"{path}: --output-profile: a {space} profile; an output (CMYK or RGB) profile is needed")
+    return data
+
+
 def usable_profile(path: Path):
     """The camera profile, or why no camera has it (every photo is then INVALID with that reason)."""
     try:
@@ -193,15 +226,16 @@ def usable_profile(path: Path):
 
 
 def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None, dict]:
-    photo, stem, view, tolerance_mm, max_defect_mm2 = job
+    photo, stem, view, tolerance_mm, limits = job
     return _timed(
-        Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, max_defect_mm2
+        Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, limits
     )
 
 
-def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2):
+def _timed(path, design, profile, view, tolerance_mm, cache, stem, limits):
+    """:func:`validate_photo`, timed; ``limits``: (max_defect_mm2, max_delta_e, output_profile bytes or None)."""
     t0 = time.perf_counter()
-    entry, pics, state, pages = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2)
+    entry, pics, state, pages = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, *limits)
     entry["seconds"] = round(time.perf_counter() - t0, 3)
     return entry, pics, state, pages
 
@@ -212,6 +246,8 @@ def run(args) -> int:
         raise UsageError(f"--tolerance-mm {args.tolerance_mm:g}: must be a positive number of mm")
     if not (np.isfinite(args.max_defect_mm2) and args.max_defect_mm2 > 0):
         raise UsageError(f"--max-defect-mm2 {args.max_defect_mm2:g}: must be a positive number of mm²")
+    if not (np.isfinite(args.max_delta_e) and args.max_delta_e > 0):
+        raise UsageError(f"--max-delta-e {args.max_delta_e:g}: must be a positive ΔE00")
     if args.jobs < 0:
         raise UsageError(f"--jobs {args.jobs}: must be 0 (every core) or more")
     profile_path = Path(args.camera)
@@ -231,11 +267,14 @@ def run(args) -> int:
     entries, files, states = [], {}, []
     cache: dict = {}
     photos = [Path(p) for p in args.photos]
-    inputs = [*design_files(design.dir), profile_path, *photos]
+    output_profile = Path(args.output_profile) if args.output_profile else None
+    inputs = [*design_files(design.dir), profile_path, *photos, *([output_profile] if output_profile else [])]
     check_output_dir(out, inputs)
     check_outputs(out / "validation.json", out / "qa_report.pdf", inputs=inputs)
+    proof = read_output_profile(output_profile) if output_profile else None
     stems = output_stems(photos)
-    work = [(p, stem, args.view, args.tolerance_mm, args.max_defect_mm2) for p, stem in zip(photos, stems, strict=True)]
+    limits = (args.max_defect_mm2, args.max_delta_e, proof)
+    work = [(p, stem, args.view, args.tolerance_mm, limits) for p, stem in zip(photos, stems, strict=True)]
     if jobs > 1:
         results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
@@ -276,7 +315,13 @@ def run(args) -> int:
         "camera_profile": {"file": recorded_path(profile_path, out), "sha256": sha256(profile_path)},
         "tolerance_mm": args.tolerance_mm,
         "max_defect_mm2": args.max_defect_mm2,
-        "verdict_rule": verdict_rule(args.tolerance_mm, args.max_defect_mm2),
+        "max_delta_e": args.max_delta_e,
+        "soft_proof": (
+            {"output_profile": recorded_path(output_profile, out), "sha256": sha256(output_profile)}
+            if output_profile
+            else {"output_profile": None, "note": "the design's sRGB as it is (no --output-profile)"}
+        ),
+        "verdict_rule": verdict_rule(args.tolerance_mm, args.max_defect_mm2, args.max_delta_e),
         "part": part,
         "photos": entries,
     }

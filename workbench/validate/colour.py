@@ -42,6 +42,38 @@ _BRADFORD_D65_TO_D50 = np.array(
 _SRGB_TO_XYZ_D50 = _BRADFORD_D65_TO_D50 @ _SRGB_TO_XYZ_D65
 D50_WHITE = np.array([0.96422, 1.0, 0.82521])
 D50_XY = np.array([0.3457, 0.3585])  # CIE 1931 2°, as colour-science has it
+# the ColorChecker Classic's CIELAB D50, reading order (X-Rite, charts after November 2014): what
+# workbench.printing.boards.colour_chart_reference derives from colour-science's data (tested
+# equal), here so that validate need not import colour-science (0.8 CPU s) to compare a
+# fixture's chart with it
+CHART_LAB_D50 = np.array(
+    [
+        [37.54, 14.37, 14.92],
+        [64.66, 19.27, 17.50],
+        [49.32, -3.82, -22.54],
+        [43.46, -12.74, 22.72],
+        [54.94, 9.61, -24.79],
+        [70.48, -32.26, -0.37],
+        [62.73, 35.83, 56.50],
+        [39.43, 10.75, -45.17],
+        [50.57, 48.64, 16.67],
+        [30.10, 22.54, -20.87],
+        [71.77, -24.13, 58.19],
+        [71.51, 18.24, 67.37],
+        [28.37, 15.42, -49.80],
+        [54.38, -39.72, 32.27],
+        [42.43, 51.05, 28.62],
+        [81.80, 2.67, 80.41],
+        [50.63, 51.28, -14.12],
+        [49.57, -29.71, -28.32],
+        [95.19, -1.03, 2.93],
+        [81.29, -0.57, 0.44],
+        [66.89, -0.75, -0.06],
+        [50.76, -0.13, 0.14],
+        [35.63, -0.46, -0.48],
+        [20.64, 0.07, -0.46],
+    ]
+)
 
 
 @dataclass(frozen=True)
@@ -76,6 +108,9 @@ class ColourOptions:
         Uniform: every channel of the design within this many levels (0 to 255) in the window.
     max_samples : int
         Print pixels compared at most (an even subsample beyond: the figures are percentiles).
+    shading_delta_l : float
+        A mean |ΔL*| at least this large that follows the surface's orientation is called
+        shading (a directional light), not ink: see :func:`orientation_shading`.
     """
 
     method: str = "root-polynomial"
@@ -88,7 +123,8 @@ class ColourOptions:
     max_fit_delta_e: float = 3.0
     uniform_radius_px: float = 4.0
     uniform_tol: float = 6.0
-    max_samples: int = 200_000
+    max_samples: int = 50_000
+    shading_delta_l: float = 1.0
 
 
 # ------------------------------------------------------------------ colour science, vectorised
@@ -293,16 +329,50 @@ def sample_chart(
     return ChartSample(rgb, pixels, usable, why, quads)
 
 
+def _spow(x: np.ndarray, p: float) -> np.ndarray:
+    """Sign-preserving power (a linear value slightly below 0 from noise stays a small negative)."""
+    return np.sign(x) * np.abs(x) ** p
+
+
+def expansion(rgb: np.ndarray, method: str, degree: int) -> np.ndarray:
+    """The terms a correction is linear in: (n, 3) linear RGB to (n, k).
+
+    'Cheung 2004' with 3 terms: R, G, B (a 3 x 3 matrix). 'Finlayson 2015' root-polynomials of
+    ``degree`` 1 to 3 (3, 6 or 13 terms): every term is of degree one in the light, so the fit
+    is exposure-invariant. The terms and their order are colour-science's
+    (``polynomial_expansion_Finlayson2015``), so its matrices and these are interchangeable.
+    """
+    rgb = np.asarray(rgb, dtype=np.float64)
+    R, G, B = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    if method == "Cheung 2004" or degree == 1:
+        return rgb
+    if method != "Finlayson 2015" or degree not in (2, 3):
+        raise ValueError(f"no expansion for {method!r} of degree {degree}")
+    terms = [R, G, B, _spow(R * G, 1 / 2), _spow(G * B, 1 / 2), _spow(R * B, 1 / 2)]
+    if degree == 3:
+        terms += [
+            _spow(R * G**2, 1 / 3),
+            _spow(G * B**2, 1 / 3),
+            _spow(R * B**2, 1 / 3),
+            _spow(G * R**2, 1 / 3),
+            _spow(B * G**2, 1 / 3),
+            _spow(B * R**2, 1 / 3),
+            _spow(R * G * B, 1 / 3),
+        ]
+    return np.stack(terms, axis=-1)
+
+
 @dataclass(frozen=True)
 class Correction:
     """A fitted colour correction: the photo's linear RGB to linear sRGB (D65) as the chart says.
 
     Attributes
     ----------
-    ccm : ndarray
-        colour-science's correction matrix for ``method``.
+    ccm : (3, k) float
+        The correction matrix on the ``method``'s terms (:func:`expansion`), as colour-science
+        has it (``colour.matrix_colour_correction``).
     method : str
-        colour-science's method name ('Finlayson 2015' or 'Cheung 2004').
+        'Finlayson 2015' (root-polynomial) or 'Cheung 2004' (3 x 3 matrix), colour-science's names.
     degree : int
     fit_delta_e00 : (24,) float
         ΔE00 of each corrected patch against its reference (NaN: not used).
@@ -315,14 +385,20 @@ class Correction:
 
     def apply(self, linear_rgb: np.ndarray) -> np.ndarray:
         """Correct linear RGB (n, 3) to linear sRGB (n, 3)."""
-        import colour
-
-        kw = {"degree": self.degree} if self.method == "Finlayson 2015" else {"terms": 3}
-        return colour.apply_matrix_colour_correction(linear_rgb, self.ccm, method=self.method, **kw)
+        e = expansion(linear_rgb, self.method, self.degree)
+        # the terms' weighted sums, column by column: no BLAS (its threads spin on a loaded machine)
+        out = np.zeros(e.shape[:-1] + (3,))
+        for k in range(e.shape[-1]):
+            out += e[..., k : k + 1] * self.ccm[:, k]
+        return out
 
 
 def fit_correction(sample: ChartSample, reference_lab: np.ndarray, opts: ColourOptions = ColourOptions()) -> Correction:
-    """Fit the photo's linear RGB of the usable patches to the chart's reference colours.
+    """Fit the photo's linear RGB of the usable patches to the chart's reference colours, least squares.
+
+    The same fit as colour-science's ``colour.matrix_colour_correction`` (Moore-Penrose least
+    squares on :func:`expansion`'s terms; tests/test_colour.py compares them), done here in a
+    few lines: importing colour-science takes about 0.8 CPU s, a sixth of a photo's budget.
 
     Parameters
     ----------
@@ -335,20 +411,15 @@ def fit_correction(sample: ChartSample, reference_lab: np.ndarray, opts: ColourO
     -------
     Correction
     """
-    import colour
-
     ok = sample.usable
     measured = srgb_decode(sample.rgb[ok] / 255.0)
     target = lab_to_linear_srgb(reference_lab[ok])
-    if opts.method == "matrix":
-        method, kw = "Cheung 2004", {"terms": 3}
-    else:
-        method, kw = "Finlayson 2015", {"degree": opts.degree}
-    ccm = colour.matrix_colour_correction(measured, target, method=method, **kw)
-    corr = Correction(np.asarray(ccm), method, opts.degree, np.full(len(ok), np.nan))
+    method, degree = ("Cheung 2004", 1) if opts.method == "matrix" else ("Finlayson 2015", opts.degree)
+    ccm = np.linalg.lstsq(expansion(measured, method, degree), target, rcond=None)[0].T
+    corr = Correction(ccm, method, degree, np.full(len(ok), np.nan))
     fit = np.full(len(ok), np.nan)
     fit[ok] = delta_e00(linear_srgb_to_lab(corr.apply(measured)), reference_lab[ok])
-    return Correction(corr.ccm, method, opts.degree, fit)
+    return Correction(ccm, method, degree, fit)
 
 
 # ------------------------------------------------------------------ the design's soft proof
@@ -408,20 +479,24 @@ def uniform_design(reference: np.ndarray, radius: int, tol: float) -> np.ndarray
     """Print pixels whose design is uniform within ``radius`` (every channel within ``tol`` levels); (rows, cols)."""
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
     ref = np.ascontiguousarray(reference)
-    spread = cv2.dilate(ref, k).astype(np.int16) - cv2.erode(ref, k).astype(np.int16)
-    return (spread <= tol).all(axis=2)
+    # per channel, the window's range (saturating uint8), then the channels' largest: OpenCV
+    # throughout (numpy's reduction over the channel axis took most of the measurement's time)
+    r, g, b = cv2.split(cv2.subtract(cv2.dilate(ref, k), cv2.erode(ref, k)))
+    return cv2.max(cv2.max(r, g), b) <= tol
 
 
 MAX_WINDOW_PX = 48  # widest window radius, grid pixels: beyond it the photo is too coarse to judge colour there
 
 
-def local_scale(cam: Camera, surface_mm: np.ndarray | None, uniform: float, shape) -> np.ndarray:
+def local_scale(cam: Camera, surface_mm: np.ndarray | None, uniform, shape) -> np.ndarray:
     """Photo pixels per grid pixel at every grid pixel, along the print's more foreshortened axis; (rows, cols).
 
-    From the surface points projected into the photo when given, else ``uniform`` everywhere.
+    From the surface points projected into the photo when given, else ``uniform``: one
+    figure everywhere, or a (rows, cols) array of them (``warp_to_print``'s footprint, which
+    is this same figure, already computed).
     """
     if surface_mm is None:
-        return np.full(shape, float(uniform))
+        return np.broadcast_to(np.asarray(uniform, dtype=np.float64), shape)
     rows, cols = shape
     on = np.isfinite(surface_mm[..., 0])
     xy = np.full((rows, cols, 2), np.nan)
@@ -433,42 +508,66 @@ def local_scale(cam: Camera, surface_mm: np.ndarray | None, uniform: float, shap
     return np.where(np.isfinite(s), s, np.nan)
 
 
-def compared_pixels(warped, scored, reference, scale, opts: ColourOptions) -> tuple[np.ndarray, np.ndarray]:
-    """Which grid pixels to compare, and the photo averaged over each one's window.
+def compared_pixels(scored, reference, scale, opts: ColourOptions) -> np.ndarray:
+    """Which grid pixels to compare, and the window each one's photo is averaged over.
 
     A pixel's window spans ``opts.uniform_radius_px`` photo pixels (its radius in grid
     pixels from the local scale, rounded up to one of a few levels). A pixel is compared
-    when the whole window is scored (no outline, fold or defect mixing in other colours)
-    and the design is uniform over it: the photo's mean there is then the print's colour,
-    its noise averaged down.
+    when the whole window is scored (no outline, fold or defect mixing in other colours;
+    inside the grid) and the design is uniform over it: the photo's mean there
+    (:func:`window_means`) is then the print's colour, its noise averaged down.
 
     Returns
     -------
-    use : (rows, cols) bool
-    smoothed : (rows, cols, 3) float32
+    radius : (rows, cols) int16
+        The window's radius, grid pixels; 0 where the pixel is not compared.
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        need = np.ceil(opts.uniform_radius_px / scale)
-    need = np.where(np.isfinite(need), np.maximum(need, 1), np.inf)
-    levels = sorted(
-        {int(v) for v in np.unique(np.ceil(1.25 ** np.ceil(np.log(need[np.isfinite(need)]) / np.log(1.25))))}
+    radius = np.zeros(scored.shape, np.int16)
+    rows = np.flatnonzero(scored.any(axis=1))
+    cols = np.flatnonzero(scored.any(axis=0))
+    if len(rows) == 0:
+        return radius
+    # only the scored area and the widest window around it: every window of a scored pixel lies
+    # inside, so the crop changes no figure (a photo sees a part of the print: about half here)
+    m = MAX_WINDOW_PX + 1
+    crop = (
+        slice(max(rows[0] - m, 0), min(rows[-1] + m + 1, scored.shape[0])),
+        slice(max(cols[0] - m, 0), min(cols[-1] + m + 1, scored.shape[1])),
     )
+    scored, reference = scored[crop], reference[crop]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        need = np.ceil(opts.uniform_radius_px / np.asarray(scale)[crop][scored])
+    need = np.where(np.isfinite(need), np.maximum(need, 1), np.inf)
+    fin = need[np.isfinite(need)]
+    levels = sorted({int(v) for v in np.unique(np.ceil(1.25 ** np.ceil(np.log(fin) / np.log(1.25))))})
     levels = [r for r in levels if r <= MAX_WINDOW_PX]
-    use = np.zeros(scored.shape, bool)
-    smoothed = np.zeros(warped.shape, np.float32)
+    need_map = np.full(scored.shape, np.inf, np.float32)
+    need_map[scored] = need
+    out = radius[crop]
     sc = scored.astype(np.uint8)
-    w = warped.astype(np.float32)
     lower = 0
     for r in levels:
-        here = scored & (need > lower) & (need <= r)
+        here = (need_map > lower) & (need_map <= r)
         lower = r
         if not here.any():
             continue
-        window = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
-        ok = here & cv2.erode(sc, window).astype(bool) & uniform_design(reference, r, opts.uniform_tol)
-        use |= ok
-        smoothed[ok] = cv2.blur(w, (2 * r + 1, 2 * r + 1))[ok]
-    return use, smoothed
+        window = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * r + 1, 2 * r + 1))
+        # beyond the grid counts as not scored: every window lies inside it
+        inside = cv2.erode(sc, window, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
+        out[here & inside & uniform_design(reference, r, opts.uniform_tol)] = r
+    return radius
+
+
+def window_means(img: np.ndarray, ii: np.ndarray, jj: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The mean of ``img`` (rows, cols, 3) over the square window of radius ``r`` (n,) about each (ii, jj) (n,).
+
+    From one integral image (exact sums: 8-bit values, int64), so that only the pixels
+    compared cost anything; every window must lie inside the image. Returns (n, 3) float.
+    """
+    S = cv2.integral(np.ascontiguousarray(img), sdepth=cv2.CV_64F)
+    i0, i1, j0, j1 = ii - r, ii + r + 1, jj - r, jj + r + 1
+    total = S[i1, j1] - S[i0, j1] - S[i1, j0] + S[i0, j0]
+    return total / ((2 * r + 1) ** 2)[:, None]
 
 
 def _figures(d: np.ndarray) -> dict:
@@ -499,7 +598,9 @@ def measure_colour(
     output_profile: bytes | None = None,
     part_depth: np.ndarray | None = None,
     surface_mm: np.ndarray | None = None,
-    photo_px_per_grid_px: float = 1.0,
+    photo_px_per_grid_px: float | np.ndarray = 1.0,
+    face: np.ndarray | None = None,
+    face_normals: np.ndarray | None = None,
     opts: ColourOptions = ColourOptions(),
 ) -> tuple[dict, np.ndarray | None]:
     """CIEDE2000 between the photographed decoration, corrected by the chart, and the design's soft proof.
@@ -529,9 +630,14 @@ def measure_colour(
         The surface point under each grid pixel (``PrintGrid.X``, NaN off the part): the
         photo's local scale on the print then sets each pixel's window (a fine logo seen
         from afar needs a wider one, in print pixels, than the same print seen close up).
-    photo_px_per_grid_px : float
+    photo_px_per_grid_px : float or (rows, cols) float
         Without ``surface_mm``: how many photo pixels one grid pixel spans, everywhere
-        (``warp_to_print``'s scale).
+        (``warp_to_print``'s scale) or at each grid pixel (its footprint).
+    face : (rows, cols) int, optional
+        The triangle under each grid pixel (``PrintGrid.face``, -1 off the part).
+    face_normals : (m, 3) float, optional
+        Unit outward normal of each triangle. With ``face``: the lightness difference that
+        follows the surface's orientation is split off as shading (:func:`orientation_shading`).
     opts : ColourOptions
 
     Returns
@@ -542,12 +648,11 @@ def measure_colour(
         to the proof's: what remains once lightness, which shading also moves, is left
         aside), ``lightness`` {mean_delta_l, mean_abs_delta_l} (photo minus proof),
         ``chart_fit_delta_e00`` (mean over the usable patches) and ``chart`` (method,
-        patches used, fit max, which were left out and why), ``regions`` {name: figures}.
+        patches used, fit max, which were left out and why), ``regions`` {name: figures};
+        with the normals ``shading`` (:func:`orientation_shading`).
     delta_e_map : (rows, cols) float32 or None
         ΔE00 per grid pixel (NaN: not compared), for a colour-difference picture.
     """
-    from workbench.printing.boards import colour_chart_reference
-
     if chart is None:
         return not_measured("the fixture has no colour chart (fixture.json: colour_chart)"), None
     sample = sample_chart(photo, cam, chart, part_depth, opts)
@@ -577,7 +682,7 @@ def measure_colour(
                 chart=chart_info,
             ), None
     ref_lab = np.array([p["lab_d50"] for p in chart["patches"]], dtype=np.float64)
-    if len(ref_lab) == 24 and not np.allclose(ref_lab, colour_chart_reference()[1], atol=0.05):
+    if len(ref_lab) == 24 and not np.allclose(ref_lab, CHART_LAB_D50, atol=0.05):
         chart_info["reference"] = "the fixture's own values"
     corr = fit_correction(sample, ref_lab, opts)
     fit = corr.fit_delta_e00[sample.usable]
@@ -593,16 +698,16 @@ def measure_colour(
             chart_fit_delta_e00=fit_mean,
         ), None
 
-    use, smoothed = compared_pixels(
-        warped, scored, reference, local_scale(cam, surface_mm, photo_px_per_grid_px, scored.shape), opts
-    )
+    radius = compared_pixels(scored, reference, local_scale(cam, surface_mm, photo_px_per_grid_px, scored.shape), opts)
+    use = radius > 0
     idx = np.flatnonzero(use)
     if len(idx) > opts.max_samples:  # an even subsample: deterministic, spread over the print
         idx = idx[np.linspace(0, len(idx) - 1, opts.max_samples).round().astype(np.int64)]
     if len(idx) == 0:
         return not_measured("no uniform area of the decoration is seen", chart=chart_info), None
     ref_px = reference.reshape(-1, 3)[idx]
-    photo_px = smoothed.reshape(-1, 3)[idx].astype(np.float64)
+    ii, jj = np.divmod(idx, scored.shape[1])
+    photo_px = window_means(warped, ii, jj, radius.reshape(-1)[idx].astype(np.int64))
     proof = soft_proof(ref_px, output_profile)
     got = linear_srgb_to_lab(corr.apply(srgb_decode(photo_px / 255.0)))
     de = delta_e00(proof, got)
@@ -621,11 +726,170 @@ def measure_colour(
         "soft_proof": "output profile" if output_profile is not None else "sRGB as designed",
         "compared_share": round(float(use.sum() / max(scored.sum(), 1)), 4),
     }
+    if face is not None and face_normals is not None:
+        f = face.reshape(-1)[idx]
+        normals = face_normals[np.maximum(f, 0)]
+        out["shading"] = orientation_shading(proof, got, normals, chart_normal(chart, cam), de, opts)
     de_map = np.full(scored.shape, np.nan, dtype=np.float32)
     de_map.reshape(-1)[idx] = de
     if regions:
         out["regions"] = {name: _figures(de[mask.reshape(-1)[idx]]) for name, mask in regions.items()}
     return out, de_map
+
+
+def chart_normal(chart: dict, cam: Camera) -> np.ndarray:
+    """The chart's unit normal, on the side the camera sees; (3,) float."""
+    c = np.asarray([p["corners_mesh_mm"] for p in chart["patches"]], dtype=np.float64).reshape(-1, 3)
+    centre = c.mean(axis=0)
+    # the plane through every corner: the smallest singular vector of the centred corners
+    n = np.linalg.svd(c - centre, full_matrices=False)[2][-1]
+    return n if n @ (cam.center - centre) > 0 else -n
+
+
+def orientation_shading(
+    proof: np.ndarray,
+    got: np.ndarray,
+    normals: np.ndarray,
+    n_chart: np.ndarray,
+    de: np.ndarray,
+    opts: ColourOptions = ColourOptions(),
+) -> dict:
+    """How much of the difference is lightness that follows the surface's orientation: shading.
+
+    The chart corrects the photo for the light the chart receives. Under even, diffuse
+    light every surface receives that light; under a directional one a surface turned
+    towards the lamp receives more, and its colour looks lighter by a factor ``s(n)``,
+    which the camera cannot tell from ink density. A factor on the light is a factor ``k``
+    on Y, so ``ln((L* + 16) / (L*_proof + 16)) = ln(k) / 3`` whatever the colour; it is
+    fitted, least squares, as ``a + b · (n - mean n)`` over the compared pixels, and the
+    shading at a pixel is ``b · (n - n_chart)``: nothing where the surface faces as the
+    chart does (a surface of one orientation, such as a flat film, shows none: there the
+    camera cannot separate shading from ink at all). An ink that is too light or dark moves
+    every surface alike and stays in ``a``.
+
+    Parameters
+    ----------
+    proof, got : (n, 3) float
+        The soft proof and the corrected photo, CIELAB D50.
+    normals : (n, 3) float
+        Unit surface normals (outward) at those pixels.
+    n_chart : (3,) float
+        The chart's normal (:func:`chart_normal`).
+    de : (n,) float
+        ΔE00 of the pixels.
+    opts : ColourOptions
+
+    Returns
+    -------
+    dict
+        ``mean_abs_delta_l`` (ΔL* that follows the orientation, mean over the pixels),
+        ``delta_e00`` (the figures with it taken out of L*), ``share`` (of the mean ΔE00
+        that it is), ``directional`` (``mean_abs_delta_l`` at least ``opts.shading_delta_l``)
+        and a ``note``.
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.log(np.maximum(got[:, 0] + 16.0, 1.0) / np.maximum(proof[:, 0] + 16.0, 1.0))
+    dn = normals - normals.mean(axis=0)
+    A = np.column_stack([np.ones(len(g)), dn])
+    # the normal equations without BLAS (whose threads spin on a loaded machine); a part of one
+    # orientation has zero columns, which lstsq's cut-off leaves at zero slope
+    AtA = np.einsum("ij,ik->jk", A, A)
+    Atg = np.einsum("ij,i->j", A, g)
+    coef = np.linalg.lstsq(AtA, Atg, rcond=1e-9)[0]
+    h = ((normals - n_chart) * coef[1:]).sum(axis=1)
+    L_without = (got[:, 0] + 16.0) * np.exp(-h) - 16.0
+    shade_dl = got[:, 0] - L_without
+    without = delta_e00(proof, np.column_stack([L_without, got[:, 1:]]))
+    mean_abs = float(np.abs(shade_dl).mean())
+    directional = mean_abs >= opts.shading_delta_l
+    share = max(0.0, 1.0 - float(without.mean()) / float(de.mean())) if de.mean() > 0 else 0.0
+    note = (
+        f"{100 * share:.0f} % of the mean ΔE00 is lightness that follows the surface's orientation "
+        f"(mean |ΔL*| {mean_abs:.2f}): shading under a directional light, which a camera cannot tell from ink; "
+        "measure colour under even, diffuse light (a light tent or viewing booth)"
+        if directional
+        else "no lightness difference follows the surface's orientation: the light is even"
+    )
+    return {
+        "mean_abs_delta_l": round(mean_abs, 3),
+        "delta_e00": _figures(without),
+        "share": round(share, 4),
+        "directional": bool(directional),
+        "note": note,
+    }
+
+
+def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Unit normal of each triangle (counter-clockwise seen from the outside: outward); (m, 3) float."""
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.where(length > 0, length, 1.0)
+
+
+def photo_colour(
+    photo: np.ndarray,
+    cam: Camera,
+    design,
+    grid,
+    warped: np.ndarray,
+    state: np.ndarray,
+    footprint: np.ndarray,
+    depth: np.ndarray,
+    output_profile: bytes | None = None,
+    opts: ColourOptions = ColourOptions(),
+) -> tuple[dict, np.ndarray | None]:
+    """:func:`measure_colour` on what validate has of a photo once its dense analysis is done.
+
+    Parameters
+    ----------
+    photo, cam
+        The photo and its posed camera.
+    design : workbench.design_dir.Design
+        The part (``V``, ``F``: its triangles' normals, for shading under a directional
+        light), its fixture (``colour_chart``, if any), its views (regions ``"view NAME"`` by
+        the grid's owner) and films (design.json's ``films``, ``atlas_px``, ``width_px``,
+        ``height_px`` in print pixels: regions ``"film NAME"``).
+    grid : workbench.validate.dense.PrintGrid
+    warped, footprint : arrays
+        :func:`workbench.validate.dense.warp_to_print`'s photo on the grid and its footprint.
+    state : (rows, cols) uint8
+        The dense analysis's state per grid pixel: the measured pixels outside defects,
+        highlights and shadows are compared.
+    depth : (H, W) float
+        The part's depth buffer in the photo.
+    output_profile : bytes or None
+        The soft proof's output profile (None: the design's sRGB as it is).
+    opts : ColourOptions
+
+    Returns
+    -------
+    colour : dict
+    delta_e_map : (rows, cols) float32 or None
+    """
+    from workbench.validate import dense
+
+    scored = np.isin(state, (dense.COLOUR_ONLY, dense.UNRESOLVED, dense.NORMAL, dense.FULL))
+    regions = {f"view {v['name']}": grid.owner == k for k, v in enumerate(design.info["views"])}
+    for f in design.info.get("films") or []:
+        box = np.zeros(scored.shape, bool)
+        i0, j0 = (np.asarray(f["atlas_px"][:2]) / grid.factor).round().astype(int)
+        box[i0 : i0 + round(f["height_px"] / grid.factor), j0 : j0 + round(f["width_px"] / grid.factor)] = True
+        regions[f"film {f['name']}"] = box
+    return measure_colour(
+        photo,
+        cam,
+        design.fixture.get("colour_chart"),
+        warped,
+        scored,
+        grid.reference,
+        regions=regions,
+        output_profile=output_profile,
+        part_depth=depth,
+        photo_px_per_grid_px=footprint,
+        face=grid.face,
+        face_normals=face_normals(np.asarray(design.V, dtype=np.float64), np.asarray(design.F)),
+        opts=opts,
+    )
 
 
 def colour_difference_picture(de_map: np.ndarray, vmax: float = 10.0) -> np.ndarray:

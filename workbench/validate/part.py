@@ -34,7 +34,7 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
     else:
         verdict = "INVALID"
     if not scored:
-        return {"verdict": verdict, "photos_scored": 0}, None, []
+        return {"verdict": verdict, "photos_scored": 0, "colour": colour_summary(entries)}, None, []
     combined = np.maximum.reduce(scored)
     on = combined != dense.OFF_PART
     n_on = max(int(on.sum()), 1)
@@ -73,5 +73,32 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
         "measured_share_of_part": float(np.isin(combined, dense.MEASURED).sum() / n_on),
         "coverage_by_view": dense.coverage_by_view(combined, grid.owner, names),
         "defects": defects,
+        "colour": colour_summary(entries),
     }
     return summary, combined, defects
+
+
+def colour_summary(entries: list[dict]) -> dict:
+    """The part's colour over its photos: each measured photo's mean ΔE00, the worst, and the colour's verdict.
+
+    FAIL when any photo's colour fails, PASS when every measured one passes, "not measured" (with
+    each photo's reason) when none was.
+    """
+    measured = [e for e in entries if (e.get("colour") or {}).get("measured")]
+    if not measured:
+        reasons = sorted({e["colour"]["reason"] for e in entries if e.get("colour")}) or [
+            "colour not measured: no photo was scored"
+        ]
+        return {"verdict": "not measured", "photos_measured": 0, "reasons": reasons}
+    means = {Path(e["photo"]).name: e["colour"]["delta_e00"]["mean"] for e in measured}
+    worst = max(measured, key=lambda e: e["colour"]["delta_e00"]["mean"])
+    verdicts = [e["colour"].get("verdict") for e in measured]
+    return {
+        "verdict": "FAIL" if "FAIL" in verdicts else "PASS",
+        "photos_measured": len(measured),
+        "delta_e00_mean_by_photo": means,
+        "worst_photo": Path(worst["photo"]).name,
+        "worst_delta_e00": worst["colour"]["delta_e00"],
+        "chart_fit_delta_e00": max(e["colour"]["chart_fit_delta_e00"] for e in measured),
+        "shading_directional": any((e["colour"].get("shading") or {}).get("directional") for e in measured),
+    }

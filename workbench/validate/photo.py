@@ -18,10 +18,19 @@ from workbench.errors import WorkbenchError
 from workbench.export import png_bytes
 from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
+from workbench.validate.colour import photo_colour
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
-from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, MIN_DENSE_WINDOWS, MIN_TILES, photo_verdict
+from workbench.validate.rule import (
+    MAX_DEFECT_MM2,
+    MAX_DELTA_E,
+    MAX_RMS_PX,
+    MIN_DENSE_WINDOWS,
+    MIN_TILES,
+    colour_verdict,
+    photo_verdict,
+)
 from workbench.validate.score import (
     TILE,
     TILE_SIGMA_SHARE,
@@ -83,10 +92,13 @@ def validate_photo(
     cache,
     stem: str | None = None,
     max_defect_mm2: float = MAX_DEFECT_MM2,
+    max_delta_e: float = MAX_DELTA_E,
+    output_profile: bytes | None = None,
 ) -> tuple[dict, dict, np.ndarray | None, dict]:
     """Score one photo; never raises for a bad photo (its verdict says why).
 
     ``profile`` is the camera profile, or the reason it cannot be used (every photo is then INVALID).
+    ``output_profile``: the ICC profile the colour's soft proof goes through (None: the design's sRGB).
 
     Returns
     -------
@@ -230,9 +242,14 @@ def validate_photo(
         else:
             entry["misregistration_source"] = None
     clock.append(time.perf_counter())  # dense analysis
+    entry["colour"], de_map = photo_colour(
+        photo, pose.camera, design, grid, on_print, dr.state, footprint, depth, output_profile
+    )
+    entry["colour"]["verdict"] = colour_verdict(entry["colour"], max_delta_e)[0]
+    clock.append(time.perf_counter())  # colour
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
-    entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2)
+    entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
     clock.append(time.perf_counter())  # summary
     stem = stem or safe_name(path.stem)
     entry["pictures"] = stem  # the name the warped photo, overlay and heat map start with
@@ -264,8 +281,12 @@ def validate_photo(
     files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
     shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
     pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
+    if de_map is not None:
+        shown_de = pictures.colour_difference(grid.reference, de_map, grid.px_per_mm, 2 * max_delta_e)
+        files[f"{stem}_colour_print.png"] = png_bytes(shown_de, compression=1)
+        pages[f"{stem}_colour_print.png"] = page_picture(Image.fromarray(shown_de))
     clock.append(time.perf_counter())  # pictures
-    stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "figures and verdict", "pictures")
+    stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "colour", "figures and verdict", "pictures")
     entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
     return entry, files, dr.state, pages
 

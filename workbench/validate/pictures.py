@@ -183,6 +183,51 @@ def dense_heatmap(
     return figure_png(fig)
 
 
+def colour_difference(reference: np.ndarray, de_map: np.ndarray, px_per_mm: float, vmax: float) -> np.ndarray:
+    """ΔE00 over the print where colour was compared, over the print in grey, with a scale; (rows, cols + bar, 3) uint8.
+
+    Parameters
+    ----------
+    reference : (rows, cols, 3) uint8
+        The print on the grid.
+    de_map : (rows, cols) float
+        ΔE00 per grid pixel, NaN where not compared (an even subsample of the compared
+        pixels: each also shows in its 3 x 3 neighbours that were not compared).
+    px_per_mm : float
+        Grid resolution: a tick every 10 mm along the top and left edges.
+    vmax : float
+        Top of the scale ('inferno': black 0 to yellow ``vmax``; twice the tolerance puts it mid-scale).
+
+    Drawn with OpenCV rather than matplotlib (a tenth of the time, on every photo).
+    """
+    import matplotlib
+
+    lut = (matplotlib.colormaps["inferno"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+    filled = np.where(np.isfinite(de_map), de_map, -1.0).astype(np.float32)
+    grown = cv2.dilate(filled, np.ones((3, 3), np.uint8))
+    shown = np.where(filled >= 0, filled, grown)
+    grey = cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY) // 2 + 64
+    img = np.repeat(grey[..., None], 3, axis=2)
+    on = shown >= 0
+    img[on] = lut[np.clip(shown[on] / vmax * 255, 0, 255).astype(np.uint8)]
+    rows, cols = de_map.shape
+    for k in range(0, int(max(rows, cols) / px_per_mm) + 1, 10):
+        t = int(round(k * px_per_mm))
+        img[:6, t : t + 2] = 0
+        img[t : t + 2, :6] = 0
+    # the scale: a bar beside the map, its ends and middle labelled in ΔE00
+    bar_w = max(60, cols // 12)
+    bar = np.full((rows, bar_w, 3), 255, np.uint8)
+    top, bottom = rows // 10, rows - rows // 10
+    ramp = np.linspace(255, 0, bottom - top).astype(np.uint8)
+    bar[top:bottom, 8 : bar_w // 3] = lut[ramp][:, None, :]
+    scale = max(0.4, rows / 1500)
+    for v, y in ((vmax, top), (vmax / 2, (top + bottom) // 2), (0.0, bottom)):
+        cv2.putText(bar, f"{v:g}", (bar_w // 3 + 4, y + 5), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(bar, "dE00", (4, top - 30), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.concatenate([img, bar], axis=1)
+
+
 def tile_heatmap(design_rgb, sc, title: str) -> bytes:
     """The view's image in grey with each tile coloured by its misregistration (mm), and a colour bar."""
     from workbench.figures import _figure, figure_png

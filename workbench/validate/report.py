@@ -73,6 +73,7 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     fails = [e for e in photos if e["verdict"] == "FAIL"]
     if fails:
         c.drawString(70 * mm, H - 38 * mm, f"why: {fails[0]['reason']}"[:110])
+    c.drawString(70 * mm, H - 43 * mm, colour_line(part.get("colour"), report.get("max_delta_e"))[:110])
     y = H - 48 * mm
     defects = part.get("defects", [])
     limit = report.get("max_defect_mm2")
@@ -126,6 +127,108 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
         line += word + " "
     if line:
         c.drawString(20 * mm, y, line)
+    c.showPage()
+
+
+def colour_line(colour: dict | None, max_delta_e: float | None) -> str:
+    """The part's colour in one line of the first page."""
+    if not colour:
+        return "colour: not measured"
+    if colour["verdict"] == "not measured":
+        return f"colour: not measured ({'; '.join(r.removeprefix('colour not measured: ') for r in colour['reasons'])})"
+    worst = colour["worst_delta_e00"]
+    return (
+        f"colour: {colour['verdict']}, mean ΔE00 {worst['mean']:.2f} (limit {max_delta_e:g}) in the worst of "
+        f"{colour['photos_measured']} photo(s)" + ("; shading taken out" if colour.get("shading_directional") else "")
+    )
+
+
+def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, bytes], W: float, H: float) -> None:
+    """The colour page(s): per photo the ΔE00 against the soft proof, the chart's fit, shading, regions, the map."""
+    from PIL import Image
+    from reportlab.lib.units import mm
+    from reportlab.lib.utils import ImageReader
+
+    photos = [e for e in report["photos"] if e.get("colour")]
+    if not photos:
+        return
+    proof = report.get("soft_proof") or {}
+    c.setFont("Helvetica-Bold", 14)
+    c.drawString(20 * mm, H - 20 * mm, "colour: CIEDE2000 against the design's soft proof")
+    c.setFont("Helvetica", 8)
+    lines = [
+        "the photo corrected by the fixture's colour chart (a fit per photo), against the design's colours as the "
+        "press prints them, on the print's uniform areas;",
+        f"soft proof: {proof.get('output_profile') or proof.get('note') or '?'}; limit: mean ΔE00 "
+        f"{report.get('max_delta_e', 3.0):g}. A camera screens colour; a spectrophotometer decides conformance.",
+    ]
+    y = H - 27 * mm
+    for line in lines:
+        c.drawString(20 * mm, y, line)
+        y -= 4 * mm
+    y -= 2 * mm
+    cols = [20, 66, 88, 104, 120, 136, 156, 172]
+    heads = ["photo", "colour", "mean", "p95", "max", "chromatic", "chart fit", "shading"]
+    c.setFont("Helvetica-Bold", 8)
+    for x, h in zip(cols, heads, strict=True):
+        c.drawString(x * mm, y, h)
+    c.setFont("Helvetica", 8)
+    for e in photos:
+        y -= 5 * mm
+        col = e["colour"]
+        name = e["photo"].rsplit("/", 1)[-1][:28]
+        if not col.get("measured"):
+            c.drawString(cols[0] * mm, y, name)
+            c.drawString(cols[1] * mm, y, col["reason"][:110])
+            continue
+        de, ch, sh = col["delta_e00"], col["delta_e00_chromatic"], col.get("shading") or {}
+        row = [
+            name,
+            col.get("verdict", ""),
+            f"{de['mean']:.2f}",
+            f"{de['p95']:.2f}",
+            f"{de['max']:.2f}",
+            f"{ch['mean']:.2f}",
+            f"{col['chart_fit_delta_e00']:.2f}",
+            f"{100 * sh['share']:.0f} %" if sh.get("directional") else "none",
+        ]
+        for x, v in zip(cols, row, strict=True):
+            c.drawString(x * mm, y, v)
+        if y < 30 * mm:
+            c.showPage()
+            c.setFont("Helvetica", 8)
+            y = H - 20 * mm
+    for e in photos:
+        col = e["colour"]
+        name = f"{e.get('pictures') or ''}_colour_print.png"
+        if not col.get("measured") or (name not in pages and name not in pictures):
+            continue
+        jpeg = pages.get(name) or page_picture(Image.open(io.BytesIO(pictures[name])))
+        img = ImageReader(io.BytesIO(jpeg))
+        iw, ih = img.getSize()
+        h = min((W - 40 * mm) * ih / iw, (H - 60 * mm) / 2)
+        w = h * iw / ih
+        regions = ", ".join(
+            f"{k} {v['mean']:.2f}" if v.get("mean") is not None else f"{k} -" for k, v in col.get("regions", {}).items()
+        )
+        text = [
+            f"{e['photo'].rsplit('/', 1)[-1]}: {col.get('verdict', '')}; chart: {col['chart']['patches_used']} "
+            f"patches, fit mean ΔE00 {col['chart_fit_delta_e00']:.2f}, max {col['chart']['fit_max_delta_e00']:.2f}; "
+            f"compared {col['delta_e00']['pixels']} print pixels ({100 * col['compared_share']:.0f} % of those scored)",
+            f"lightness: mean ΔL* {col['lightness']['mean_delta_l']:+.2f}; "
+            + (col.get("shading") or {}).get("note", ""),
+            f"mean ΔE00 by region: {regions}",
+        ]
+        if y - h - 20 * mm < 20 * mm:
+            c.showPage()
+            y = H - 15 * mm
+        y -= 6 * mm
+        c.setFont("Helvetica", 7)
+        for line in text:
+            c.drawString(20 * mm, y, line[:175])
+            y -= 3.6 * mm
+        c.drawImage(img, 20 * mm, y - h, width=w, height=h)
+        y -= h + 4 * mm
     c.showPage()
 
 
@@ -306,6 +409,7 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
     c.showPage()
     film_pages(c, report, W, H)
     seam_page(c, report, W, H)
+    colour_pages(c, report, pictures, pages, W, H)
     for e in report["photos"]:
         if e["verdict"] == "INVALID":
             continue

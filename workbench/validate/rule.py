@@ -16,10 +16,13 @@ MAX_DEFECT_MM2 = 4.0
 # this many independent accurate flow windows (each about a millimetre across): four times the
 # tiles' minimum, since a window holds about a tenth of a tile's pixels
 MIN_DENSE_WINDOWS = 4 * MIN_TILES
+# mean CIEDE2000 between the photo, corrected by the fixture's chart, and the design's soft proof:
+# about what a trained eye sees side by side; a wrong ink or profile gives 4 to 9
+MAX_DELTA_E = 3.0
 TOO_LITTLE_TEXTURE = "too little texture to measure misregistration here; add texture or a calibration film"
 
 
-def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
+def verdict_rule(tolerance_mm: float, max_defect_mm2: float, max_delta_e: float = MAX_DELTA_E) -> dict:
     """The acceptance rule, as it goes into validation.json and the QA report."""
     z = dense.SIGNIFICANCE_Z
     return {
@@ -28,7 +31,11 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
             f"p95 exceeds {tolerance_mm:g} mm by more than {z:g} times a measurement's uncertainty (from the tiles; "
             f"with fewer than {MIN_TILES} tiles, from the dense field where it is accurate), or the decoration "
             f"does not match the design (SSIM < {MIN_SSIM}, or "
-            f"fewer than {100 * MIN_MATCHED_SHARE:.0f} % of the view's textured tiles match); INVALID when neither "
+            f"fewer than {100 * MIN_MATCHED_SHARE:.0f} % of the view's textured tiles match), or the colour "
+            f"differs from the design's soft proof by a mean CIEDE2000 above {max_delta_e:g} (the photo corrected "
+            "by the fixture's colour chart; lightness that follows the surface's orientation, shading under a "
+            "directional light, taken out and reported; without a usable chart colour is not measured, which "
+            "is no FAIL); INVALID when neither "
             f"tiles nor the dense field can measure misregistration and no defect is found ({TOO_LITTLE_TEXTURE}); "
             "otherwise PASS. Tiles "
             "and dense pixels count by their own uncertainty against the photo's measured noise, not by a fixed "
@@ -43,6 +50,7 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float) -> dict:
         ),
         "tolerance_mm": tolerance_mm,
         "max_defect_mm2": max_defect_mm2,
+        "max_delta_e00_mean": max_delta_e,
         "min_defect_mm2": dense.MIN_DEFECT_MM2,
         "colour_tolerance_grey_levels": dense.COLOUR_TOL,
         "significance_z": z,
@@ -62,7 +70,43 @@ def defects_reason(big: list[dict], max_defect_mm2: float) -> str:
     )
 
 
-def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tuple[str, str]:
+def colour_verdict(colour: dict | None, max_delta_e: float = MAX_DELTA_E) -> tuple[str, str]:
+    """The colour's part of the verdict: 'PASS', 'FAIL' or 'not measured', and its words.
+
+    Parameters
+    ----------
+    colour : dict or None
+        The photo's ``colour`` entry (:func:`workbench.validate.colour.measure_colour`).
+    max_delta_e : float
+        Largest accepted mean ΔE00. Under a directional light (``shading.directional``) the
+        mean without the shading is judged, and the words say how much of it was shading.
+
+    Returns
+    -------
+    status : str
+    words : str
+    """
+    if not colour or not colour.get("measured"):
+        return "not measured", (colour or {}).get("reason") or "colour not measured"
+    de = colour["delta_e00"]["mean"]
+    shading = colour.get("shading") or {}
+    words = f"colour mean ΔE00 {de:.2f}"
+    judged = de
+    if shading.get("directional"):
+        judged = shading["delta_e00"]["mean"]
+        words += (
+            f", {judged:.2f} without the shading it cannot tell from ink ({100 * shading['share']:.0f} % of it is "
+            f"lightness that follows the surface's orientation, mean |ΔL*| {shading['mean_abs_delta_l']:.1f}: "
+            "a directional light)"
+        )
+    if judged > max_delta_e:
+        return "FAIL", f"{words} > {max_delta_e:g}"
+    return "PASS", f"{words} <= {max_delta_e:g}"
+
+
+def photo_verdict(
+    entry: dict, tolerance_mm: float, max_defect_mm2: float, max_delta_e: float = MAX_DELTA_E
+) -> tuple[str, str]:
     """PASS or FAIL of one scored photo, and why, from its figures in validation.json.
 
     Parameters
@@ -70,11 +114,13 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
     entry : dict
         The photo's entry: ``tiles``, ``tiles_examined``, ``ssim``, ``misregistration_mm``,
         ``misregistration_source`` ("tiles", "dense" or None) and ``defects`` (each with
-        ``kind``, ``area_mm2``, ``centre_mm``).
+        ``kind``, ``area_mm2``, ``centre_mm``), and ``colour`` when measured.
     tolerance_mm : float
         Largest accepted misregistration, mm on the surface.
     max_defect_mm2 : float
         Largest accepted defect, mm² on the print.
+    max_delta_e : float
+        Largest accepted mean ΔE00 (:func:`colour_verdict`).
 
     Returns
     -------
@@ -83,6 +129,9 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
     """
     tiles, examined, sim = entry["tiles"], entry["tiles_examined"], entry["ssim"]
     big = [d for d in entry["defects"] if d["area_mm2"] > max_defect_mm2]
+    colour, colour_words = colour_verdict(entry.get("colour"), max_delta_e)
+    if "colour" not in entry:
+        colour_words = ""
     if sim < MIN_SSIM:
         return "FAIL", (
             f"the decoration does not match the design (SSIM {sim:.2f}, {tiles} tiles "
@@ -91,8 +140,10 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
     if tiles < MIN_TILES and entry.get("misregistration_source") != "dense":
         # the decoration matches (SSIM) but nothing measures where it lies; a defect the photo
         # does find still fails the part
-        if big:
-            return "FAIL", f"{defects_reason(big, max_defect_mm2)}; misregistration not measured: {TOO_LITTLE_TEXTURE}"
+        found = [defects_reason(big, max_defect_mm2)] if big else []
+        found += [colour_words] if colour == "FAIL" else []
+        if found:
+            return "FAIL", f"{'; '.join(found)}; misregistration not measured: {TOO_LITTLE_TEXTURE}"
         return "INVALID", f"{TOO_LITTLE_TEXTURE} ({tiles} tiles, SSIM {sim:.2f})"
     if tiles >= MIN_TILES and tiles < MIN_MATCHED_SHARE * examined:
         return "FAIL", (
@@ -113,10 +164,12 @@ def photo_verdict(entry: dict, tolerance_mm: float, max_defect_mm2: float) -> tu
         )
     if big:
         why.append(defects_reason(big, max_defect_mm2))
+    if colour == "FAIL":
+        why.append(colour_words)
     if why:
         return "FAIL", "; ".join(why)
     return "PASS", f"misregistration p95{src} {p95:.3f} mm <= tolerance {tolerance_mm} mm, " + (
         f"no defect > {max_defect_mm2:g} mm²"
         if not entry["defects"]
         else f"{len(entry['defects'])} defect(s), none > {max_defect_mm2:g} mm²"
-    )
+    ) + (f"; {colour_words}" if colour_words else "")

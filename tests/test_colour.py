@@ -230,3 +230,32 @@ def test_a_broken_chart_in_fixture_json_is_refused(scene, tmp_path):
     (d / "fixture.json").write_text(json.dumps(info))
     with pytest.raises(WorkbenchError, match=r"fixture.json: colour_chart.patches\[3\].lab_d50: must be"):
         Design(d)
+
+
+@pytest.mark.parametrize(("method", "degree"), [("matrix", 1), ("root-polynomial", 2), ("root-polynomial", 3)])
+def test_the_chart_fit_is_colour_sciences(method, degree):
+    """The correction fitted and applied in numpy equals colour-science's (which validate need not import)."""
+    import colour
+
+    from workbench.printing.boards import colour_chart_reference
+
+    names, lab = colour_chart_reference()
+    np.testing.assert_allclose(col.CHART_LAB_D50, lab, atol=1e-3)
+    rng = np.random.default_rng(3)
+    # a camera's linear RGB of the chart: its reference through a mixing matrix, a gain and noise
+    truth = col.lab_to_linear_srgb(lab).clip(0.001, None)
+    camera = truth @ np.array([[0.8, 0.15, 0.05], [0.1, 0.85, 0.05], [0.05, 0.2, 0.75]]).T * 0.7
+    camera *= 1 + rng.normal(0, 0.01, camera.shape)
+    rgb = 255 * col.srgb_encode(camera)
+    usable = np.ones(24, bool)
+    usable[[3, 17]] = False  # two patches left out
+    sample = col.ChartSample(np.where(usable[:, None], rgb, np.nan), np.full(24, 100), usable, [""] * 24, None)
+    corr = col.fit_correction(sample, lab, col.ColourOptions(method=method, degree=degree))
+    name, kw = ("Cheung 2004", {"terms": 3}) if method == "matrix" else ("Finlayson 2015", {"degree": degree})
+    want = colour.matrix_colour_correction(camera[usable], truth[usable], method=name, **kw)
+    np.testing.assert_allclose(corr.ccm, want, atol=1e-9)
+    probe = rng.random((500, 3))
+    np.testing.assert_allclose(
+        corr.apply(probe), colour.apply_matrix_colour_correction(probe, want, method=name, **kw), atol=1e-12
+    )
+    assert np.isnan(corr.fit_delta_e00[~usable]).all() and (corr.fit_delta_e00[usable] < 3).all()

@@ -20,6 +20,7 @@ from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
 from workbench.validate.colour import photo_colour
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
+from workbench.validate.photo_quality import photo_quality, read_jpeg_quality
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
 from workbench.validate.rule import (
@@ -246,6 +247,8 @@ def validate_photo(
         photo, pose.camera, design, grid, on_print, dr.state, footprint, depth, output_profile
     )
     entry["colour"]["verdict"] = colour_verdict(entry["colour"], max_delta_e)[0]
+    seen = state >= dense.GRAZING
+    entry["photo_quality"] = photo_quality(photo, on_print, grid.reference, seen, read_jpeg_quality(path))
     clock.append(time.perf_counter())  # colour
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)

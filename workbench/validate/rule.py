@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from workbench.validate import dense
+from workbench.validate.photo_quality import QualityOptions
 
 MAX_RMS_PX = 1.0
 MIN_TILES = 5
@@ -35,7 +36,10 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float, max_delta_e: float 
             f"differs from the design's soft proof by a mean CIEDE2000 above {max_delta_e:g} (the photo corrected "
             "by the fixture's colour chart; lightness that follows the surface's orientation, shading under a "
             "directional light, taken out and reported; without a usable chart colour is not measured, which "
-            "is no FAIL); INVALID when neither "
+            "is no FAIL); INVALID when the photo is at fault (over-exposed: more than "
+            f"{100 * QualityOptions.max_clipped_share:.0f} % of the inked print it sees clipped; a JPEG below "
+            f"quality {QualityOptions.min_jpeg_quality:g}; no colour in the photo where the design has colour), or "
+            "when neither "
             f"tiles nor the dense field can measure misregistration and no defect is found ({TOO_LITTLE_TEXTURE}); "
             "otherwise PASS. Tiles "
             "and dense pixels count by their own uncertainty against the photo's measured noise, not by a fixed "
@@ -114,7 +118,8 @@ def photo_verdict(
     entry : dict
         The photo's entry: ``tiles``, ``tiles_examined``, ``ssim``, ``misregistration_mm``,
         ``misregistration_source`` ("tiles", "dense" or None) and ``defects`` (each with
-        ``kind``, ``area_mm2``, ``centre_mm``), and ``colour`` when measured.
+        ``kind``, ``area_mm2``, ``centre_mm``), ``colour`` and ``photo_quality`` when measured
+        (a photo with ``photo_quality.problems`` is INVALID, whatever else it shows).
     tolerance_mm : float
         Largest accepted misregistration, mm on the surface.
     max_defect_mm2 : float
@@ -132,6 +137,10 @@ def photo_verdict(
     colour, colour_words = colour_verdict(entry.get("colour"), max_delta_e)
     if "colour" not in entry:
         colour_words = ""
+    problems = (entry.get("photo_quality") or {}).get("problems")
+    if problems:
+        # what the photo shows of the print is the photo's fault: no figure of it judges the print
+        return "INVALID", f"the photo is at fault, not the print: {'; '.join(problems)}"
     if sim < MIN_SSIM:
         return "FAIL", (
             f"the decoration does not match the design (SSIM {sim:.2f}, {tiles} tiles "

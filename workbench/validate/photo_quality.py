@@ -4,9 +4,9 @@ A photo over-exposed until the ink clips, compressed until its 8 x 8 blocks show
 colour (a greyscale file) makes the print look wrong everywhere: the dense analysis then finds
 colour defects that are the photo's. Each check here looks at what the print cannot cause:
 
-- **Clipping**: the share of the part's print, where the design is ink (not near white), that
-  the photo shows with a channel at the sensor's top. Ink does not clip under a sound exposure;
-  a glossy highlight covers a few per cent.
+- **Clipping**: the share of the part's print, where the design has no channel near the top
+  (not white, not a fully saturated ink), that the photo shows with a channel at the sensor's
+  top. Such ink does not clip under a sound exposure; a glossy highlight covers a few per cent.
 - **JPEG blocks**: the quality a JPEG was saved at, from its quantisation tables (exact for
   libjpeg's; a camera's own tables read as the nearest standard quality). Below 30 its 8 x 8
   blocks show at the print's detail (the photo's pixel statistics could not tell that apart
@@ -34,8 +34,8 @@ class QualityOptions:
     clipped_level : int
         A channel at or above this (0 to 255) is clipped.
     design_white : int
-        Design pixels with every channel at or above this may clip in a sound photo; they are
-        left out of the clipping share.
+        Design pixels with any channel at or above this (white, a saturated ink) may clip in a
+        sound photo; they are left out of the clipping share.
     max_clipped_share : float
         Largest share of the part's inked print the photo may show clipped.
     min_jpeg_quality : float
@@ -77,7 +77,7 @@ def clipped_share(warped: np.ndarray, reference: np.ndarray, seen: np.ndarray, o
     import cv2
 
     # channel reductions with OpenCV: numpy's over the last axis of a 1.4 Mpx grid are slow
-    inked = seen & (cv2.min(cv2.min(reference[..., 0], reference[..., 1]), reference[..., 2]) < opts.design_white)
+    inked = seen & (cv2.max(cv2.max(reference[..., 0], reference[..., 1]), reference[..., 2]) < opts.design_white)
     n = int(inked.sum())
     if n == 0:
         return None

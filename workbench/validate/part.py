@@ -82,12 +82,13 @@ def colour_summary(entries: list[dict]) -> dict:
     """The part's colour over its photos: each measured photo's mean ΔE00, the worst, and the colour's verdict.
 
     FAIL when any photo's colour fails, PASS when every measured one passes, "not measured" (with
-    each photo's reason) when none was.
+    each photo's reason) when none was; INVALID photos do not count.
     """
-    measured = [e for e in entries if (e.get("colour") or {}).get("measured")]
+    # an INVALID photo's colour is no more the print's than its other figures
+    measured = [e for e in entries if (e.get("colour") or {}).get("measured") and e["verdict"] != "INVALID"]
     if not measured:
-        reasons = sorted({e["colour"]["reason"] for e in entries if e.get("colour")}) or [
-            "colour not measured: no photo was scored"
+        reasons = sorted({e["colour"]["reason"] for e in entries if e.get("colour") and e["colour"].get("reason")}) or [
+            "colour not measured: no valid photo measured it"
         ]
         return {"verdict": "not measured", "photos_measured": 0, "reasons": reasons}
     means = {Path(e["photo"]).name: e["colour"]["delta_e00"]["mean"] for e in measured}

@@ -21,8 +21,8 @@ WB := $(VENV)/bin/workbench
 DEMO := out/demo
 
 # the whole pipeline on the bundled default job: design, print PDF, fixture PDF, two
-# synthetic photos (one perfect, one with the film 0.8 mm off, one glossy with a bubble and an ink
-# dropout), validation and QA report
+# synthetic photos of three parts (one perfect, one with the film 0.8 mm off, one glossy with a bubble
+# and an ink dropout), and each part's validation and QA report
 demo: install
 	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
 	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf
@@ -32,8 +32,13 @@ demo: install
 		-o $(DEMO)/photo_film_0.8mm.jpg
 	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic --gloss 0.5 \
 		--defect bubble:45,30,6,1 --defect dropout:60,25,1.784 -o $(DEMO)/photo_defects.jpg
-	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg $(DEMO)/photo_film_0.8mm.jpg $(DEMO)/photo_defects.jpg \
-		--camera $(DEMO)/photo_perfect.json --out $(DEMO)/validation
+	@# three photos of three parts: one validation (and one QA report) per part, as a QA line runs them
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg --camera $(DEMO)/photo_perfect.json \
+		--out $(DEMO)/validation/perfect
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_film_0.8mm.jpg --camera $(DEMO)/photo_perfect.json \
+		--out $(DEMO)/validation/film_0.8mm
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_defects.jpg --camera $(DEMO)/photo_perfect.json \
+		--out $(DEMO)/validation/defects
 	$(PY) fixtures/demo_summary.py $(DEMO)
 
 bench: install

@@ -66,6 +66,24 @@ UNRESOLVED_KEEP = 0.25  # share of the print's gradient energy a photo must keep
 EXPOSURE_SIGMA_PX = 40.0  # window of the local gain/offset fit: larger than any defect it must not absorb
 COLOUR_TOL = 40.0  # grey levels (0-255) beyond the exposure model that make a colour defect
 SATURATED = 250  # a channel this bright is clipped: a highlight
+# ink that is gone shows the bare film: a region is missing ink where at least MISSING_CORE of it
+# is within ALPHA_NEAR of the film's colour (measured: dropouts and scratches 0.61 to 0.94 of their
+# region, glossy highlights on pale ink 0 to 0.3, one that nearly clipped 0.49)
+MISSING_CORE = 0.5
+ALPHA_NEAR = 0.15
+# a glossy highlight over textured ink keeps the ink's texture (measured: correlation 0.85 to 0.97
+# between the photo and the design in highlights on checkers); bare film shows none of it
+KEPT_TEXTURE = 0.6
+# ... at a contrast of at least this share of the design's (a highlight near clipping compresses it:
+# 0.57 to 1.1 measured)
+KEPT_CONTRAST = 0.4
+# a shift defect's flow must take away this share of the residual over its region (measured: bubbles
+# of 4 to 12 mm on their renders 0.76 to 0.92, the flow over faint dark texture on a perfect part 0.61)
+SHIFT_EXPLAINS = 2.0 / 3.0
+# texture lost: a local gain below LOST_GAIN of the photo's median where the design's contrast in the
+# exposure window is at least LOST_MIN_CONTRAST grey levels (its standard deviation)
+LOST_GAIN = 0.3
+LOST_MIN_CONTRAST = 15.0
 GLARE = 35.0  # additive brightness (grey levels) beyond the exposure model's offset that is glare
 SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
 MIN_DEFECT_MM2 = 1.0  # smaller regions are noise, not defects
@@ -570,6 +588,9 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
     Returns
     -------
     gain, offset : (H, W, 3) float32
+    contrast : (H, W, 3) float32
+        The design's standard deviation in the window (grey levels): where it is large the
+        local gain is the data's, not the global fallback.
     """
     H, W = weight.shape
     # the fields are smooth on the window's scale: sums at a quarter of the resolution, then
@@ -587,6 +608,7 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
     w = weight.astype(np.float32)
     gain = np.empty_like(model)
     offset = np.empty_like(model)
+    contrast = np.empty_like(model)
     sw = blur(w) + 1e-6
     for c in range(3):
         x, y = model[..., c], photo[..., c]
@@ -605,7 +627,8 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
         g = (cxy + ridge * g0) / (np.maximum(vxx, 0) + ridge)
         gain[..., c] = back(g)
         offset[..., c] = back(my - g * mx)
-    return gain, offset
+        contrast[..., c] = back(np.sqrt(np.maximum(vxx, 0)))
+    return gain, offset, contrast
 
 
 def estimate_blur(ref_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray) -> float:
@@ -972,12 +995,17 @@ def analyse(
     moved = blur_locally(moved, local_blur)
     # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)
-    gain, offset = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
+    gain, offset, _ = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
     res = _residual(pho, gain * moved + offset)
     weight = weight * (res < COLOUR_TOL)
-    gain, offset = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
+    gain, offset, contrast = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
     pred = gain * moved + offset
     res = _residual(pho, pred)
+    # the design's texture gone from the photo: light scales it (shading, vignetting) or adds
+    # to it (glare), never takes it away; where the window's design has contrast, a local gain
+    # that collapses against the photo's own is the decoration painted over, covered or torn
+    # off, which the fit would otherwise absorb into its offset
+    lost = texture_lost(gain, contrast, seen & ~sat)
     # glare: light added to every channel over a broad area, beyond the window's offset
     white = gain * np.float32(255.0) + offset  # the film's white as the photo would show it here
     # (the exposure fit's window is larger than any defect it must find, so a broad glare goes
@@ -985,7 +1013,7 @@ def analyse(
     excess = _cmin(offset)
     base = float(np.median(excess[scored_fit])) if (scored_fit := weight > 0).any() else 0.0
     glare = excess - base > GLARE
-    highlight = seen & (sat | glare | (_cmin(white) > 300))
+    highlight = seen & (sat | ((glare | (_cmin(white) > 300)) & ~lost))
     shadow = seen & ~highlight & (_cmax(white) < SHADOW)
     state[highlight] = HIGHLIGHT
     state[shadow] = SHADOWED
@@ -1071,6 +1099,36 @@ def analyse(
     # white over a light ink is a gain of 1.2)
     gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
     colour_bad = (colour_scored & (res > colour_limit)) | gone
+    # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
+    # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
+    # the sharp edge of the ink's own rim
+    light = np.maximum(white, 1.0) / np.maximum(_cmax(white), 1.0)[..., None]
+    glossed, gone = light_or_ink(colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur)
+    # (a region stepped only part of the way towards the film is judged by the colour test
+    # that allows shading, like any other colour)
+    colour_bad = (colour_scored & (res > colour_limit)) | gone
+    colour_bad &= ~glossed
+    if lost.any():
+        # judged against the design at the photo's own gain: the fit's collapsed gain would
+        # have explained the lost texture away
+        g0 = photo_gain(gain, contrast >= LOST_MIN_CONTRAST, seen & ~sat)
+        local_mean = cv2.GaussianBlur(moved, (0, 0), EXPOSURE_SIGMA_PX)
+        res_lost = _residual(pho, pred + (g0 - gain) * (moved - local_mean))
+        beyond = (lost & colour_scored & ~glossed & (res_lost > colour_limit)).astype(np.uint8)
+        # (the limit's allowance at the design's edges cuts a painted-over checker into its
+        # squares; the lost texture between them is one region)
+        lost &= cv2.morphologyEx(beyond, cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8)).astype(bool) & colour_scored
+        colour_bad |= lost
+        res = np.where(lost, res_lost, res)
+        colour = np.where(colour_scored, res, np.nan).astype(np.float32)
+    state[glossed] = HIGHLIGHT
+    colour_scored = colour_scored & ~glossed
+    scored = scored & ~glossed
+    full &= ~glossed
+    normal &= ~glossed
+    for a in (shift, shift_mm, sigma_mm, colour):
+        a[glossed] = np.nan
+    texture[glossed] = 0
     missing = gone
     # a defect's extent from the flow's own vector wherever a window of about a millimetre
     # has texture in two directions: along an edge the normal component of a shift parallel
@@ -1089,7 +1147,8 @@ def analyse(
     # the tolerance: a region without any of it is the flow's guess along edges, not a defect
     z_shift = (shift_mm - tolerance_mm) / sigma_mm
     evidence = (full | normal) & (z_shift > SIGNIFICANCE_Z)
-    z_colour = (res - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
+    # (ink that is gone by the raw residual: the shading allowance would explain most of it)
+    z_colour = (np.where(missing, res_raw, res) - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
     labels, defects = find_defects(
         shift_bad,
         colour_bad,
@@ -1105,6 +1164,21 @@ def analyse(
         m_mm,
         scored,
     )
+    # a moved film explains the photo: the print moved by the region's flow must take most of
+    # the residual away; a flow that explains little follows shading, gloss or the photo's
+    # blur over faint texture, not the film
+    keep = []
+    for i, d in enumerate(defects):
+        if d["kind"] == "shift":
+            d["explained_share"] = shift_explained(ref_n, pho_n, m, (labels == i + 1) & (full | normal))
+            if d["explained_share"] is not None and d["explained_share"] < SHIFT_EXPLAINS:
+                continue
+        keep.append(i)
+    if len(keep) < len(defects):
+        relabel = np.zeros(len(defects) + 1, np.int32)
+        relabel[np.asarray(keep, np.int64) + 1] = np.arange(1, len(keep) + 1)
+        labels = relabel[labels]
+        defects = [defects[i] for i in keep]
     # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
     state[(labels > 0) & np.isin(state, (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL))] = DEFECT
     # how finely the photo samples the print, and what it cannot resolve
@@ -1155,6 +1229,211 @@ def analyse(
         resolution,
         detection,
     )
+
+
+def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
+    """Per pixel, the photo as the model under a gain of its own plus light added.
+
+    Fits photo ≈ k · pred + s · light per pixel by least squares over the three channels,
+    with k within [1 / SHADING, SHADING] (the shading the colour test allows) and s ≥ 0.
+
+    Parameters
+    ----------
+    photo, pred : (H, W, 3) float32
+        The photo on the print and the model (grey levels).
+    light : (H, W, 3) float32
+        The colour of light added, as the photo shows it (the film's white, largest channel 1).
+
+    Returns
+    -------
+    k : (H, W) float32
+        The gain.
+    s : (H, W) float32
+        The light added (grey levels of its largest channel).
+    residual : (H, W) float32
+        Largest channel residual of the fit (grey levels).
+    """
+    # normal equations of the two unknowns: [p·p p·u; p·u u·u] [k s]' = [p·y u·y]'
+    pp = (pred * pred).sum(axis=2)
+    pu = (pred * light).sum(axis=2)
+    uu = np.maximum((light * light).sum(axis=2), 1e-6)
+    py = (pred * photo).sum(axis=2)
+    uy = (light * photo).sum(axis=2)
+    det = pp * uu - pu * pu
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(det > 1e-3 * pp * uu, (py * uu - uy * pu) / det, py / np.maximum(pp, 1e-6))
+    k = np.clip(np.nan_to_num(k, nan=1.0), 1.0 / SHADING, SHADING).astype(np.float32)
+    # with k held at its bound, the best s given k, never negative (light is only added)
+    s = np.maximum((uy - k * pu) / uu, 0.0).astype(np.float32)
+    fit = k[..., None] * pred + s[..., None] * light
+    return k, s, _residual(photo, fit)
+
+
+def photo_gain(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray) -> np.ndarray | None:
+    """The photo's own gain per channel: the 75th percentile of the local gain where the data determine it.
+
+    (A percentile above the median: shading only lowers the gain of a lit film, and a
+    decoration painted over on most of the photo must not set it.)
+
+    Parameters
+    ----------
+    gain : (H, W, 3) float32
+    determined : (H, W, 3) bool
+        Where each channel's window has the contrast to determine its gain.
+    fitted : (H, W) bool
+
+    Returns
+    -------
+    (3,) float or None
+        None when no pixel determines any channel.
+    """
+    out = np.ones(3)
+    for c in range(3):
+        m = fitted & determined[..., c]
+        if not m.any():
+            return None
+        out[c] = max(float(np.percentile(gain[..., c][m], 75)), 1e-3)
+    return out
+
+
+def texture_lost(gain: np.ndarray, contrast: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+    """Where the photo has lost the design's texture: the local gain collapsed where it is determined.
+
+    Parameters
+    ----------
+    gain, contrast : (H, W, 3) float32
+        The exposure fit's local gain and the design's contrast in its window
+        (:func:`exposure_fit`).
+    fitted : (H, W) bool
+        The pixels the photo shows and the fit may use.
+
+    Returns
+    -------
+    (H, W) bool
+        Pixels where every channel whose window holds at least LOST_MIN_CONTRAST of the
+        design's contrast has a gain below LOST_GAIN of the photo's median gain.
+    """
+    determined = contrast >= LOST_MIN_CONTRAST
+    g0 = photo_gain(gain, determined, fitted)
+    if g0 is None:
+        return np.zeros(fitted.shape, bool)
+    ratio = gain / g0
+    low = np.where(determined, ratio < LOST_GAIN, True).all(axis=2)
+    return fitted & determined.any(axis=2) & low
+
+
+def light_or_ink(
+    colour_bad: np.ndarray,
+    gone: np.ndarray,
+    photo: np.ndarray,
+    pred: np.ndarray,
+    light: np.ndarray,
+    alpha: np.ndarray,
+    colour_limit: np.ndarray,
+    noise: float,
+    blur_px: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which regions of a colour residual are a highlight, and which show bare film.
+
+    Ink that is gone shows the bare film: in the region's core the photo reaches the film's
+    colour (``alpha`` near 1) with the sharp rim of the ink. A glossy film's highlight adds
+    the light's colour to the ink's: the photo steps part of the way towards white, and that
+    step is light added to the ink (``photo ≈ k · pred + s · light``, :func:`additive_light`).
+    A region that never reaches the film's colour over a share ``MISSING_CORE`` of it and
+    that added light explains is a highlight; one that reaches it is missing ink.
+
+    Parameters
+    ----------
+    colour_bad, gone : (H, W) bool
+        Pixels beyond the colour test, and those stepped towards the bare film's colour.
+    photo, pred : (H, W, 3) float32
+        The photo on the print and the model (grey levels).
+    light : (H, W, 3) float32
+        The colour of light added, as the photo shows it (largest channel 1).
+    alpha : (H, W) float32
+        Share of the step from the design's colour to the bare film's per pixel (0 to 1).
+    colour_limit : (H, W) float32
+        The colour test's limit per pixel (grey levels).
+    noise : float
+        The colour residual's noise (grey levels).
+    blur_px : (H, W) float32
+        The photo's blur on the grid (Gaussian sigma, grid px): a region narrower than about
+        twice that never reaches the film's colour, and is not asked to.
+
+    Returns
+    -------
+    highlight : (H, W) bool
+        Pixels of regions that are light added, not ink.
+    missing : (H, W) bool
+        ``gone`` kept only in regions that show bare film.
+    """
+    highlight = np.zeros(colour_bad.shape, bool)
+    missing = gone.copy()
+    bad = cv2.morphologyEx(colour_bad.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    n, lab, st, _ = cv2.connectedComponentsWithStats(bad, connectivity=8)
+    if n <= 1:
+        return highlight, missing
+    k, s, fit_res = additive_light(photo, pred, light)
+    for r in range(1, n):
+        x0, y0, w, h, _ = st[r]
+        ys, xs = slice(y0, y0 + h), slice(x0, x0 + w)
+        region = lab[ys, xs] == r
+        core = float(np.mean(alpha[ys, xs][region] >= 1.0 - ALPHA_NEAR))
+        # (a region narrower than the photo's blur never reaches the film's colour: a
+        # scratch of 0.5 mm steps 60 % of the way; it keeps its ink gone)
+        inner = cv2.distanceTransform(np.pad(region, 1).astype(np.uint8), cv2.DIST_L2, 3).max()
+        thin = inner <= 2.0 * float(np.median(blur_px[ys, xs][region])) + 2.0
+        # ink that is gone takes the print's texture with it: where the design has texture
+        # beyond the noise, a photo that keeps it (correlated, at a good share of its
+        # contrast) still shows the ink, under light added
+        pr = _cmax(pred[ys, xs])[region]
+        ph = _cmax(photo[ys, xs])[region]
+        kept = False
+        if pr.std() > SIGNIFICANCE_Z * noise and ph.std() > 0:
+            cc = float(np.corrcoef(pr, ph)[0, 1])
+            kept = cc >= KEPT_TEXTURE and ph.std() >= KEPT_CONTRAST * pr.std()
+        if not kept and (core >= MISSING_CORE or thin):
+            continue
+        missing[ys, xs][region] = False
+        explained = float(np.mean(fit_res[ys, xs][region] <= colour_limit[ys, xs][region]))
+        added = float(np.median(s[ys, xs][region]))
+        if explained >= 0.9 and added > SIGNIFICANCE_Z * noise:
+            highlight[ys, xs] |= region
+    return highlight, missing
+
+
+def shift_explained(ref_n: np.ndarray, pho_n: np.ndarray, flow: np.ndarray, region: np.ndarray) -> float | None:
+    """Share of the residual over a region that moving the print by the flow takes away.
+
+    Parameters
+    ----------
+    ref_n, pho_n : (H, W) float32
+        The print and the photo on it, locally normalised (:func:`dense_flow`).
+    flow : (H, W, 2) float32
+        The dense flow, grid px.
+    region : (H, W) bool
+        The pixels of the region.
+
+    Returns
+    -------
+    float or None
+        1 - |r1|² / |r0|², with r0 the residual of the print where it is and r1 that of the
+        print moved by the flow; None for an empty region.
+    """
+    ii, jj = np.nonzero(region)
+    if len(ii) == 0:
+        return None
+    y0, y1, x0, x1 = ii.min(), ii.max() + 1, jj.min(), jj.max() + 1
+    box = (slice(y0, y1), slice(x0, x1))
+    gx, gy = np.meshgrid(np.arange(x0, x1, dtype=np.float32), np.arange(y0, y1, dtype=np.float32))
+    moved = cv2.remap(
+        ref_n, gx - flow[box][..., 0], gy - flow[box][..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
+    inside = region[box]
+    r0 = (pho_n[box] - ref_n[box])[inside]
+    r1 = (pho_n[box] - moved)[inside]
+    e0 = float((r0 * r0).sum())
+    return 1.0 - float((r1 * r1).sum()) / e0 if e0 > 0 else 0.0
 
 
 def _cmax(a: np.ndarray) -> np.ndarray:

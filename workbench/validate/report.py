@@ -48,7 +48,7 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     print, the coverage map, the rule)."""
     from PIL import Image
     from reportlab.lib.units import mm
-    from reportlab.lib.utils import ImageReader
+    from reportlab.lib.utils import ImageReader, simpleSplit
 
     part = report.get("part") or {}
     verdict = part.get("verdict", "INVALID")
@@ -71,10 +71,21 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
         cov = ", ".join(f"{k} {100 * v['measured']:.0f} %" for k, v in views.items())
         c.drawString(70 * mm, H - 33 * mm, f"measured: {100 * measured:.0f} % of the part's print ({cov})")
     fails = [e for e in photos if e["verdict"] == "FAIL"]
-    if fails:
-        c.drawString(70 * mm, H - 38 * mm, f"why: {fails[0]['reason']}"[:110])
-    c.drawString(70 * mm, H - 43 * mm, colour_line(part.get("colour"), report.get("max_delta_e"))[:110])
     y = H - 48 * mm
+    if fails:
+        # the reason in full, wrapped to the page (three lines at most; validation.json has it all)
+        lines = simpleSplit(f"why: {fails[0]['reason']}", "Helvetica", 9, W - 85 * mm)
+        if len(lines) > 3:
+            lines = lines[:2] + [lines[2][: max(0, len(lines[2]) - 4)] + " ..."]
+        for i, line in enumerate(lines):
+            c.drawString(70 * mm, H - (38 + 4 * i) * mm, line)
+    else:
+        lines = []
+    # the colour on the line after the why (no why: where it would be)
+    c.drawString(
+        70 * mm, H - (38 + 4 * len(lines)) * mm, colour_line(part.get("colour"), report.get("max_delta_e"))[:110]
+    )
+    y -= 4 * mm * max(0, len(lines) + 1 - 2)
     defects = part.get("defects", [])
     limit = report.get("max_defect_mm2")
     c.setFont("Helvetica-Bold", 9)

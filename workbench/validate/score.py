@@ -245,7 +245,7 @@ def register_tile(template: np.ndarray, image: np.ndarray, x0: int, y0: int) -> 
         Standard uncertainty of ``d`` along its least certain direction, view pixels: the
         fit's own residual variance through its normal equations, s² (JᵀJ)⁻¹ with
         s² = |r|² / (n - 8) (what the photo's noise and whatever the model does not explain
-        leave in the fit).
+        leave in the fit), scaled by the residual's correlation length beyond the noise's.
     """
     T = template.shape[0]
     window = image[y0 - MARGIN : y0 + T + MARGIN, x0 - MARGIN : x0 + T + MARGIN]
@@ -297,6 +297,15 @@ def register_tile(template: np.ndarray, image: np.ndarray, x0: int, y0: int) -> 
     tv = t.reshape(T, T)[core].ravel() - t.reshape(T, T)[core].mean()
     cc = float((wv * tv).sum() / np.sqrt((wv * wv).sum() * (tv * tv).sum() + 1e-12))
     s2 = float((r * r).sum()) / max(len(r) - 8, 1)
+    # the residual's own correlation length: s² (JᵀJ)⁻¹ holds for independent residuals; the
+    # photo's noise, smoothed like the template, is correlated over about REGISTRATION_BLUR_PX,
+    # but what the model does not explain (a highlight, shading the gain planes miss) is
+    # correlated over its own breadth, and holds as many fewer independent samples as its
+    # correlation area is larger (for a Gaussian-correlated field var(∇r) = var(r) / (2 ℓ²))
+    rr = r.reshape(T - 4, T - 4)
+    gyr, gxr = np.gradient(rr)
+    ell = float(np.sqrt(np.var(rr) / (np.var(gxr) + np.var(gyr) + 1e-12)))
+    s2 *= max(1.0, ell / REGISTRATION_BLUR_PX) ** 2
     JtJ = J.T @ J
     try:
         sigma = float(np.sqrt(s2 * np.linalg.eigvalsh(np.linalg.inv(JtJ)).max()))
@@ -319,8 +328,9 @@ class Score:
         The same as a distance on the surface, mm.
     coverage : float
         Share of the view's own region the photo shows.
-    ssim : float
-        Similarity after alignment, exposure normalised, design blurred like the photo.
+    ssim : float or None
+        Similarity after alignment, exposure normalised, design blurred like the photo; None
+        where the photo shows the view's own region in too few pixels to say.
     blur_px : float
         Blur of the photo as seen in the view, sigma in view pixels.
     film : dict
@@ -335,7 +345,7 @@ class Score:
     shift_px: np.ndarray
     shift_mm: np.ndarray
     coverage: float
-    ssim: float
+    ssim: float | None
     blur_px: float
     film: dict = field(default_factory=dict)
     tiles_examined: int = 0
@@ -615,7 +625,9 @@ def score(
                 film = fit_film(p0[good], p1[good], print_size_mm, jacobians=J[good])
     # similarity after alignment: the photo aligned on the design by one homography,
     # then the design blurred like the photo, exposure matched by a linear fit
-    sim, blur = 0.0, 0.0
+    # (a view whose own region the photo shows in fewer pixels than this has no similarity:
+    # None, not 0, which would read as a wrong print)
+    sim, blur = None, 0.0
     if inner.sum() > 1000:
         aligned = wg
         try:

@@ -38,13 +38,8 @@ spec.loader.exec_module(vc)
 # photo id -> what today's validate says (issue 19: no false rejects on real artwork)
 KNOWN_FAILING = {
     # measured 2026-12-01 on the uncertainty-aware validate (issue 19 in progress)
-    "lilium-top-perfect-realistic-2000x1500-workbench": "logo on flat colour: 'only 48 of 74 textured tiles "
-    "match the design', and a 7.3 mm² shift defect at the print's rim that is not there",
-    "lilium-top-perfect-realistic-2000x1500-mitsuba": "'only 46 of 77 textured tiles match the design'",
     "arm-top-perfect-lens-2000x1500-workbench": "soft gradient: INVALID, 'too little texture to measure "
     "misregistration here' (0 tiles, SSIM 0.99): the photo says so rather than a false verdict",
-    "fertility-top-dropout-10mm2-glossy-2000x1500-workbench": "the dropout is found, and 'missing' defects of "
-    "up to 24.9 mm² under the glossy highlight (white light reads as bare film)",
     "lion-side1-scratch-20mm-lens-2000x1500-workbench": "fine text: the scratch is found in pieces (the largest "
     "5.6 mm² at (39.7, 41.2) mm), not as one 20 mm defect",
     # the 12 Mpx acceptance cases (make bench), measured on the workbench renderer before issue 19's changes

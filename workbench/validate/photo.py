@@ -224,10 +224,16 @@ def validate_photo(
         entry["seams"] = seam_misregistration(edges, entry["films"], films, p["dpi"] / 25.4, seen)
     entry["misregistration_source"] = "tiles"
     if len(sc.shift_mm) < MIN_TILES:
-        # too few tiles: where the dense field measures enough accurately, it measures placement
-        pd_, ps_, smm, windows = dense.placement_samples(dr, grid, TILE_SIGMA_SHARE * tolerance_mm)
+        # too few tiles: the dense field measures placement where its pixels measure the full
+        # vector (each within a third of the tolerance, as for its defects) and the placement
+        # they give together is as accurate as a tile's: its uncertainty, the pixels' median
+        # over the root of their independent windows, within TILE_SIGMA_SHARE of the tolerance
+        pd_, ps_, smm, windows = dense.placement_samples(dr, grid, tolerance_mm / dense.SIGNIFICANCE_Z)
         entry["dense_windows"] = round(windows, 1)
-        if windows >= MIN_DENSE_WINDOWS and len(smm) >= 4:
+        full = dr.sigma_mm[dr.texture == 2]
+        fit_sigma = float(np.nanmedian(full)) / np.sqrt(max(windows, 1.0)) if full.size else np.inf
+        entry["dense_placement_uncertainty_mm"] = round(fit_sigma, 4) if np.isfinite(fit_sigma) else None
+        if windows >= MIN_DENSE_WINDOWS and fit_sigma <= TILE_SIGMA_SHARE * tolerance_mm and len(smm) >= 4:
             film = fit_film(pd_, ps_, (p["image_width_mm"], p["image_height_mm"]))
             entry.update(
                 {

@@ -85,3 +85,6 @@ def test_bad_photos_are_invalid_with_the_reason(design, tmp_path):
     # measured: 94 % of the inked print clipped at x3 exposure, 2 % in the perfect photo
     assert got["over.png"]["photo_quality"]["clipped_share"] > 0.8
     assert got["perfect.png"]["photo_quality"]["clipped_share"] < 0.1
+    # the part: its photos at fault count for nothing (their defects are theirs, not the print's)
+    part = json.loads((out / "validation.json").read_text())["part"]
+    assert part["verdict"] == "PASS" and part["photos_scored"] == 2 and part["defects"] == []

@@ -42,6 +42,8 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
     # boxes on the print overlap are merged (the largest area, the centre of the largest)
     defects: list = []
     for e in entries:
+        if (e.get("photo_quality") or {}).get("problems"):
+            continue  # the photo's fault (its colour defects are its clipping, its blocks)
         for d in e.get("defects", []):
             x0, y0, x1, y1 = d["bbox_mm"]
             for m in defects:

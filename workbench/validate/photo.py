@@ -297,7 +297,8 @@ def validate_photo(
     clock.append(time.perf_counter())  # pictures
     stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "colour", "figures and verdict", "pictures")
     entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
-    return entry, files, dr.state, pages
+    # a photo at fault says nothing of the part's print: neither its coverage nor its defects count
+    return entry, files, None if entry["photo_quality"]["problems"] else dr.state, pages
 
 
 def dense_summary(dr, grid, design: Design, sc, surface) -> dict:

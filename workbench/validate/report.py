@@ -82,9 +82,8 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     else:
         lines = []
     # the colour on the line after the why (no why: where it would be)
-    c.drawString(
-        70 * mm, H - (38 + 4 * len(lines)) * mm, colour_line(part.get("colour"), report.get("max_delta_e"))[:110]
-    )
+    shown = simpleSplit(colour_line(part.get("colour"), report.get("max_delta_e")), "Helvetica", 9, W - 85 * mm)
+    c.drawString(70 * mm, H - (38 + 4 * len(lines)) * mm, shown[0] + (" ..." if len(shown) > 1 else ""))
     y -= 4 * mm * max(0, len(lines) + 1 - 2)
     defects = part.get("defects", [])
     limit = report.get("max_defect_mm2")

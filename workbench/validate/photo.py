@@ -181,7 +181,7 @@ def validate_photo(
     clock.append(time.perf_counter())  # tiles
     on_print, state, scale, footprint = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
-    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint)
+    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center)
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
     entry.update(
         {

@@ -77,7 +77,25 @@ class Sheet:
 
 
 def read_sheet(folder: Path) -> Sheet:
-    """A validation folder's fused landing, on the uncompensated print (composed with the design's profile)."""
+    """One sheet's landing on the uncompensated print (composed with the design's profile).
+
+    ``folder`` is a validation folder, or a folder of them (one per camera: photos of one
+    sheet from several views, each validated with its own camera profile).
+    """
+    if folder.is_dir() and not (folder / "validation.json").exists():
+        subs = sorted(f for f in folder.iterdir() if (f / "validation.json").is_file())
+        if subs:
+            parts = [read_sheet(f) for f in subs]
+            check_same_design(parts)
+            return Sheet(
+                str(folder),
+                np.concatenate([s.p for s in parts]),
+                np.concatenate([s.d for s in parts]),
+                np.concatenate([s.sigma for s in parts]),
+                parts[0].design,
+                parts[0].design_dir,
+                {"file": str(folder), "sha256": None, "parts": [s.validation for s in parts]},
+            )
     vj = folder / "validation.json"
     if folder.is_file():
         raise WorkbenchError(f"{folder}: a validation folder (workbench validate --out) expected, not a file")

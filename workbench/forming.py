@@ -286,3 +286,93 @@ def design_identity(info: dict) -> dict:
         "dpi": float(info["print"]["dpi"]),
         "films": [f["name"] for f in info.get("films", [])] or ["film-1"],
     }
+
+
+@dataclass
+class Compensation:
+    """A flat layout pre-compensated for a forming field.
+
+    Attributes
+    ----------
+    uv : (#V, 2) float
+        The compensated layout, mm (y up, the new rectangle's bottom-left at the origin).
+    width_mm, height_mm : float
+        The new design rectangle (the old one grown by whole pixels where the film needs room).
+    frame_offset_px : (2,) int
+        The uncompensated grid's origin in the new print's pixels ([x, y]).
+    moved_mm : (#V,) float
+        How far each vertex moved on the print.
+    """
+
+    uv: np.ndarray
+    width_mm: float
+    height_mm: float
+    frame_offset_px: tuple
+    moved_mm: np.ndarray
+
+
+def compensate_layout(uv_mm: np.ndarray, width_mm: float, height_mm: float, dpi: float, field) -> Compensation:
+    """Pre-distort a flat layout so that, formed by ``field``, the film lands on the design.
+
+    The surface point the design puts at print position x (a vertex of the layout) must
+    show the film point p that lands there: p + d(p) = x. So each vertex moves to p; the
+    print's pixels then take the colour of the surface point where they land. The print
+    keeps its pixel grid (same dpi, same origin); where p leaves the rectangle the grid
+    grows by whole pixels, and ``frame_offset_px`` says where its old origin went.
+
+    Parameters
+    ----------
+    uv_mm : (#V, 2) float
+        Uncompensated layout, mm (y up, bottom-left at the origin).
+    width_mm, height_mm : float
+        Its rectangle.
+    dpi : float
+        The print's resolution.
+    field : callable
+        d(p) on the uncompensated print (mm, x right, y down).
+
+    Returns
+    -------
+    Compensation
+    """
+    ppm = dpi / 25.4
+    x = np.stack([uv_mm[:, 0], height_mm - uv_mm[:, 1]], axis=1)
+    p = invert(field, x)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    # (a hair of tolerance: a vertex on the edge that stays there does not grow the print)
+    ox, oy = (int(np.ceil(max(0.0, -v) * ppm - 1e-6)) for v in lo)
+    cols0, rows0 = int(np.ceil(width_mm * ppm - 1e-9)), int(np.ceil(height_mm * ppm - 1e-9))
+    cols = ox + max(cols0, int(np.ceil(hi[0] * ppm - 1e-6)))
+    rows = oy + max(rows0, int(np.ceil(hi[1] * ppm - 1e-6)))
+    # the rectangle: the old one where nothing needs room, else whole pixels
+    w = width_mm if cols == cols0 and ox == 0 else cols / ppm
+    h = height_mm if rows == rows0 and oy == 0 else rows / ppm
+    q = p + np.array([ox, oy]) / ppm
+    return Compensation(
+        np.stack([q[:, 0], h - q[:, 1]], axis=1), float(w), float(h), (ox, oy), np.linalg.norm(p - x, axis=1)
+    )
+
+
+def check_profile_for(prof: dict, identity: dict, material: str | None, where: str) -> None:
+    """A profile measured for this design (mesh, print rectangle, dpi, films) and material; one line otherwise."""
+    d = prof["design"]
+    for key, what in (
+        ("mesh_sha256", "mesh"),
+        ("dpi", "dpi"),
+        ("films", "films"),
+    ):
+        if d.get(key) != identity[key]:
+            raise WorkbenchError(
+                f"{where}: measured for another design: its {what} is {d.get(key)!r}, this job's {identity[key]!r}"
+            )
+    for key in ("width_mm", "height_mm"):
+        if key not in identity:  # (checked again once the map is known)
+            continue
+        if not abs(float(d.get(key, np.nan)) - identity[key]) <= 1e-3:
+            raise WorkbenchError(
+                f"{where}: measured for another design: its print is {d.get('width_mm')} x {d.get('height_mm')} mm, "
+                f"this job's {identity['width_mm']} x {identity['height_mm']} mm"
+            )
+    got = (prof.get("material") or {}).get("name")
+    if material is not None and got != material:
+        raise WorkbenchError(f"{where}: measured for material {got!r}, this job's is {material!r}")

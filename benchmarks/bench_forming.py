@@ -109,6 +109,71 @@ def truth_residual(design: Path, law: str, shift=(0.0, 0.0), within: Path | None
     return float(np.percentile(np.linalg.norm(true - want, axis=1), 95))
 
 
+def run_loop(
+    work: Path,
+    job=ROOT / "fixtures" / "default" / "job.toml",
+    law="creep:2,1.5+wave:0.5,0.5,40",
+    scale=2.0,
+    random_mm=0.0,
+    sheets=2,
+    rounds=2,
+    renderer="workbench",
+    calibration_film=False,
+    log=print,
+) -> dict:
+    """The loop; returns per round (0: uncompensated) the check sheet's figures and the times."""
+    work.mkdir(parents=True, exist_ok=True)
+    t_plain = wb("design", job, "--out", work / "d0")
+    design, seed = work / "d0", 1
+    out: dict = {"design_s": t_plain, "rounds": []}
+    log(f"design without a profile: {t_plain:.1f} s; law {law}, random {random_mm} mm, {sheets} sheets, {renderer}")
+    check = work / "r0-check"
+    form_sheet(design, check, law, 1000, scale, 0.0, renderer)
+    r0 = {"misregistration_p95_mm": misregistration(check), "truth_p95_mm": truth_residual(design, law)}
+    r0["truth_seen_p95_mm"] = truth_residual(design, law, within=check)
+    out["rounds"].append(r0)
+    log(f"round 0: {r0}")
+    for rnd in range(1, rounds + 1):
+        film = design
+        if calibration_film:
+            wb("pdf", design, "--pattern", "forming", "-o", work / f"calib{rnd}.pdf")
+            film = work / f"calib{rnd}-design"
+        folders, truths = [], []
+        for k in range(sheets):
+            f = work / f"r{rnd}-sheet{k}"
+            truths.append(form_sheet(film, f, law, seed, scale, random_mm, renderer))
+            seed += 1
+            folders.append(f)
+        prof = work / f"profile{rnd}.json"
+        t_cal = wb("calibrate", "forming", *folders, "-o", prof)
+        p = json.loads(prof.read_text())["films"][0]
+        t_des = wb("design", job, "--forming-profile", prof, "--out", work / f"d{rnd}")
+        design = work / f"d{rnd}"
+        check = work / f"r{rnd}-check"
+        form_sheet(design, check, law, 1000 + rnd, scale, 0.0, renderer)
+        shifts = np.array([t.get("random_shift_mm", [0.0, 0.0]) for t in truths])
+        r = {
+            "calibrate_s": t_cal,
+            "design_s": t_des,
+            "design_ratio": t_des / t_plain,
+            "points": p["points"],
+            "measured_share": p["measured_share"],
+            "cv_rms_mm": p["cv_rms_mm"],
+            "repeatability_mm": p["repeatability_mm"],
+            # what the sheets' random placements did: their spread per axis, and their mean (which the
+            # profile keeps: its standard error is random_mm / sqrt(sheets))
+            "random_spread_mm": float(np.sqrt(shifts.var(axis=0, ddof=1).mean())) if len(shifts) > 1 else None,
+            "random_mean_mm": shifts.mean(axis=0).tolist(),
+            "misregistration_p95_mm": misregistration(check),
+            "truth_p95_mm": truth_residual(design, law),
+            "truth_seen_p95_mm": truth_residual(design, law, within=check),
+        }
+        out["rounds"].append(r)
+        log(f"round {rnd}: " + json.dumps(r))
+    out["work"] = str(work)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--job", default=str(ROOT / "fixtures" / "default" / "job.toml"))
@@ -126,41 +191,11 @@ def main() -> None:
     )
     a = ap.parse_args()
     work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="bench-forming-"))
-    work.mkdir(parents=True, exist_ok=True)
-    t_plain = wb("design", a.job, "--out", work / "d0")
-    design, seed = work / "d0", 1
-    print(f"design without a profile: {t_plain:.1f} s; law {a.law}, random {a.random_mm} mm, {a.sheets} sheets")
-    print(f"round 0: truth p95 {truth_residual(design, a.law):.3f} mm", flush=True)
-    for rnd in range(1, a.rounds + 1):
-        sheets = []
-        film = design
-        if a.calibration_film:
-            wb("pdf", design, "--pattern", "forming", "-o", work / f"calib{rnd}.pdf")
-            film = work / f"calib{rnd}-design"
-        for k in range(a.sheets):
-            s = work / f"r{rnd}-sheet{k}"
-            form_sheet(film, s, a.law, seed, a.scale, a.random_mm, a.renderer)
-            seed += 1
-            sheets.append(s)
-        if rnd == 1:
-            print(f"round 0: validate's misregistration p95 {misregistration(sheets[0])} mm")
-        prof = work / f"profile{rnd}.json"
-        t_cal = wb("calibrate", "forming", *sheets, "-o", prof)
-        p = json.loads(prof.read_text())["films"][0]
-        t_des = wb("design", a.job, "--forming-profile", prof, "--out", work / f"d{rnd}")
-        design = work / f"d{rnd}"
-        check = work / f"r{rnd}-check"
-        form_sheet(design, check, a.law, 1000 + rnd, a.scale, 0.0, a.renderer)
-        whole, seen = truth_residual(design, a.law), truth_residual(design, a.law, within=check)
-        print(
-            f"round {rnd}: calibrate forming {t_cal:.1f} s ({p['points']} points, measured "
-            f"{100 * p['measured_share']:.1f} %, cv {p['cv_rms_mm']:.4f} mm, repeatability {p['repeatability_mm']}); "
-            f"design with it {t_des:.1f} s ({t_des / t_plain:.2f} x); the new sheet: validate's misregistration p95 "
-            f"{misregistration(check)} mm; truth p95 {whole:.4f} mm over the film, {seen:.4f} mm where its photos "
-            "measure the landing",
-            flush=True,
-        )
-    print(f"files in {work}")
+    res = run_loop(
+        work, a.job, a.law, a.scale, a.random_mm, a.sheets, a.rounds, a.renderer, a.calibration_film,
+        log=lambda m: print(m, flush=True),
+    )  # fmt: skip
+    print(f"files in {res['work']}")
 
 
 if __name__ == "__main__":

@@ -347,3 +347,47 @@ def test_calibration_film_is_the_design_filled_with_dots(design, tmp_path):
     # the same definition, the same film
     r = wb("pdf", design, "--pattern", "forming", "-o", tmp_path / "again.pdf", "-q")
     assert (tmp_path / "again-design" / "print.png").read_bytes() == (cd / "print.png").read_bytes()
+
+
+# --- the loop against its truth (make bench) ---------------------------------------------------
+
+
+def _bench():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_forming", ROOT / "benchmarks" / "bench_forming.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("renderer", ["workbench", "mitsuba"])
+def test_one_round_from_two_sheets_brings_a_third_to_a_tenth_and_a_second_to_a_twentieth(tmp_path, renderer):
+    if renderer == "mitsuba":
+        pytest.importorskip("mitsuba")
+    res = _bench().run_loop(tmp_path, scale=2.0, sheets=2, rounds=2, renderer=renderer, log=lambda _m: None)
+    r0, r1, r2 = res["rounds"]
+    for k, base in enumerate(r0["misregistration_p95_mm"]):
+        assert base > 0.5  # the law moves the print by millimetres
+        assert r1["misregistration_p95_mm"][k] <= min(0.1, base / 10)
+        assert r2["misregistration_p95_mm"][k] <= base / 20
+    assert r1["calibrate_s"] < 30 and r1["design_ratio"] <= 1.5
+
+
+@pytest.mark.slow
+def test_the_calibration_films_profile_covers_the_film(tmp_path):
+    res = _bench().run_loop(tmp_path, scale=2.0, sheets=2, rounds=1, calibration_film=True, log=lambda _m: None)
+    r0, r1 = res["rounds"]
+    assert r1["measured_share"] >= 0.95
+    for k, base in enumerate(r0["misregistration_p95_mm"]):
+        assert r1["misregistration_p95_mm"][k] <= min(0.1, base / 10)
+
+
+@pytest.mark.slow
+def test_five_sheets_with_a_random_placement_report_it_as_repeatability(tmp_path):
+    res = _bench().run_loop(tmp_path, scale=2.0, random_mm=0.1, sheets=5, rounds=1, log=lambda _m: None)
+    r1 = res["rounds"][1]
+    # against what the five sheets' placements did (their spread per axis)
+    assert r1["repeatability_mm"] == pytest.approx(r1["random_spread_mm"], rel=0.2)
+    assert r1["misregistration_p95_mm"][0] <= 0.1 + 2 * 0.1 / np.sqrt(5)

@@ -405,7 +405,7 @@ def profile_picture(result: dict, title: str) -> bytes:
     g = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
     d = result["field"](g).reshape(len(ys), len(xs), 2)
     mag = np.linalg.norm(d, axis=2)
-    fig, ax = plt.subplots(figsize=(8, 8 * H / W + 1.2), dpi=110)
+    fig, ax = plt.subplots(figsize=(9, 6.5 * H / W + 1.4), dpi=110, layout="constrained")
     im = ax.imshow(mag, extent=(0, W, H, 0), cmap="viridis", origin="upper")
     fig.colorbar(im, ax=ax, label="|d| (mm): how far the film lands from where the design puts it", shrink=0.8)
     step = max(1, len(xs) // 24)
@@ -414,14 +414,19 @@ def profile_picture(result: dict, title: str) -> bytes:
     top = float(np.abs(dv).max()) or 1.0
     k = 0.8 * W / 24 / top
     ax.quiver(sub[:, 0], sub[:, 1], dv[:, 0] * k, dv[:, 1] * k, angles="xy", scale_units="xy", scale=1, color="white")
-    grid, measured = result["grid"], result["measured"]
-    if (~measured).any():
-        ax.scatter(grid[~measured, 0], grid[~measured, 1], s=0.3, c="red", marker=".", linewidths=0)
+    # the film nothing measured (grey), and where the profile extrapolates (darker)
+    dist, _ = cKDTree(result["points_mm"]).query(g)
+    dist = dist.reshape(len(ys), len(xs))
+    shade = np.zeros((len(ys), len(xs), 4))
+    shade[..., 3] = np.where(dist > EXTRAPOLATION_MM, 0.6, np.where(dist > 1.0, 0.3, 0.0))
+    ax.imshow(shade, extent=(0, W, H, 0), origin="upper")
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
     ax.set_xlabel("print x (mm)")
     ax.set_ylabel("print y (mm)")
     ax.set_title(
-        title + f"\narrows x {k:.1f}; red: film not measured ({100 * (1 - result['measured_share']):.1f} %)", fontsize=9
+        title + f"\narrows x {k:.1f}; shaded: not measured ({100 * (1 - result['measured_share']):.1f} % of the film), "
+        f"dark: more than {EXTRAPOLATION_MM:g} mm from a measurement ({100 * result['extrapolated_share']:.1f} %)",
+        fontsize=8,
     )
     return figure_png(fig)

@@ -158,6 +158,7 @@ def run_loop(
             "design_ratio": t_des / t_plain,
             "points": p["points"],
             "measured_share": p["measured_share"],
+            "measured_share_on_part": p["measured_share_on_part"],
             "cv_rms_mm": p["cv_rms_mm"],
             "repeatability_mm": p["repeatability_mm"],
             # what the sheets' random placements did: their spread per axis, and their mean (which the

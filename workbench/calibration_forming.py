@@ -320,7 +320,7 @@ def calibrate_forming(sheets: list[Sheet]) -> dict:
     dict
         ``field`` (SplineField), ``smoothing``, ``cv_rms_mm``, ``fit_rms_mm``, ``points``,
         ``outliers``, ``repeatability_mm`` (None with one sheet), per-sheet figures,
-        ``measured_share``, ``extrapolated_share``, ``max_extrapolation_mm``,
+        ``measured_share`` (and ``measured_share_on_part``), ``extrapolated_share``, ``max_extrapolation_mm``,
         ``extrapolated_at_mm``, ``grid`` (film points) and ``warnings``.
     """
     ref = sheets[0]
@@ -354,6 +354,8 @@ def calibrate_forming(sheets: list[Sheet]) -> dict:
     grid = film_mask_mm(ref.design_dir, ref.design, 1.0)
     dist, _ = cKDTree(p[info["keep"]]).query(grid)
     measured = dist <= 1.0
+    landed = fm.land(field, grid) if len(grid) else grid
+    on_part = (landed >= 0).all(axis=1) & (landed[:, 0] <= W) & (landed[:, 1] <= H)
     far = dist > EXTRAPOLATION_MM
     rep = None
     if len(sheets) > 1:
@@ -380,6 +382,9 @@ def calibrate_forming(sheets: list[Sheet]) -> dict:
         "repeatability_mm": rep,
         "per_sheet": per_sheet,
         "measured_share": float(measured.mean()) if len(grid) else 0.0,
+        # of the film that lands on the part (by the profile, inside the print's rectangle): a film that
+        # slides outwards at the rim puts its outer band beyond the part, where no photo can see it
+        "measured_share_on_part": float(measured[on_part].mean()) if on_part.any() else 0.0,
         "extrapolated_share": far_share,
         "max_extrapolation_mm": float(dist.max()) if len(grid) else None,
         "extrapolated_at_mm": at,

@@ -56,6 +56,7 @@ def run_forming(args) -> int:
         "fit_rms_mm": res["fit_rms_mm"],
         "repeatability_mm": res["repeatability_mm"],
         "measured_share": res["measured_share"],
+        "measured_share_on_part": res["measured_share_on_part"],
         "extrapolated_share": res["extrapolated_share"],
         "max_extrapolation_mm": res["max_extrapolation_mm"],
         "d_median_mm": res["d_median_mm"],
@@ -103,7 +104,8 @@ def run_forming(args) -> int:
     log(
         f"{len(sheets)} sheet(s), {res['points']} points ({res['outliers']} outliers dropped): |d| median "
         f"{res['d_median_mm']:.3f} p95 {res['d_p95_mm']:.3f} max {res['d_max_mm']:.3f} mm; cross-validated RMS "
-        f"{res['cv_rms_mm']:.4f} mm; measured {100 * res['measured_share']:.1f} % of the film; repeatability "
+        f"{res['cv_rms_mm']:.4f} mm; measured {100 * res['measured_share']:.1f} % of the film "
+        f"({100 * res['measured_share_on_part']:.1f} % of what lands on the part); repeatability "
         + (f"{rep:.4f} mm" if rep is not None else "not measured (one sheet)")
         + f"; wrote {out} and {out.with_suffix('.png')}"
     )

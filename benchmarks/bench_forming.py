@@ -48,7 +48,7 @@ def views(design: Path) -> list[tuple[str, list[int]]]:
 MIN_FOV_DEG = 45.0  # a narrower designed view sees no fixture marker: widened about its own axis
 
 
-def view_camera(design: Path, name: str, scale: float, out: Path) -> Path:
+def view_camera(design: Path, name: str, scale: float, out: Path, min_fov_deg: float = MIN_FOV_DEG) -> Path:
     """The designed view's camera (its position and direction), its image ``scale`` times larger, and
     at least MIN_FOV_DEG wide so that the photo shows the fixture's markers; written to ``out``."""
     info = json.loads((design / "design.json").read_text())
@@ -56,8 +56,8 @@ def view_camera(design: Path, name: str, scale: float, out: Path) -> Path:
     w, h = (int(round(x * scale)) for x in cam["image_size"])
     K = np.asarray(cam["K"], dtype=np.float64) * scale
     fov = np.degrees(2 * np.arctan(w / 2 / K[0, 0]))
-    if fov < MIN_FOV_DEG:
-        f = w / 2 / np.tan(np.radians(MIN_FOV_DEG / 2))
+    if fov < min_fov_deg:
+        f = w / 2 / np.tan(np.radians(min_fov_deg / 2))
         K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
     else:
         K[:2, 2] = [(w - 1) / 2, (h - 1) / 2]
@@ -65,13 +65,15 @@ def view_camera(design: Path, name: str, scale: float, out: Path) -> Path:
     return out
 
 
-def form_sheet(design: Path, out: Path, law: str, seed: int, scale: float, random_mm: float, renderer: str) -> dict:
+def form_sheet(
+    design: Path, out: Path, law: str, seed: int, scale: float, random_mm: float, renderer: str, min_fov=MIN_FOV_DEG
+) -> dict:
     """Photos of one formed sheet from every designed view, each validated in its own folder."""
     truth = None
     out.mkdir(parents=True, exist_ok=True)
     for name, _ in views(design):
         photo = out / f"{name}.png"
-        cam = view_camera(design, name, scale, out / f"{name}-camera.json")
+        cam = view_camera(design, name, scale, out / f"{name}-camera.json", min_fov)
         extra = ["--renderer", "mitsuba", "--spp", "8"] if renderer == "mitsuba" else ["--noise", "1"]
         wb("render", design, "--camera", cam, "--forming", law, "--seed", seed,
            *(["--forming-random-mm", random_mm] if random_mm else []), *extra, "-o", photo)  # fmt: skip
@@ -120,6 +122,7 @@ def run_loop(
     renderer="workbench",
     calibration_film=False,
     log=print,
+    min_fov=MIN_FOV_DEG,
 ) -> dict:
     """The loop; returns per round (0: uncompensated) the check sheet's figures and the times."""
     work.mkdir(parents=True, exist_ok=True)
@@ -128,7 +131,7 @@ def run_loop(
     out: dict = {"design_s": t_plain, "rounds": []}
     log(f"design without a profile: {t_plain:.1f} s; law {law}, random {random_mm} mm, {sheets} sheets, {renderer}")
     check = work / "r0-check"
-    form_sheet(design, check, law, 1000, scale, 0.0, renderer)
+    form_sheet(design, check, law, 1000, scale, 0.0, renderer, min_fov)
     r0 = {"misregistration_p95_mm": misregistration(check), "truth_p95_mm": truth_residual(design, law)}
     r0["truth_seen_p95_mm"] = truth_residual(design, law, within=check)
     out["rounds"].append(r0)
@@ -141,7 +144,7 @@ def run_loop(
         folders, truths = [], []
         for k in range(sheets):
             f = work / f"r{rnd}-sheet{k}"
-            truths.append(form_sheet(film, f, law, seed, scale, random_mm, renderer))
+            truths.append(form_sheet(film, f, law, seed, scale, random_mm, renderer, min_fov))
             seed += 1
             folders.append(f)
         prof = work / f"profile{rnd}.json"
@@ -150,7 +153,7 @@ def run_loop(
         t_des = wb("design", job, "--forming-profile", prof, "--out", work / f"d{rnd}")
         design = work / f"d{rnd}"
         check = work / f"r{rnd}-check"
-        form_sheet(design, check, law, 1000 + rnd, scale, 0.0, renderer)
+        form_sheet(design, check, law, 1000 + rnd, scale, 0.0, renderer, min_fov)
         shifts = np.array([t.get("random_shift_mm", [0.0, 0.0]) for t in truths])
         r = {
             "calibrate_s": t_cal,
@@ -190,11 +193,17 @@ def main() -> None:
         action="store_true",
         help="the calibration sheets are the calibration film (pdf --pattern forming), the check sheet the part",
     )
+    ap.add_argument(
+        "--min-fov-deg",
+        type=float,
+        default=MIN_FOV_DEG,
+        help=f"a narrower designed view is widened to this about its own axis (default {MIN_FOV_DEG:g}; 0: never)",
+    )
     a = ap.parse_args()
     work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="bench-forming-"))
     res = run_loop(
         work, a.job, a.law, a.scale, a.random_mm, a.sheets, a.rounds, a.renderer, a.calibration_film,
-        log=lambda m: print(m, flush=True),
+        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg,
     )  # fmt: skip
     print(f"files in {res['work']}")
 

@@ -142,6 +142,27 @@ def test_landing_file_bytes_are_deterministic():
     assert npz_bytes(a) == npz_bytes(dict(a))
 
 
+def test_validate_measures_the_landing_of_a_known_law(design, tmp_path):
+    """A photo of a sheet formed by the law: landing.npz's d at p = q - d is the law's d(p)."""
+    photo = tmp_path / "front.png"
+    r = wb("render", design, "--view", "front", "--forming", LAW, "--noise", "1", "-o", photo, "-q")
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "v"
+    r = wb("validate", design, photo, "--camera", photo.with_suffix(".json"), "--out", out, "--jobs", "1", "-q")
+    assert r.returncode == 0, r.stderr
+    rep = json.loads((out / "validation.json").read_text())
+    data = (out / "landing.npz").read_bytes()
+    assert rep["landing"]["sha256"] == hashlib.sha256(data).hexdigest()
+    assert rep["photos"][0]["landing"]["points"] == rep["landing"]["points"] > 500
+    z = np.load(out / "landing.npz")
+    q, d = z["fused_q_mm"], z["fused_d_mm"]
+    pr = json.loads((design / "design.json").read_text())["print"]
+    law = fm.parse_law(LAW, (pr["width_mm"], pr["height_mm"]))
+    err = np.linalg.norm(d - law(q - d), axis=1)
+    assert np.median(np.linalg.norm(d, axis=1)) > 0.3  # the law moves the film by millimetres here
+    assert np.median(err) < 0.03 and np.percentile(err, 90) < 0.1
+
+
 # --- the profile fit ---------------------------------------------------------------------------
 
 

@@ -54,7 +54,8 @@ def view_camera(design: Path, name: str, scale: float, out: Path, min_fov_deg: f
     info = json.loads((design / "design.json").read_text())
     cam = next(v["camera"] for v in info["views"] if v["name"] == name)
     w, h = (int(round(x * scale)) for x in cam["image_size"])
-    K = np.asarray(cam["K"], dtype=np.float64) * scale
+    K = np.asarray(cam["K"], dtype=np.float64)
+    K[:2] *= scale
     fov = np.degrees(2 * np.arctan(w / 2 / K[0, 0]))
     if fov < min_fov_deg:
         f = w / 2 / np.tan(np.radians(min_fov_deg / 2))

@@ -34,7 +34,8 @@ from workbench import forming as fm
 from workbench.errors import WorkbenchError
 from workbench.jsonfile import read_json, resolve_recorded
 
-KNOT_MM = 4.0  # B-spline knot spacing: finer than any forming law's features (tens of mm)
+KNOT_MM = 4.0  # B-spline knot spacing: finer than any forming law's features (tens of mm) ...
+KNOTS_ACROSS = 30  # ... but at most this many knot intervals across the print (a 0.5 m face mask: 16 mm)
 MARGIN_MM = 10.0  # the field's domain reaches this far beyond the print (compensation looks there)
 MIN_POINTS = 50  # measured blocks a film needs for a fit
 MIN_SIGMA_MM = 0.005  # a block's uncertainty is taken as at least this (the flow's own floor)
@@ -338,7 +339,8 @@ def calibrate_forming(sheets: list[Sheet]) -> dict:
                 f"least {MIN_POINTS}: photograph the sheet from its designed views, or print the calibration film "
                 "(workbench pdf DESIGN --pattern forming)"
             )
-    basis = Spline2D.over((-MARGIN_MM, -MARGIN_MM), (W + MARGIN_MM, H + MARGIN_MM))
+    knot = max(KNOT_MM, max(W, H) / KNOTS_ACROSS)
+    basis = Spline2D.over((-MARGIN_MM, -MARGIN_MM), (W + MARGIN_MM, H + MARGIN_MM), knot)
     p = np.concatenate([s.p for s in sheets])
     d = np.concatenate([s.d for s in sheets])
     sig = np.concatenate([s.sigma for s in sheets])

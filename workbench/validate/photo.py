@@ -19,6 +19,7 @@ from workbench.export import png_bytes
 from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
+from workbench.validate.landing import photo_landing
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
 from workbench.validate.rule import MAX_DEFECT_MM2, MAX_RMS_PX, MIN_DENSE_WINDOWS, MIN_TILES, photo_verdict
@@ -237,6 +238,7 @@ def validate_photo(
             entry["misregistration_source"] = None
     clock.append(time.perf_counter())  # dense analysis
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
+    entry["landing"] = photo_landing(dr, grid)  # arrays: the command moves them to landing.npz
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2)
     clock.append(time.perf_counter())  # summary

@@ -49,6 +49,7 @@ bench: install
 	$(PY) benchmarks/bench_films.py
 	$(PY) benchmarks/bench_defects.py
 	$(PY) benchmarks/bench_suggest.py
+	$(PY) benchmarks/bench_forming.py --rounds 2
 	$(PY) -m pytest -q -m slow
 
 lint: install

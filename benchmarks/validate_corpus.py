@@ -2,6 +2,7 @@
 
     python benchmarks/validate_corpus.py [--subset fast|bench|full] [--renderer workbench|mitsuba|both]
                                          [--jobs N] [--out DIR] [--parts a,b] [--limit N]
+                                         [--perfect-only | --defects-only] [--sizes WxH,...]
                                          [--render-root CHECKOUT] [--spp N]
 
 Designs every part of ``tests/data/validate_corpus/`` (cached in ``OUT/designs``; regenerate the
@@ -571,6 +572,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--parts", help="only these parts (comma-separated)")
     ap.add_argument("--sizes", help="only these photo sizes (comma-separated WxH)")
     ap.add_argument("--perfect-only", action="store_true")
+    ap.add_argument("--defects-only", action="store_true")
     ap.add_argument("--limit", type=int, help="only the first N photos of the grid")
     ap.add_argument("--revalidate", action="store_true", help="validate again even where a report exists")
     ap.add_argument("--name", default="validate_corpus", help="the tables' file name, without suffix")
@@ -602,6 +604,8 @@ def main(argv: list[str] | None = None) -> int:
         photos = [p for p in photos if p.size in keep]
     if args.perfect_only:
         photos = [p for p in photos if p.defect is None]
+    if args.defects_only:
+        photos = [p for p in photos if p.defect is not None]
     if args.limit:
         photos = photos[: args.limit]
     args.out.mkdir(parents=True, exist_ok=True)

@@ -252,3 +252,28 @@ def test_a_shift_defect_must_explain_the_photo():
     assert dense.shift_explained(ref, photo, flow, region) > 0.95
     still = ref + np.random.default_rng(5).normal(0, 1.0, ref.shape).astype(np.float32)
     assert dense.shift_explained(ref, still, flow, region) < dense.SHIFT_EXPLAINS
+
+
+def test_a_region_facing_the_lamp_of_the_photos_highlights_is_one_of_them():
+    # a dome of radius 50 mm under a camera 1 m above; a lamp 30° off the vertical puts its
+    # highlight where the normal is the half-vector of the camera and the lamp. A bright region
+    # 1.5° from that highlight faces the same lamp; one 20° away (a dropout) does not
+    R, px = 50.0, 0.25  # mm, mm per grid pixel
+    y, x = (np.mgrid[0:400, 0:400] + 0.5) * px - R
+    z = np.sqrt(np.maximum(R * R - x * x - y * y, 0.0))
+    X = np.stack([x, y, z], axis=2)
+    X[x * x + y * y > (0.95 * R) ** 2] = np.nan
+    camera = np.array([0.0, 0.0, 1000.0])
+
+    def spot(theta_deg, r_px=6):
+        # pixels around the surface point whose normal is theta_deg off the vertical, in the x-z plane
+        t = np.radians(theta_deg)
+        cx, cy = (R * np.sin(t) + R) / px, R / px
+        return np.hypot(*(np.mgrid[0:400, 0:400] - np.array([cy, cx])[:, None, None])) < r_px
+
+    sure = spot(15.0)  # the half-vector of the vertical and 30°
+    near, far = spot(16.5), spot(35.0)
+    got = dense.mirrors_highlights(near | far, sure, X, camera)
+    assert got[near].all() and not got[far].any()
+    # no sure highlight in the photo: nothing is taken for one
+    assert not dense.mirrors_highlights(near | far, np.zeros_like(sure), X, camera).any()

@@ -109,6 +109,17 @@ def test_photos_away_from_the_viewpoint_score_the_same(design, tmp_path):
     assert all(abs(s["film_offset_mm"][0] - 0.6) <= 0.05 for s in scores)
 
 
+def test_a_perfect_small_photo_passes(design, tmp_path):
+    # 640 x 480 with its exact profile: the photo resolves the print at about 2 px per mm; what it
+    # cannot resolve is unresolved, not defects (it once failed with four defects over 4 mm²)
+    p = photo(design, tmp_path / "small.jpg", size=(640, 480))
+    status, report = validate(design, [p], tmp_path / "out", "--tolerance-mm", "0.2")
+    e = report["photos"][0]
+    assert status == 0 and e["verdict"] == "PASS", (e["reason"], e["defects"])
+    assert not [d for d in e["defects"] if d["area_mm2"] > 4.0]
+    assert e["dense"]["detection_limit"]["min_area_mm2"] > 1.0  # it says it sees less than a larger photo
+
+
 def test_wrong_print_fails(design, tmp_path):
     wrong = tmp_path / "wrong"
     shutil.copytree(design.dir, wrong)

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
 from workbench.camera import Camera
+from workbench.conformal.distortion import flat_to_surface_singular_values
 from workbench.conformal.flatten import (
     CrowdingError,
     FlattenOptions,
@@ -98,6 +101,7 @@ class DesignResult:
     # plausibility warnings found on the way (films that cover little of what they were given)
     warnings: list[str] = field(default_factory=list)
     undecorated: tuple[float, float] = (0.0, 0.0)
+    compensation: object = None  # workbench.forming.Compensation, with a forming profile
 
 
 def undecorated_surface(V: np.ndarray, F: np.ndarray, status: np.ndarray) -> tuple[float, float]:
@@ -397,7 +401,39 @@ def check_print_fits(grid: PrintGrid, where: str) -> None:
         )
 
 
-def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
+def profile_identity(job: Job) -> dict:
+    """What a forming profile must have been measured for, known before the map: mesh, dpi, films."""
+    return {
+        "mesh_sha256": hashlib.sha256(job.object.mesh.read_bytes()).hexdigest(),
+        "dpi": float(job.print.dpi),
+        "films": ["film-1"],
+    }
+
+
+def compensate_flat(job: Job, V: np.ndarray, flat: FlattenResult, path: Path):
+    """The flat layout pre-compensated by the forming profile at ``path`` (checked against this job)."""
+    from workbench import forming as fm
+
+    prof = fm.read_profile(path)
+    identity = {
+        **profile_identity(job),
+        "width_mm": round(float(flat.width_mm), 6),
+        "height_mm": round(float(flat.height_mm), 6),
+    }
+    fm.check_profile_for(prof, identity, job.object.material.name, str(path))
+    comp = fm.compensate_layout(flat.uv, flat.width_mm, flat.height_mm, job.print.dpi, fm.profile_field(prof))
+    comp.base = (flat.width_mm, flat.height_mm)
+    comp.profile = path
+    comp.round = int(prof["design"].get("round", 1))
+    sigma = np.full_like(flat.sigma, np.nan)
+    ok = ~flat.collapsed
+    # the compensated map's stretch: what the film must do to land as the design wants
+    sigma[ok] = flat_to_surface_singular_values(flat.V, flat.F[ok], comp.uv)
+    new = replace(flat, uv=comp.uv, width_mm=comp.width_mm, height_mm=comp.height_mm, sigma=sigma)
+    return new, comp
+
+
+def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: Path | None = None) -> DesignResult:
     """Compute the print of a job.
 
     Parameters
@@ -418,6 +454,7 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         sees nothing, or a print too large for memory.
     """
     say = log or (lambda _m: None)
+    forming_profile = forming_profile or job.object.forming_profile
     t: dict[str, float] = {}
     t0 = time.perf_counter()
     V, F = read_mesh(job.object.mesh, job.object.units)
@@ -428,7 +465,18 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")
 
     if job.films is not None:
+        if forming_profile is not None:
+            raise WorkbenchError(
+                f"{forming_profile}: a forming profile compensates a design of one film; this job has [[films]]"
+            )
         return _design_films(job, V, F, images, say, t)
+    if forming_profile is not None:
+        # before the minutes of work: a profile of another part, dpi or material
+        from workbench import forming as fm
+
+        fm.check_profile_for(
+            fm.read_profile(forming_profile), profile_identity(job), job.object.material.name, str(forming_profile)
+        )
 
     t0 = time.perf_counter()
     auto = job.object.corners == "auto"
@@ -447,6 +495,15 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
         except CrowdingError as exc:
             raise crowding_advice(exc, V, F, options, str(job.object.mesh), say) from None
     t["flatten"] = time.perf_counter() - t0
+    compensation = None
+    if forming_profile is not None:
+        t0 = time.perf_counter()
+        flat, compensation = compensate_flat(job, V, flat, forming_profile)
+        t["forming compensation"] = time.perf_counter() - t0
+        say(
+            f"forming profile {forming_profile.name}: print moved by up to {compensation.moved_mm.max():.3f} mm, "
+            f"frame grown by {list(compensation.frame_offset_px)} px"
+        )
     # from here on the part is the flattened mesh: the input, or its common subdivision
     # with the flat triangulation (input vertices first), on which the map is exact
     V, F = flat.V, flat.F
@@ -462,12 +519,14 @@ def design(job: Job, log: Callable[[str], None] | None = None) -> DesignResult:
     rows, cols = grid.shape
     say(f"synthesising {cols} x {rows} px print at {job.print.dpi:g} dpi ({rows * cols / 1e6:.1f} Mpx)")
     rgb, owner, scales = synthesize_print(grid, flat.uv, V, F, status, visibilities, images, job.print.background)
-    if job.print.outline == "rectangle":
+    if job.print.outline == "rectangle" and compensation is None:
         film = np.ones((rows, cols), dtype=bool)
     else:
+        # (a compensated film's outline is the rectangle's, pre-distorted)
         film = film_mask(grid.to_pixels(flat.uv), F, rows, cols)
     t["synthesis"] = time.perf_counter() - t0
     return DesignResult(
+        compensation=compensation,
         V=V,
         F=F,
         flat=flat,

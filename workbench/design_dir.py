@@ -102,8 +102,11 @@ class Design:
             raise WorkbenchError(f"{path}: missing; rerun workbench design")
         return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
-    def scene(self, imp, fixture: bool = True):
-        """The render scene (:func:`workbench.render.photo.build_scene`) of this design with ``imp``."""
+    def scene(self, imp, fixture: bool = True, forming=None):
+        """The render scene (:func:`workbench.render.photo.build_scene`) of this design with ``imp``.
+
+        ``forming``: a field of :mod:`workbench.forming`: the film lands by it (the truth of a formed sheet).
+        """
         from workbench.render.photo import build_scene  # numba kernels: loaded by the commands that render
 
         p = self.info["print"]
@@ -119,7 +122,7 @@ class Design:
         return build_scene(
             self.V,
             self.F,
-            self.flat,
+            self.flat if forming is None else self.formed_flat(forming),
             p["height_mm"],
             rgb,
             p["dpi"],
@@ -127,6 +130,44 @@ class Design:
             self.fixture if fixture else None,
             vertex_film=self.vertex_film(),
         )
+
+    def frame_offset_mm(self) -> np.ndarray:
+        """Where the uncompensated print's top-left corner is in this print, mm (0 unless compensated)."""
+        p = self.info["print"]
+        return np.asarray(p.get("frame_offset_px", [0, 0]), dtype=np.float64) * 25.4 / p["dpi"]
+
+    def base_size_mm(self) -> tuple[float, float]:
+        """The uncompensated print's width and height, mm: what forming fields are defined on."""
+        base = (self.info.get("forming") or {}).get("base_print") or self.info["print"]
+        return float(base["width_mm"]), float(base["height_mm"])
+
+    def compensation(self):
+        """The forming field this design pre-compensates for (its ``forming-profile.json``), or None."""
+        rec = self.info.get("forming")
+        if not rec:
+            return None
+        from workbench import forming as fm
+
+        path = self.dir / "forming-profile.json"
+        if not path.is_file() or fm.file_sha256(path) != rec["profile"]["sha256"]:
+            raise WorkbenchError(f"{path}: missing or not the profile design.json records; rerun workbench design")
+        return fm.profile_field(fm.read_profile(path))
+
+    def nominal_print_mm(self) -> np.ndarray:
+        """Each vertex's design print position in the uncompensated print (mm, x right, y down):
+        where the conformal map puts it (for a compensated design: x + d(x), x its print point)."""
+        p = np.stack([self.flat[:, 0], self.info["print"]["height_mm"] - self.flat[:, 1]], axis=1)
+        x = p - self.frame_offset_mm()
+        comp = self.compensation()
+        return x if comp is None else x + comp(x)
+
+    def formed_flat(self, forming) -> np.ndarray:
+        """The flat layout (y up, mm) a film formed by ``forming`` has: each vertex shows the film
+        point that lands at its nominal position, p with p + d(p) = nominal."""
+        from workbench import forming as fm
+
+        p = fm.invert(forming, self.nominal_print_mm()) + self.frame_offset_mm()
+        return np.stack([p[:, 0], self.info["print"]["height_mm"] - p[:, 1]], axis=1)
 
     def vertex_film(self) -> np.ndarray | None:
         """With several films, the film (0-based) of each vertex of decorated.obj; else None."""

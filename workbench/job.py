@@ -33,6 +33,7 @@ class ObjectSpec:
     units: str = "mm"
     corners: tuple[int, int, int, int] | str | None = None  # or "auto"
     material: Material = Material()
+    forming_profile: Path | None = None  # a forming profile the print pre-compensates (workbench calibrate forming)
 
 
 @dataclass(frozen=True)
@@ -322,7 +323,9 @@ def load_job(path: str | Path) -> Job:
         raise WorkbenchError(f"{path}: not valid TOML: {exc}") from None
     top = _Reader(path, "job", doc, {"object", "print", "views", "fixture", "films"})
 
-    o = _Reader(path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material"})
+    o = _Reader(
+        path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material", "forming_profile"}
+    )
     corners = o.get("corners")
     if corners is not None and corners != "auto":
         if not (isinstance(corners, list) and len(corners) == 4 and all(_vertex_index(c) for c in corners)):
@@ -331,7 +334,11 @@ def load_job(path: str | Path) -> Job:
     m = _Reader(path, "object.material", o.get("material", {}), {"name", "max_stretch"})
     material = Material(name=m.string("name", "unspecified"), max_stretch=m.number("max_stretch", None, lo=0))
     obj = ObjectSpec(
-        mesh=o.file("mesh"), units=o.string("units", "mm", choices=tuple(UNITS_MM)), corners=corners, material=material
+        mesh=o.file("mesh"),
+        units=o.string("units", "mm", choices=tuple(UNITS_MM)),
+        corners=corners,
+        material=material,
+        forming_profile=o.file("forming_profile", required=False),
     )
 
     p = _Reader(path, "print", top.get("print", {}), {"dpi", "scale", "outline", "background", "margin_mm", "bleed_mm"})

@@ -93,6 +93,9 @@ def add_parser(sub) -> None:
     )
     k.add_argument("-q", "--quiet", action="store_true")
     k.set_defaults(run=run_check)
+    from workbench.commands import calibrate_forming
+
+    calibrate_forming.add_parser(s)
 
 
 def _log(args):

@@ -43,6 +43,12 @@ def add_parser(sub) -> None:
         help="treat a print that does not fit the part (stretch, background, size warnings) as an error: "
         "exit 1, nothing written",
     )
+    p.add_argument(
+        "--forming-profile",
+        metavar="PROFILE.json",
+        help="pre-compensate the print for how the film really lands (workbench calibrate forming); "
+        "overrides [object] forming_profile",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
 
@@ -89,9 +95,10 @@ def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     job = load_job(args.job)
     out = Path(args.out) if args.out else Path(f"design-{safe_name(job.name)}")
-    inputs = [job.path, job.object.mesh, *(v.image for v in job.views)]
+    profile = Path(args.forming_profile) if args.forming_profile else job.object.forming_profile
+    inputs = [job.path, job.object.mesh, *(v.image for v in job.views), *([profile] if profile else [])]
     check_output_dir(out, inputs)  # before the minutes of work, not after them
-    result = design(job, log)
+    result = design(job, log, profile)
     warnings = fit_warnings(result, job.object.material.max_stretch, [v.name for v in job.views])
     if warnings and args.strict:
         raise WorkbenchError(f"{job.path}: the print does not fit the part (--strict): " + "; ".join(warnings))
@@ -167,6 +174,37 @@ def run(args) -> int:
         "views": stats,
         "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
+    comp = result.compensation
+    if comp is not None:
+        # the profile travels with the design (render, validate and a second round read it)
+        data = Path(comp.profile).read_bytes()
+        files_forming = {out / "forming-profile.json": data}
+        info["print"]["frame_offset_px"] = list(comp.frame_offset_px)
+        info["forming"] = {
+            "profile": {
+                "file": "forming-profile.json",
+                "sha256": hashlib.sha256(data).hexdigest(),
+                "source": recorded_path(Path(comp.profile), out),
+            },
+            "round": comp.round,
+            "base_print": {
+                "width_mm": comp.base[0],
+                "height_mm": comp.base[1],
+                "width_px": int(np.ceil(comp.base[0] * grid.px_per_mm - 1e-9)),
+                "height_px": int(np.ceil(comp.base[1] * grid.px_per_mm - 1e-9)),
+            },
+            "frame_offset_px": list(comp.frame_offset_px),
+            "moved_mm": {
+                "median": float(np.median(comp.moved_mm)),
+                "p95": float(np.percentile(comp.moved_mm, 95)),
+                "max": float(comp.moved_mm.max()),
+            },
+            "note": "each print pixel p shows the surface point where the profile says p lands: the design's map "
+            "composed with the profile; the uncompensated print's pixel (i, j) is this print's "
+            "(i + frame_offset_px[1], j + frame_offset_px[0])",
+        }
+    else:
+        files_forming = {}
     # with several films, each film's name at its centre on views.png and stretch.png
     labels = []
     for k, f in enumerate(result.films):
@@ -217,6 +255,7 @@ def run(args) -> int:
             labels=labels,
         ),
     }
+    files.update(files_forming)
     if result.films:
         info["films"] = film_records(result)
         info["seams"] = {"length_mm": result.seams["length_mm"], "inside_a_view_mm": result.seams["in_view_mm"]}

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from workbench import schemas
-from workbench.atomic import check_outputs, write_files
+from workbench.atomic import check_output_dir, check_outputs, write_files, write_folder
 from workbench.design_dir import design_files, read_design_json
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.io import read_mesh
@@ -100,6 +100,13 @@ def add_parser(sub) -> None:
         metavar="PPI",
         help="warn when the print's resolution on the part (dpi divided by the film's largest stretch) falls "
         f"below this (default {MIN_PPI:g} ppi)",
+    )
+    p.add_argument(
+        "--pattern",
+        choices=("forming",),
+        help="forming: the calibration film instead of the print: the film's outline, marks and cut line as the "
+        "design prints them, filled with dense random dots; beside the PDF, FILE-design/, the design with the "
+        "pattern as its print (its definition in design.json's pattern), to validate photos of the formed film",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
@@ -205,6 +212,34 @@ def film_pages(directory: Path, info: dict) -> list[FilmPage]:
     return pages
 
 
+def calibration_design(directory: Path, info: dict, film, out: Path) -> tuple[np.ndarray, dict]:
+    """The calibration film's print and the files of its design folder (the design's, the print replaced)."""
+    import hashlib
+    import json
+
+    from workbench.export import png_bytes
+    from workbench.printing.pattern import PATTERN, dot_pattern
+
+    pr = info["print"]
+    rgb = dot_pattern(pr["height_px"], pr["width_px"], pr["dpi"])
+    png = png_bytes(rgb if film is None else np.dstack([rgb, np.where(film, 255, 0).astype(np.uint8)]), pr["dpi"])
+    full = json.loads((directory / "design.json").read_bytes())
+    full["pattern"] = {
+        **PATTERN,
+        "note": "the forming calibration film (workbench pdf --pattern forming): this print replaces the design's; "
+        "the map, views and fixture are the design's",
+        "design_json_sha256": hashlib.sha256((directory / "design.json").read_bytes()).hexdigest(),
+        "print_sha256": hashlib.sha256(png).hexdigest(),
+    }
+    files = {}
+    for p in design_files(directory)[1:]:
+        if p.is_file() and p.name not in ("print.png", "design.json", ".workbench-files"):
+            files[out / p.name] = p.read_bytes()
+    files[out / "print.png"] = png
+    files[out / "design.json"] = (json.dumps(full, indent=2) + "\n").encode()
+    return rgb, files
+
+
 def run(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     paper = parse_paper(args.paper)
@@ -236,6 +271,14 @@ def run(args) -> int:
     # the design folder's files and the profiles: `-o DESIGN/print.png` would destroy the design
     inputs = [*design_files(Path(args.design)), *(Path(p) for p in (args.printer_profile, args.output_profile) if p)]
     check_outputs(out, inputs=inputs)
+    if args.pattern:
+        if info.get("films"):
+            raise WorkbenchError(f"{args.design}: --pattern forming: a design of one film (this one has several)")
+        calib_dir = out.with_name(out.stem + "-design")
+        check_output_dir(calib_dir, inputs)
+        rgb, folder = calibration_design(Path(args.design), info, film, calib_dir)
+        write_folder(calib_dir, folder, inputs)
+        log(f"wrote {calib_dir}/: the design with the calibration film as its print (validate photos against it)")
     if info.get("films"):
         pages = film_pages(Path(args.design), info)
     else:

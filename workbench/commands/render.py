@@ -138,6 +138,21 @@ def add_parser(sub) -> None:
             "a line W mm wide), dropout:X,Y,R (ink missing in a disc)"
         ),
     )
+    g.add_argument(
+        "--forming",
+        metavar="FIELD",
+        help="the film lands by a known law: print point p lands where the design puts p + d(p); FIELD is "
+        "KIND:A,B[,...] terms joined by '+' (stretch:SX,SY, creep:AX,AY, draw:A, wave:AX,AY,L, shift:DX,DY; "
+        "amplitudes mm at the print's edge) or a forming profile (.json, workbench calibrate forming)",
+    )
+    g.add_argument(
+        "--forming-random-mm",
+        action=Number,
+        lo=0,
+        hi=100,
+        help="a per-sheet random film placement added to the landing: a shift of this standard deviation (mm) "
+        "along each axis, drawn from --seed",
+    )
     g.add_argument("--vignetting", action=Number, lo=0, hi=1, help="brightness loss at the corners (0 to 1)")
     g.add_argument("--jpeg-quality", action=Number, lo=1, hi=100, integer=True, help="JPEG round trip at this quality")
     g.add_argument(
@@ -292,6 +307,39 @@ BYTES_PER_SAMPLE = 80
 BYTES_PER_PIXEL_MITSUBA = 400
 
 
+def forming_from(args, design: Design):
+    """The forming field ``--forming`` and ``--forming-random-mm`` ask for, and its truth for PHOTO.json.
+
+    The field is defined on the uncompensated print of the design (``Design.base_size_mm``).
+    Returns (None, None) without either option.
+    """
+    from workbench import forming as fm
+
+    if args.forming is None and not args.forming_random_mm:
+        return None, None
+    size = design.base_size_mm()
+    record: dict = {"law": args.forming, "defined_on": "the uncompensated print, mm (x right, y down)"}
+    fields = []
+    if args.forming is not None:
+        if args.forming.lower().endswith(".json"):
+            prof = fm.read_profile(Path(args.forming), f"--forming {args.forming}")
+            fields.append(fm.profile_field(prof))
+            record["profile_sha256"] = fm.file_sha256(args.forming)
+        else:
+            try:
+                fields.append(fm.parse_law(args.forming, size))
+            except WorkbenchError as exc:
+                raise UsageError(str(exc)) from None
+    if args.forming_random_mm:
+        rng = np.random.default_rng([int(args.seed), 20])
+        shift = rng.normal(0.0, args.forming_random_mm, 2)
+        fields.append(fm.Placement(tuple(shift), 0.0, (0.5 * size[0], 0.5 * size[1])))
+        record["random_mm"] = args.forming_random_mm
+        record["random_shift_mm"] = shift.tolist()
+    field = fields[0] if len(fields) == 1 else fm.Sum(fields[0], fields[1])
+    return field, record
+
+
 def check_render_fits(width: int, height: int, supersample: int | None, renderer: str = "workbench") -> None:
     """Refuse, before any work, a photo whose buffers would not fit in this machine's memory."""
     if renderer == "mitsuba":
@@ -438,11 +486,16 @@ def run(args) -> int:
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         raise UsageError(f"-o {out}: photos are written as .png or .jpg")
     check_render_fits(cam.width, cam.height, args.supersample, args.renderer)
+    forming, forming_truth = forming_from(args, design)
+    if args.forming and args.forming.lower().endswith(".json"):
+        inputs.append(Path(args.forming))
     try:
-        rgb = make_photo(args, design.scene(imp, fixture), cam, imp)
+        rgb = make_photo(args, design.scene(imp, fixture, forming), cam, imp)
     except WorkbenchError as exc:  # "the camera sees nothing": say which camera
         raise WorkbenchError(f"--{source}: {exc}") from None
     record = truth(cam, imp, design, source, out, renderer)
+    if forming_truth:
+        record["forming"] = forming_truth
     photo = {out: encode(rgb, out, imp), out.with_suffix(".json"): (json.dumps(record, indent=1) + "\n").encode()}
     write_files(photo, inputs=inputs)
     log(f"wrote {out} ({cam.width} x {cam.height}) and {out.with_suffix('.json')}")
@@ -453,7 +506,8 @@ def previews(args, design: Design, imp: Imperfections, fixture: bool, log, rende
     out = Path(args.output) if args.output else design.dir / "previews"
     check_output_dir(out, design_files(design.dir))
     files, tiles = {}, []
-    scene = design.scene(imp, fixture)
+    forming, forming_truth = forming_from(args, design)
+    scene = design.scene(imp, fixture, forming)
     cams = [(v["name"], design.view_camera(v["name"])) for v in design.info["views"]]
     cams.append(
         (

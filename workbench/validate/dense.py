@@ -83,6 +83,10 @@ SHIFT_EXPLAINS = 2.0 / 3.0
 # texture lost: a local gain below LOST_GAIN of the photo's median where the design's contrast in the
 # exposure window is at least LOST_MIN_CONTRAST grey levels (its standard deviation)
 LOST_GAIN = 0.3
+# a colour region whose mean reflected ray lies within this of a sure highlight's faces the same lamp
+# (measured: highlights on flat pale ink 0.6 to 3.7 deg from the photo's clipped or texture-keeping
+# ones; dropouts 16 to 103 deg)
+MIRROR_DEG = 8.0
 LOST_MIN_CONTRAST = 15.0
 GLARE = 35.0  # additive brightness (grey levels) beyond the exposure model's offset that is glare
 SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
@@ -931,6 +935,7 @@ def analyse(
     tolerance_mm: float,
     scale: float = 1.0,
     footprint: np.ndarray | None = None,
+    camera_center: np.ndarray | None = None,
 ) -> DenseResult:
     """Dense misregistration with its uncertainty, colour residuals, masks and defects of one photo on the print.
 
@@ -951,6 +956,9 @@ def analyse(
     footprint : (rows, cols) float, optional
         Photo pixels per grid pixel at each grid pixel (:func:`warp_to_print`); ``scale``
         everywhere when not given.
+    camera_center : (3,) float, optional
+        The photo's camera centre, mm in the mesh frame: a colour region that mirrors the
+        lamp like the photo's own highlights is one of them (:func:`mirrors_highlights`).
 
     Returns
     -------
@@ -1121,6 +1129,13 @@ def analyse(
         colour_bad |= lost
         res = np.where(lost, res_lost, res)
         colour = np.where(colour_scored, res, np.nan).astype(np.float32)
+    if camera_center is not None:
+        # a region the surface turns towards the lamp as the photo's sure highlights (clipped,
+        # or light over ink that keeps its texture) is one more of them: over flat pale ink,
+        # one photo cannot tell a highlight that reaches the film's white from ink gone there
+        glossed |= mirrors_highlights(colour_bad & ~glossed, sat | glossed, grid.X, camera_center)
+        colour_bad &= ~glossed
+        gone &= ~glossed
     state[glossed] = HIGHLIGHT
     colour_scored = colour_scored & ~glossed
     scored = scored & ~glossed
@@ -1320,6 +1335,83 @@ def texture_lost(gain: np.ndarray, contrast: np.ndarray, fitted: np.ndarray) -> 
     ratio = gain / g0
     low = np.where(determined, ratio < LOST_GAIN, True).all(axis=2)
     return fitted & determined.any(axis=2) & low
+
+
+def reflected_directions(X: np.ndarray, camera_center: np.ndarray) -> np.ndarray:
+    """Per grid pixel, the direction the camera's ray leaves the surface in after a mirror reflection.
+
+    Parameters
+    ----------
+    X : (H, W, 3) float
+        Surface point under each grid pixel, mm (NaN off the part).
+    camera_center : (3,) float
+        The camera centre, mm.
+
+    Returns
+    -------
+    (H, W, 3) float32
+        Unit vectors (NaN off the part): a lamp in that direction shows its highlight there.
+    """
+    # the surface normal from the grid's own tangents: ∂X/∂x × ∂X/∂y, turned towards the camera
+    with np.errstate(invalid="ignore"):
+        n = np.cross(np.gradient(X, axis=1), np.gradient(X, axis=0))
+        n /= np.linalg.norm(n, axis=2, keepdims=True)
+        v = np.asarray(camera_center, np.float64)[None, None, :] - X
+        v /= np.linalg.norm(v, axis=2, keepdims=True)
+        nv = (n * v).sum(axis=2, keepdims=True)
+        n = np.where(nv < 0, -n, n)
+        # mirror of the view direction about the normal: r = 2 (n·v) n - v
+        r = 2.0 * np.abs(nv) * n - v
+    return r.astype(np.float32)
+
+
+def mirrors_highlights(
+    candidates: np.ndarray, highlights: np.ndarray, X: np.ndarray, camera_center: np.ndarray
+) -> np.ndarray:
+    """The candidate regions that reflect the camera's rays where the photo's highlights do.
+
+    A highlight is where the surface mirrors a lamp into the camera: every highlight of one
+    lamp reflects the camera's rays towards it. A region whose mean reflected direction lies
+    within MIRROR_DEG of that of a highlight pixel faces the same lamp.
+
+    Parameters
+    ----------
+    candidates : (H, W) bool
+        Pixels of the regions to test (8-connected regions).
+    highlights : (H, W) bool
+        The photo's sure highlight pixels.
+    X : (H, W, 3) float
+        Surface point under each grid pixel, mm.
+    camera_center : (3,) float
+        The camera centre, mm.
+
+    Returns
+    -------
+    (H, W) bool
+        Pixels of the candidate regions that face a lamp the photo's highlights show.
+    """
+    out = np.zeros(candidates.shape, bool)
+    if not candidates.any() or not highlights.any():
+        return out
+    r = reflected_directions(X, camera_center)
+    sure = r[highlights & np.isfinite(r).all(axis=2)]
+    # (a few thousand directions are plenty: neighbouring highlight pixels reflect alike)
+    sure = sure[:: max(1, len(sure) // 4096)]
+    if not len(sure):
+        return out
+    cos_max = np.cos(np.radians(MIRROR_DEG))
+    n, lab = cv2.connectedComponents(candidates.astype(np.uint8), connectivity=8)
+    for k in range(1, n):
+        region = lab == k
+        d = r[region]
+        d = d[np.isfinite(d).all(axis=1)].astype(np.float64)
+        if not len(d):
+            continue
+        m = d.mean(axis=0)
+        m /= max(np.linalg.norm(m), 1e-12)
+        if float((sure @ m).max()) >= cos_max:
+            out |= region
+    return out
 
 
 def light_or_ink(

@@ -20,6 +20,7 @@ from workbench.raster import depth_buffer
 from workbench.validate import dense, pictures
 from workbench.validate.colour import photo_colour
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
+from workbench.validate.landing import photo_landing
 from workbench.validate.photo_quality import photo_quality, read_jpeg_quality
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
@@ -194,7 +195,7 @@ def validate_photo(
     clock.append(time.perf_counter())  # tiles
     on_print, state, scale, footprint = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
-    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint)
+    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center)
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
     entry.update(
         {
@@ -257,6 +258,8 @@ def validate_photo(
     entry["photo_quality"] = photo_quality(photo, on_print, grid.reference, seen, read_jpeg_quality(path))
     clock.append(time.perf_counter())  # colour
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
+    # arrays: the command moves them to landing.npz; a photo at fault lands nothing
+    entry["landing"] = None if entry["photo_quality"]["problems"] else photo_landing(dr, grid)
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
     clock.append(time.perf_counter())  # summary

@@ -1,0 +1,213 @@
+"""The forming calibration loop against its truth: printed figures.
+
+    .venv/bin/python benchmarks/bench_forming.py [--job fixtures/default/job.toml] [--scale 2]
+        [--law creep:2,1.5+wave:0.5,0.5,40] [--random-mm 0] [--sheets 2] [--rounds 2]
+        [--renderer workbench|mitsuba] [--work DIR]
+
+Designs the job; forms sheets by the known law (``render --forming``, each designed view at
+``--scale`` times its image size, a little noise, each sheet its own seed), validates each
+sheet's photos (one validation folder per view, under one folder per sheet), fits a forming
+profile from ``--sheets`` sheets (``calibrate forming``), designs with it and forms a new
+sheet of the compensated design. Per round it prints the new sheet's misregistration p95 as
+validate measures it (tiles, mm on the part) and the truth: where each film point lands
+against where the compensated design wants it (print mm, p95 over the film), with the times
+of ``calibrate forming`` and of ``design`` with and without the profile.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def wb(*args, cwd=None) -> float:
+    t0 = time.perf_counter()
+    r = subprocess.run(
+        [sys.executable, "-m", "workbench", *map(str, args), "-q"], cwd=cwd, capture_output=True, text=True
+    )
+    if r.returncode != 0:
+        raise SystemExit(f"workbench {' '.join(map(str, args))}: {r.stderr.strip()}")
+    return time.perf_counter() - t0
+
+
+def views(design: Path) -> list[tuple[str, list[int]]]:
+    info = json.loads((design / "design.json").read_text())
+    return [(v["name"], v["camera"]["image_size"]) for v in info["views"]]
+
+
+MIN_FOV_DEG = 45.0  # a narrower designed view sees no fixture marker: widened about its own axis
+
+
+def view_camera(design: Path, name: str, scale: float, out: Path, min_fov_deg: float = MIN_FOV_DEG) -> Path:
+    """The designed view's camera (its position and direction), its image ``scale`` times larger, and
+    at least MIN_FOV_DEG wide so that the photo shows the fixture's markers; written to ``out``."""
+    info = json.loads((design / "design.json").read_text())
+    cam = next(v["camera"] for v in info["views"] if v["name"] == name)
+    w, h = (int(round(x * scale)) for x in cam["image_size"])
+    K = np.asarray(cam["K"], dtype=np.float64)
+    K[:2] *= scale
+    fov = np.degrees(2 * np.arctan(w / 2 / K[0, 0]))
+    if fov < min_fov_deg:
+        f = w / 2 / np.tan(np.radians(min_fov_deg / 2))
+        K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
+    else:
+        K[:2, 2] = [(w - 1) / 2, (h - 1) / 2]
+    out.write_text(json.dumps({"K": K.tolist(), "dist": [0] * 5, "image_size": [w, h], "R": cam["R"], "t": cam["t"]}))
+    return out
+
+
+def form_sheet(
+    design: Path, out: Path, law: str, seed: int, scale: float, random_mm: float, renderer: str, min_fov=MIN_FOV_DEG
+) -> dict:
+    """Photos of one formed sheet from every designed view, each validated in its own folder."""
+    truth = None
+    out.mkdir(parents=True, exist_ok=True)
+    for name, _ in views(design):
+        photo = out / f"{name}.png"
+        cam = view_camera(design, name, scale, out / f"{name}-camera.json", min_fov)
+        extra = ["--renderer", "mitsuba", "--spp", "8"] if renderer == "mitsuba" else ["--noise", "1"]
+        wb("render", design, "--camera", cam, "--forming", law, "--seed", seed,
+           *(["--forming-random-mm", random_mm] if random_mm else []), *extra, "-o", photo)  # fmt: skip
+        wb("validate", design, photo, "--camera", photo.with_suffix(".json"), "--out", out / name, "--jobs", "1")
+        truth = json.loads(photo.with_suffix(".json").read_text())["forming"]
+    return truth
+
+
+def misregistration(sheet: Path) -> list[float]:
+    """Each view's misregistration p95 (mm on the part) as validate measured it."""
+    out = []
+    for v in sorted(sheet.iterdir()):
+        if (v / "validation.json").is_file():
+            rep = json.loads((v / "validation.json").read_text())
+            out += [(e.get("misregistration_mm") or {}).get("p95") for e in rep["photos"]]
+    return out
+
+
+def truth_residual(design: Path, law: str, shift=(0.0, 0.0), within: Path | None = None) -> float:
+    """p95 of |where the film lands - where the design wants it|, print mm: over the film, or
+    ``within`` the blocks a sheet's validations measured."""
+    from workbench import forming as fm
+    from workbench.design_dir import Design
+
+    des = Design(design)
+    W, H = des.base_size_mm()
+    g = np.stack(np.meshgrid(np.arange(0.5, W, 1.0), np.arange(0.5, H, 1.0)), axis=-1).reshape(-1, 2)
+    if within is not None:
+        o = des.frame_offset_mm()
+        q = [np.load(v / "landing.npz")["fused_q_mm"] for v in within.iterdir() if (v / "landing.npz").is_file()]
+        g = np.concatenate(q) - o
+    true = fm.parse_law(law, (W, H))(g) + np.asarray(shift)
+    comp = des.compensation()
+    want = comp(g) if comp is not None else np.zeros_like(g)
+    return float(np.percentile(np.linalg.norm(true - want, axis=1), 95))
+
+
+def run_loop(
+    work: Path,
+    job=ROOT / "fixtures" / "default" / "job.toml",
+    law="creep:2,1.5+wave:0.5,0.5,40",
+    scale=2.0,
+    random_mm=0.0,
+    sheets=2,
+    rounds=2,
+    renderer="workbench",
+    calibration_film=False,
+    log=print,
+    min_fov=MIN_FOV_DEG,
+) -> dict:
+    """The loop; returns per round (0: uncompensated) the check sheet's figures and the times."""
+    work.mkdir(parents=True, exist_ok=True)
+    t_plain = wb("design", job, "--out", work / "d0")
+    design, seed = work / "d0", 1
+    out: dict = {"design_s": t_plain, "rounds": []}
+    log(f"design without a profile: {t_plain:.1f} s; law {law}, random {random_mm} mm, {sheets} sheets, {renderer}")
+    check = work / "r0-check"
+    form_sheet(design, check, law, 1000, scale, 0.0, renderer, min_fov)
+    r0 = {"misregistration_p95_mm": misregistration(check), "truth_p95_mm": truth_residual(design, law)}
+    r0["truth_seen_p95_mm"] = truth_residual(design, law, within=check)
+    out["rounds"].append(r0)
+    log(f"round 0: {r0}")
+    for rnd in range(1, rounds + 1):
+        film = design
+        if calibration_film:
+            wb("pdf", design, "--pattern", "forming", "-o", work / f"calib{rnd}.pdf")
+            film = work / f"calib{rnd}-design"
+        folders, truths = [], []
+        for k in range(sheets):
+            f = work / f"r{rnd}-sheet{k}"
+            truths.append(form_sheet(film, f, law, seed, scale, random_mm, renderer, min_fov))
+            seed += 1
+            folders.append(f)
+        prof = work / f"profile{rnd}.json"
+        t_cal = wb("calibrate", "forming", *folders, "-o", prof)
+        p = json.loads(prof.read_text())["films"][0]
+        t_des = wb("design", job, "--forming-profile", prof, "--out", work / f"d{rnd}")
+        design = work / f"d{rnd}"
+        check = work / f"r{rnd}-check"
+        form_sheet(design, check, law, 1000 + rnd, scale, 0.0, renderer, min_fov)
+        shifts = np.array([t.get("random_shift_mm", [0.0, 0.0]) for t in truths])
+        r = {
+            "calibrate_s": t_cal,
+            "design_s": t_des,
+            "design_ratio": t_des / t_plain,
+            "points": p["points"],
+            "measured_share": p["measured_share"],
+            "measured_share_on_part": p["measured_share_on_part"],
+            "cv_rms_mm": p["cv_rms_mm"],
+            "repeatability_mm": p["repeatability_mm"],
+            # what the sheets' random placements did: their spread per axis, and their mean (which the
+            # profile keeps: its standard error is random_mm / sqrt(sheets))
+            "random_spread_mm": float(np.sqrt(shifts.var(axis=0, ddof=1).mean())) if len(shifts) > 1 else None,
+            "random_mean_mm": shifts.mean(axis=0).tolist(),
+            "misregistration_p95_mm": misregistration(check),
+            "truth_p95_mm": truth_residual(design, law),
+            "truth_seen_p95_mm": truth_residual(design, law, within=check),
+        }
+        out["rounds"].append(r)
+        log(f"round {rnd}: " + json.dumps(r))
+    out["work"] = str(work)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--job", default=str(ROOT / "fixtures" / "default" / "job.toml"))
+    ap.add_argument("--scale", type=float, default=2.0)
+    ap.add_argument("--law", default="creep:2,1.5+wave:0.5,0.5,40")
+    ap.add_argument("--random-mm", type=float, default=0.0)
+    ap.add_argument("--sheets", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--renderer", default="workbench", choices=("workbench", "mitsuba"))
+    ap.add_argument("--work", help="keep the files here (default: a temporary folder)")
+    ap.add_argument(
+        "--calibration-film",
+        action="store_true",
+        help="the calibration sheets are the calibration film (pdf --pattern forming), the check sheet the part",
+    )
+    ap.add_argument(
+        "--min-fov-deg",
+        type=float,
+        default=MIN_FOV_DEG,
+        help=f"a narrower designed view is widened to this about its own axis (default {MIN_FOV_DEG:g}; 0: never)",
+    )
+    a = ap.parse_args()
+    work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="bench-forming-"))
+    res = run_loop(
+        work, a.job, a.law, a.scale, a.random_mm, a.sheets, a.rounds, a.renderer, a.calibration_film,
+        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg,
+    )  # fmt: skip
+    print(f"files in {res['work']}")
+
+
+if __name__ == "__main__":
+    main()

@@ -54,6 +54,10 @@ MAX_SAMPLES = 4000
 SEARCH_MM = 4.0
 # profile sample step, photo pixels
 STEP_PX = 0.5
+# the plate's contact, as a measurement: the part rests on it (no lift, no tilt) to this, mm
+PLATE_MM = 0.01
+# the motion's out-of-plane terms: rotation about x and y (times rho), translation along z
+OUT_OF_PLANE = (0, 1, 5)
 # the least difference (RGB, 0-255) between the print at the rim and the plate beside it
 MIN_RIM_CONTRAST = 60.0
 # the camera blur assumed for the plate's prediction, photo pixels
@@ -79,7 +83,8 @@ class Seating:
     rms_px : float
         Their weighted RMS residual, photo pixels.
     H : (6, 6) float
-        Normal matrix of the last iteration, in (rotation * rho, translation) mm units.
+        The photos' information about the motion (normal matrix over the residual variance),
+        in (rotation * rho, translation) mm units, mm^-2.
     rho : float
         The part's RMS radius about ``centre``, mm.
     """
@@ -94,6 +99,7 @@ class Seating:
     H: np.ndarray | None = None
     rho: float = 1.0
     determined: bool = True
+    held_by_plate: list = field(default_factory=list)
 
     def offset_mm(self) -> np.ndarray:
         return motion_parameters(self.R, self.t, self.centre)[0]
@@ -111,6 +117,7 @@ class Seating:
             "centre_mm": self.centre.tolist(),
             "uncertainty_mm": float(self.uncertainty_mm),
             "undetermined": self.undetermined,
+            "held_by_plate": self.held_by_plate,
             "contour_samples": int(self.samples),
             "contour_rms_px": None if not np.isfinite(self.rms_px) else float(self.rms_px),
         }
@@ -549,6 +556,18 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
     spread_in = np.linalg.norm(e_in - d_in[:, None], axis=2).max(axis=1)
     spread_out = np.linalg.norm(e_out, axis=2).max(axis=1)
     ok &= (spread_in <= 0.5 * D) & (spread_out <= np.maximum(0.5 * D, tau))
+    if rim is not None and ok.any():
+        # the part's side must show the print's rim colour: where it shows another, the film's own
+        # edge lies beside the rim (a film off its place) and was taken for the outline
+        I_in = I[rows[:, None], win_in].mean(axis=1)
+        rim = np.asarray(rim, dtype=np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            gain = np.nanmedian(np.where(ok[:, None], I_in / np.maximum(rim, 20.0), np.nan), axis=0)
+        gain = np.where(np.isfinite(gain), gain, 1.0)
+        expect = rim * gain
+        far = np.linalg.norm(I_in - expect, axis=1)
+        contrast = np.linalg.norm(expect - I[rows, np.clip(i0 + 6, 0, len(u) - 1)], axis=1)
+        ok &= far <= np.maximum(0.3 * contrast, 25.0)
     dirn = step / np.maximum(D, 1e-9)[:, None]
     h = np.einsum("kuc,kc->ku", np.where(np.isfinite(e), e, 0.0), dirn)
     # derivative over +-1 px, its peak near the change point (falling: part to plate)
@@ -605,6 +624,7 @@ def estimate_seating(
     start: tuple[np.ndarray, np.ndarray] | None = None,
     print_uv_px: np.ndarray | None = None,
     print_rgb: np.ndarray | None = None,
+    plate_mm: float | None = PLATE_MM,
 ) -> Seating:
     """The part's rigid motion on the plate from its outline in one or several photos.
 
@@ -626,6 +646,11 @@ def estimate_seating(
     print_uv_px, print_rgb : (n, 2) float and (h, w, 3) float32, optional
         Each vertex's print pixel and the print (blurred to the photos' scale): the
         outline is not measured where the print there has the plate's colour.
+    plate_mm : float or None
+        The plate's contact as a prior: the part's lift and tilts are zero to this (mm of
+        vertex displacement), so what the photos cannot tell apart from a lift (a move
+        along the line of sight of a single photo) is settled by the plate, not set to an
+        arbitrary zero. None: no prior (6 free degrees).
 
     Returns
     -------
@@ -661,7 +686,9 @@ def estimate_seating(
             rim = None
             if print_uv_px is not None and print_rgb is not None:
                 uv = print_uv_px[ends[:, 0]] * (1 - a[:, None]) + print_uv_px[ends[:, 1]] * a[:, None]
-                rim = _sample(print_rgb, uv[:, 0], uv[:, 1])
+                # the rim lies on the print's own edge: read the nearest pixel inside
+                h, w = print_rgb.shape[:2]
+                rim = _sample(print_rgb, np.clip(uv[:, 0], 0, w - 1), np.clip(uv[:, 1], 0, h - 1))
                 rim = np.where(np.isfinite(rim), rim, 0.0)
             s = measure_edges(d, q, n, half, rim)
             okk = np.isfinite(s)
@@ -689,11 +716,10 @@ def estimate_seating(
         w = np.concatenate(w_all)
         n_used = int((w > 0).sum())
         sigma_px = float(np.sqrt(np.sum(w * r**2) / max(np.sum(w) - 6, 1)))
-        lam, vec = np.linalg.eigh(H)
-        # while far off, the residuals are the misfit, not the noise: steps use at most 0.5 px
-        sig = min(max(sigma_px, 0.05), 0.5) / np.sqrt(np.maximum(lam, 1e-300))
-        good = sig <= undetermined_mm
-        delta = vec[:, good] @ ((vec[:, good].T @ g) / lam[good]) if good.any() else np.zeros(6)
+        # while far off, the residuals are the misfit, not the noise: steps take at most 0.5 px
+        s_step = min(max(sigma_px, 0.05), 0.5)
+        x = _parameters(R, t, c, rho)
+        delta, _, _ = _solve(H / s_step**2, g / s_step**2, x, plate_mm, undetermined_mm)
         w_rot = delta[:3] / rho
         dR = _rodrigues(w_rot)
         R = dR @ R
@@ -706,22 +732,68 @@ def estimate_seating(
             zbuf[k]["reuse"] = px < 0.5
         if max(moved, default=0.0) < 0.02 and it >= 3:
             break
-    lam, vec = np.linalg.eigh(H)
-    sig = max(sigma_px, 0.05) / np.sqrt(np.maximum(lam, 1e-300))
-    good = sig <= undetermined_mm
+    info = H / max(sigma_px, 0.05) ** 2
+    return _seating(R, t, c, rho, info, plate_mm, undetermined_mm, V, n_used, sigma_px)
+
+
+def _parameters(R: np.ndarray, t: np.ndarray, c: np.ndarray, rho: float) -> np.ndarray:
+    """A motion as (rotation vector * rho, the centre's offset), mm; (6,)."""
+    return np.concatenate([cv2.Rodrigues(np.asarray(R, dtype=np.float64))[0].ravel() * rho, R @ c + t - c])
+
+
+def _solve(info: np.ndarray, g: np.ndarray, x: np.ndarray, plate_mm: float | None, undetermined_mm: float):
+    """The Gauss-Newton step over the determined directions, with the plate's contact as a prior.
+
+    ``info`` (mm^-2) and ``g`` are the photos' normal equations for a step from ``x``; the prior
+    pulls the out-of-plane terms of ``x + step`` to zero with a standard deviation of
+    ``plate_mm`` (None: no prior). Directions whose standard deviation exceeds
+    ``undetermined_mm`` get no step.
+
+    Returns
+    -------
+    step : (6,) float
+    vec : (6, 6) float
+        Eigenvectors of the total information.
+    sd : (6,) float
+        Their standard deviations, mm.
+    """
+    Hp = np.zeros((6, 6))
+    if plate_mm is not None:
+        for i in OUT_OF_PLANE:
+            Hp[i, i] = 1.0 / plate_mm**2
+    Ht = info + Hp
+    gt = g - Hp @ x
+    lam, vec = np.linalg.eigh(Ht)
+    sd = 1.0 / np.sqrt(np.maximum(lam, 1e-300))
+    good = sd <= undetermined_mm
+    step = vec[:, good] @ ((vec[:, good].T @ gt) / lam[good]) if good.any() else np.zeros(6)
+    return step, vec, sd
+
+
+def _seating(R, t, c, rho, info, plate_mm, undetermined_mm, V, n_used=0, sigma_px=float("nan")) -> Seating:
+    """The seating ``(R, t)`` with its uncertainty and undetermined directions from the photos' information."""
+    x = _parameters(R, t, c, rho)
+    _, vec, sd = _solve(info, np.zeros(6), x, plate_mm, undetermined_mm)
+    good = sd <= undetermined_mm
     undet = [
         {"motion": _name(vec[:, i]), "direction": np.round(vec[:, i], 6).tolist(),
-         "sigma_mm": float(sig[i]) if np.isfinite(sig[i]) and sig[i] < 1e6 else None}
+         "sigma_mm": float(sd[i]) if sd[i] < 1e6 else None}
         for i in np.flatnonzero(~good)
     ]  # fmt: skip
+    # what the photos alone leave open and the plate's contact holds
+    lam0, vec0 = np.linalg.eigh(info)
+    sd0 = 1.0 / np.sqrt(np.maximum(lam0, 1e-300))
+    held = [_name(vec0[:, i]) for i in np.flatnonzero(sd0 > undetermined_mm)] if plate_mm is not None else []
     # each vertex's 1-sigma displacement over the determined directions
-    cov = (vec[:, good] / lam[good]) @ vec[:, good].T * max(sigma_px, 0.05) ** 2 if good.any() else np.zeros((6, 6))
+    cov = (vec[:, good] / sd[good] ** -2) @ vec[:, good].T if good.any() else np.zeros((6, 6))
     Vs = V[:: max(1, len(V) // 2000)] @ R.T + t
     arm = Vs - (R @ c + t)
     A = np.concatenate([-_skew(arm) / rho, np.broadcast_to(np.eye(3), (len(arm), 3, 3))], axis=2)  # (k, 3, 6)
     var = np.einsum("kij,jl,kil->k", A, cov, A)
     unc = float(np.sqrt(var.max())) if len(var) else float("nan")
-    return Seating(R, t, c, unc, undet, n_used, sigma_px, H, rho, bool(good.all()))
+    seat = Seating(R, t, c, unc, undet, n_used, sigma_px, info, rho, bool(good.all()))
+    seat.held_by_plate = held
+    return seat
 
 
 def largest_displacement(V: np.ndarray, R: np.ndarray, t: np.ndarray) -> float:
@@ -788,44 +860,31 @@ def seat_photo(photo_rgb: np.ndarray, camera: Camera, design, cache: dict, max_s
     return seat, entry
 
 
-def fuse(entries: list[dict], V: np.ndarray, undetermined_mm: float = UNDETERMINED_MM) -> tuple | None:
-    """One motion for the part from each photo's seating and normal matrix (information-weighted).
+def fuse(entries: list[dict], V: np.ndarray, undetermined_mm: float = UNDETERMINED_MM, plate_mm=PLATE_MM):
+    """One motion for the part from each photo's seating and information (information-weighted).
 
-    Each photo's motion, as (rotation vector * rho, centre's offset) about the part's centre,
-    weighted by its normal matrix (scaled by its residual variance); the directions no photo
-    determines stay undetermined. Returns (seating, photos used), or None without any measured photo.
+    Each photo's motion, as (rotation vector * rho, the centre's offset), weighted by the
+    information its contour gave (``"_H"`` of its entry), with the plate's contact as in
+    :func:`estimate_seating`; the directions no photo determines stay undetermined.
+
+    Returns
+    -------
+    (Seating, int) or None
+        The part's seating and the photos it combines; None without any measured photo.
     """
     c = part_centre(V)
-    Hs, xs = [], []
+    info, g, used, rho = np.zeros((6, 6)), np.zeros(6), 0, None
     for e in entries:
         if not e or e.get("_H") is None:
             continue
         H = np.asarray(e["_H"])
         rho = float(e["_rho"])
-        R = np.asarray(e["R"])
-        w = cv2.Rodrigues(R)[0].ravel() * rho
-        x = np.concatenate([w, np.asarray(e["offset_mm"])])
-        sig = max(e.get("contour_rms_px") or 0.05, 0.05)
-        Hs.append(H / sig**2)
-        xs.append(x)
-    if not Hs:
+        info += H
+        g += H @ _parameters(np.asarray(e["R"]), np.asarray(e["t_mm"]), c, rho)
+        used += 1
+    if not used:
         return None
-    Htot = sum(Hs)
-    g = sum(H @ x for H, x in zip(Hs, xs, strict=True))
-    lam, vec = np.linalg.eigh(Htot)
-    sd = 1.0 / np.sqrt(np.maximum(lam, 1e-300))
-    good = sd <= undetermined_mm
-    x = vec[:, good] @ ((vec[:, good].T @ g) / lam[good]) if good.any() else np.zeros(6)
+    x, _, _ = _solve(info, g, np.zeros(6), plate_mm, undetermined_mm)
     R = _rodrigues(x[:3] / rho)
     t = c + x[3:] - R @ c
-    cov = (vec[:, good] / lam[good]) @ vec[:, good].T if good.any() else np.zeros((6, 6))
-    Vs = V[:: max(1, len(V) // 2000)] @ R.T + t
-    arm = Vs - (R @ c + t)
-    A = np.concatenate([-_skew(arm) / rho, np.broadcast_to(np.eye(3), (len(arm), 3, 3))], axis=2)
-    unc = float(np.sqrt(np.einsum("kij,jl,kil->k", A, cov, A).max()))
-    undet = [
-        {"motion": _name(vec[:, i]), "direction": np.round(vec[:, i], 6).tolist(),
-         "sigma_mm": float(sd[i]) if sd[i] < 1e6 else None}
-        for i in np.flatnonzero(~good)
-    ]  # fmt: skip
-    return Seating(R, t, c, unc, undet, 0, float("nan"), Htot, rho, bool(good.all())), len(Hs)
+    return _seating(R, t, c, rho, info, plate_mm, undetermined_mm, V), used

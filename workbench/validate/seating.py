@@ -500,10 +500,15 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
     H, W = data.photo.shape[:2]
     I = _sample(data.photo, ph[..., 0], ph[..., 1]).reshape(k, len(u), 3)
     P = _plate_colour(data, pts)
-    inside = np.isfinite(I).all(axis=(1, 2)) & np.isfinite(P).all(axis=(1, 2))
+    # beyond the plate: the table, one colour (the photo's median there)
+    off = ~np.isfinite(P).all(axis=2)
+    seen = off & np.isfinite(I).all(axis=2)
+    table = np.median(I[seen], axis=0) if seen.sum() >= 20 else np.full(3, np.nan)
+    inside = np.isfinite(I).all(axis=(1, 2)) & (~off | bool(np.isfinite(table).all())).all(axis=1)
     # affine gain per channel from the photo's plate beyond the search (outer quarter)
     outer = u > half_px * 0.5
-    Io, Po = I[inside][:, outer].reshape(-1, 3), P[inside][:, outer].reshape(-1, 3)
+    on = inside[:, None] & outer[None] & ~off
+    Io, Po = I[on], P[on]
     a, b = np.ones(3), np.zeros(3)
     if len(Io) > 20:
         for c in range(3):
@@ -511,7 +516,7 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
             sol, *_ = np.linalg.lstsq(A, Io[:, c], rcond=None)
             if np.isfinite(sol).all() and sol[0] > 0.05:
                 a[c], b[c] = sol
-    pred = P * a + b
+    pred = np.where(off[..., None], table, P * a + b)
     # a local gain per profile (shading, vignetting): bright plate samples beyond the edge
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where((pred.mean(axis=2) > 60) & outer[None], I.mean(axis=2) / pred.mean(axis=2), np.nan)
@@ -783,7 +788,12 @@ def _seating(R, t, c, rho, info, plate_mm, undetermined_mm, V, n_used=0, sigma_p
     # what the photos alone leave open and the plate's contact holds
     lam0, vec0 = np.linalg.eigh(info)
     sd0 = 1.0 / np.sqrt(np.maximum(lam0, 1e-300))
-    held = [_name(vec0[:, i]) for i in np.flatnonzero(sd0 > undetermined_mm)] if plate_mm is not None else []
+    held = []
+    if plate_mm is not None:
+        for i in np.flatnonzero(sd0 > undetermined_mm):
+            # a direction the photos leave open that is mostly a lift or tilt: the plate settles it
+            if np.linalg.norm(vec0[list(OUT_OF_PLANE), i]) >= 0.5:
+                held.append(_name(vec0[:, i]))
     # each vertex's 1-sigma displacement over the determined directions
     cov = (vec[:, good] / sd[good] ** -2) @ vec[:, good].T if good.any() else np.zeros((6, 6))
     Vs = V[:: max(1, len(V) // 2000)] @ R.T + t

@@ -415,10 +415,11 @@ def contour_samples(camera: Camera, Vm: np.ndarray, F: np.ndarray, V: np.ndarray
     keep_as_is = minus & ~plus & ~plus2 & in_p & in_p2
     flipped = plus & ~minus & ~minus2 & in_m & in_m2
     n = np.where(flipped[:, None], -n, n)
-    # the sample itself not hidden by a nearer part of the surface
-    ij = np.clip(np.round((q - step * n + 0.5) * sc - 0.5).astype(int), 0, [small.width - 1, small.height - 1])
+    # the sample itself not hidden by a nearer part of the surface (where it projects, the
+    # nearest surface is the sample's own, to the depth a buffer pixel spans at a grazing angle)
+    ij = np.clip(np.round((q + 0.5) * sc - 0.5).astype(int), 0, [small.width - 1, small.height - 1])
     zq = ideal.to_camera(Xm)[:, 2]
-    seen = zq <= depth[ij[:, 1], ij[:, 0]] * (1 + 0.01) + 1.0
+    seen = zq <= depth[ij[:, 1], ij[:, 0]] + 0.01 * zq + 2.0
     keep = (keep_as_is | flipped) & seen
     return q[keep], n[keep], X[keep], ends[keep], s[keep]
 
@@ -564,15 +565,15 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
     if rim is not None and ok.any():
         # the part's side must show the print's rim colour: where it shows another, the film's own
         # edge lies beside the rim (a film off its place) and was taken for the outline
+        # (compared by hue and by brightness against the photo's typical ratio: shading darkens a
+        # surface seen at a grazing angle, at its silhouette, and leaves its hue)
         I_in = I[rows[:, None], win_in].mean(axis=1)
         rim = np.asarray(rim, dtype=np.float64)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            gain = np.nanmedian(np.where(ok[:, None], I_in / np.maximum(rim, 20.0), np.nan), axis=0)
-        gain = np.where(np.isfinite(gain), gain, 1.0)
-        expect = rim * gain
-        far = np.linalg.norm(I_in - expect, axis=1)
-        contrast = np.linalg.norm(expect - I[rows, np.clip(i0 + 6, 0, len(u) - 1)], axis=1)
-        ok &= far <= np.maximum(0.3 * contrast, 25.0)
+        a_, b_ = I_in + 10.0, rim + 10.0
+        cos = np.einsum("kc,kc->k", a_, b_) / (np.linalg.norm(a_, axis=1) * np.linalg.norm(b_, axis=1))
+        ratio = np.linalg.norm(a_, axis=1) / np.linalg.norm(b_, axis=1)
+        typical = np.median(ratio[ok]) if ok.any() else 1.0
+        ok &= (cos >= 0.97) & (ratio >= 0.4 * typical) & (ratio <= 1.6 * typical)
     dirn = step / np.maximum(D, 1e-9)[:, None]
     h = np.einsum("kuc,kc->ku", np.where(np.isfinite(e), e, 0.0), dirn)
     # derivative over +-1 px, its peak near the change point (falling: part to plate)

@@ -49,11 +49,12 @@ from workbench.raster import depth_buffer
 UNDETERMINED_MM = 0.05
 # contour samples this far apart along the contour, photo pixels (at most MAX_SAMPLES per photo)
 SPACING_PX = 3.0
-MAX_SAMPLES = 4000
+MAX_SAMPLES = 1000
 # the widest search: 2 mm of offset and 1 degree over the part, with a margin
 SEARCH_MM = 4.0
-# profile sample step, photo pixels
+# profile sample step, photo pixels (the finest; a wide search takes about COARSE_SAMPLES each side)
 STEP_PX = 0.5
+COARSE_SAMPLES = 24
 # the plate's contact, as a measurement: the part rests on it (no lift, no tilt) to this, mm
 PLATE_MM = 0.01
 # the motion's out-of-plane terms: rotation about x and y (times rho), translation along z
@@ -248,7 +249,19 @@ def plate_model(fixture: dict, px_per_mm: float, around=None, blur_px: float = B
 
     # drawn at an even number of pixels per mm, at least twice the photo's (whole pixels for
     # squares and markers in 0.5 mm steps): drawing at the renderer's 20 px/mm took a second
-    ppm = float(min(20, 2 * int(np.ceil(px_per_mm))))
+    # (a plate image at the photo's own scale: the photo's blur and pixel make it smooth enough
+    # to interpolate; at twice the scale its blur took half a second of a 12 Mpx photo)
+    ppm = float(min(20, max(4, 2 * int(np.ceil(px_per_mm / 2)))))
+    chart = fixture.get("colour_chart")
+    if chart is not None and around is not None:
+        # the colour chart is painted only where it can be beside the part (its colours need
+        # colour-science, a second's import)
+        origin0 = np.asarray(fixture["origin_mm"], dtype=np.float64)
+        cx0, cy0, cx1, cy1 = chart["frame_board_mm"]
+        x0, y0, x1, y1 = around
+        bx0, bx1, by0, by1 = x0 - origin0[0], x1 - origin0[0], origin0[1] - y1, origin0[1] - y0
+        if cx1 < bx0 or cx0 > bx1 or cy1 < by0 or cy0 > by1:
+            fixture = {**fixture, "colour_chart": None}
     img, ppm = board_texture(fixture, ppm)
     origin = np.asarray(fixture["origin_mm"], dtype=np.float64)
     j0 = i0 = 0
@@ -260,8 +273,12 @@ def plate_model(fixture: dict, px_per_mm: float, around=None, blur_px: float = B
         i0 = int(np.clip(np.floor((origin[1] - y1 + PLATE_MARGIN_MM) * ppm), 0, img.shape[0] - 1))
         i1 = int(np.clip(np.ceil((origin[1] - y0 + PLATE_MARGIN_MM) * ppm) + 1, i0 + 1, img.shape[0]))
         img = img[i0:i1, j0:j1]
+    if fixture.get("colour_chart") is None:
+        img = img[..., :1]  # black and white: one channel
     sigma = np.sqrt(blur_px**2 + 1.0 / 12.0) * ppm / px_per_mm
     img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+    if img.ndim == 2:
+        img = img[..., None]
     return Plate(img, ppm, PLATE_MARGIN_MM, origin, (j0, i0))
 
 
@@ -297,11 +314,30 @@ def print_reference(flat_mm: np.ndarray, height_mm: float, rgb: np.ndarray, dpi:
 
 @dataclass
 class PhotoData:
-    """One photo for seating: its camera (posed by the board), its image and its plate model."""
+    """One photo for seating: its camera (posed by the board), its image and its plate model.
+
+    Attributes
+    ----------
+    camera : Camera
+    photo : (H, W, 3) uint8 or float32
+        RGB.
+    plate : Plate
+    pyramid : list
+        The photo halved once and twice (``cv2.pyrDown``), made when first asked for.
+    """
 
     camera: Camera
-    photo: np.ndarray  # (H, W, 3) float32 RGB
+    photo: np.ndarray
     plate: Plate
+    pyramid: list = field(default_factory=list)
+
+    def level(self, k: int) -> np.ndarray:
+        """The photo at 2**-k of its size (0: itself)."""
+        if not self.pyramid:
+            self.pyramid.append(self.photo)
+        while len(self.pyramid) <= k:
+            self.pyramid.append(cv2.pyrDown(self.pyramid[-1]))
+        return self.pyramid[k]
 
 
 def prepare(photo_rgb: np.ndarray, camera: Camera, fixture: dict, V: np.ndarray, cache: dict | None = None):
@@ -319,7 +355,7 @@ def prepare(photo_rgb: np.ndarray, camera: Camera, fixture: dict, V: np.ndarray,
         plate = plate_model(fixture, px_per_mm, around)
         if cache is not None:
             cache[key] = plate
-    return PhotoData(camera, np.asarray(photo_rgb, dtype=np.float32), plate)
+    return PhotoData(camera, np.ascontiguousarray(photo_rgb), plate)
 
 
 def contour_samples(camera: Camera, Vm: np.ndarray, F: np.ndarray, V: np.ndarray, edges, spacing_px: float,
@@ -437,27 +473,38 @@ def _distort(camera: Camera, q: np.ndarray) -> np.ndarray:
 
 
 def _plate_colour(data: PhotoData, q: np.ndarray) -> np.ndarray:
-    """The plate's predicted colour at undistorted pixels q (..., 2); (..., 3) float32 (NaN off the plate)."""
+    """The plate's predicted colour at undistorted pixels q (..., 2); (..., c) float32 (NaN off the plate).
+
+    The plate is a plane: its image pixel and the photo's undistorted pixel are related by a
+    homography ``q ~ K (R M + t e3^T) [u, v, 1]``, M the plate pixel's mesh point.
+    """
     cam, pl = data.camera, data.plate
     shape = q.shape[:-1]
-    qq = q.reshape(-1, 2)
-    ray = np.concatenate([(qq - cam.K[:2, 2]) @ np.linalg.inv(cam.K[:2, :2]).T, np.ones((len(qq), 1))], axis=1)
-    d = ray @ cam.R  # world directions (R^T ray)
-    C = cam.center
+    k = 1.0 / pl.ppm
+    ox, oy, oz = pl.origin
+    M = np.array(
+        [
+            [k, 0.0, ox - pl.margin_mm + (0.5 + pl.corner_px[0]) * k],
+            [0.0, -k, oy + pl.margin_mm - (0.5 + pl.corner_px[1]) * k],
+            [0.0, 0.0, oz],
+        ]
+    )
+    A = cam.R @ M
+    A[:, 2] += cam.t  # camera coordinates of plate pixel (u, v): A [u, v, 1]
+    G = np.linalg.inv(cam.K @ A)
+    qq = q.reshape(-1, 2).astype(np.float64)
+    h = qq @ G[:, :2].T + G[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
-        lam = (pl.origin[2] - C[2]) / d[:, 2]
-    P = C + lam[:, None] * d
-    bx = P[:, 0] - pl.origin[0]
-    by = pl.origin[1] - P[:, 1]
-    u = ((bx + pl.margin_mm) * pl.ppm - 0.5 - pl.corner_px[0]).astype(np.float32)
-    v = ((by + pl.margin_mm) * pl.ppm - 0.5 - pl.corner_px[1]).astype(np.float32)
-    bad = ~(lam > 0)
-    u[bad] = -1e6
-    return _sample(pl.image, u, v).reshape(*shape, 3)
+        u = h[:, 0] / h[:, 2]
+        v = h[:, 1] / h[:, 2]
+    # in front of the camera: the plate point's depth
+    depth = A[2, 0] * u + A[2, 1] * v + A[2, 2]
+    u = np.where(np.isfinite(u) & (depth > 0), u, -1e6)
+    return _sample(pl.image, u, np.where(np.isfinite(v), v, -1e6)).reshape(*shape, pl.image.shape[2])
 
 
 def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Bilinear samples of an (h, w, 3) float32 image at pixel positions x, y (any shape); (n, 3), NaN outside.
+    """Bilinear samples of an (h, w, 3) image at pixel positions x, y (any shape); (n, 3) float32, NaN outside.
 
     (``cv2.remap`` takes maps of fewer than 32767 rows: the points are laid out 1024 a row.)
     """
@@ -467,8 +514,12 @@ def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     pad = (-n) % cols
     mx = np.concatenate([x, np.full(pad, -1e6, np.float32)]).reshape(-1, cols)
     my = np.concatenate([y, np.full(pad, -1e6, np.float32)]).reshape(-1, cols)
-    out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(np.nan,) * 3)
-    return out.reshape(-1, img.shape[2])[:n]
+    out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    out = out.reshape(-1, img.shape[2] if img.ndim == 3 else 1)[:n].astype(np.float32)
+    h, w = img.shape[:2]
+    outside = ~((x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1))
+    out[outside] = np.nan
+    return out
 
 
 def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float, rim: np.ndarray | None = None):
@@ -494,12 +545,17 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
     k = len(q)
     if k == 0:
         return np.zeros(0)
-    m = int(np.ceil(half_px / STEP_PX))
-    u = np.arange(-m - 8, m + 9) * STEP_PX  # a margin for the derivative and the part's side
+    # coarse to fine: a wide search at a coarse step on a smaller photo (the pyramid's level
+    # whose pixel is about the step), the narrow band at STEP_PX on the photo itself
+    st = max(STEP_PX, half_px / COARSE_SAMPLES)
+    level = 0 if st < 1.5 else 1 if st < 3.0 else 2
+    m = int(np.ceil(half_px / st))
+    u = np.arange(-m - 8, m + 9) * st  # a margin for the derivative and the part's side
     pts = q[:, None, :] + u[None, :, None] * n[:, None, :]
     ph = _distort(data.camera, pts).astype(np.float32)
-    H, W = data.photo.shape[:2]
-    I = _sample(data.photo, ph[..., 0], ph[..., 1]).reshape(k, len(u), 3)
+    img = data.level(level)
+    f = 0.5**level
+    I = _sample(img, (ph[..., 0] + 0.5) * f - 0.5, (ph[..., 1] + 0.5) * f - 0.5).reshape(k, len(u), 3)
     P = _plate_colour(data, pts)
     # beyond the plate: the table, one colour (the photo's median there)
     off = ~np.isfinite(P).all(axis=2)
@@ -513,15 +569,18 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
     a, b = np.ones(3), np.zeros(3)
     if len(Io) > 20:
         for c in range(3):
-            A = np.stack([Po[:, c], np.ones(len(Po))], axis=1)
+            A = np.stack([Po[:, min(c, Po.shape[1] - 1)], np.ones(len(Po))], axis=1)
             sol, *_ = np.linalg.lstsq(A, Io[:, c], rcond=None)
             if np.isfinite(sol).all() and sol[0] > 0.05:
                 a[c], b[c] = sol
     pred = np.where(off[..., None], table, P * a + b)
     # a local gain per profile (shading, vignetting): bright plate samples beyond the edge
+    # (least squares over them: a median per profile cost a tenth of a second at 12 Mpx)
+    pm, im = pred.mean(axis=2), I.mean(axis=2)
+    use = (pm > 60) & outer[None] & np.isfinite(im) & np.isfinite(pm)
+    pm, im = np.where(use, pm, 0.0), np.where(use, im, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where((pred.mean(axis=2) > 60) & outer[None], I.mean(axis=2) / pred.mean(axis=2), np.nan)
-        g = np.nanmedian(np.where(np.isfinite(ratio), ratio, np.nan), axis=1) if k else np.zeros(0)
+        g = (pm * im).sum(axis=1) / (pm * pm).sum(axis=1)
     g = np.where(np.isfinite(g), np.clip(g, 0.6, 1.4), 1.0)
     e = I - g[:, None, None] * pred
     if rim is not None:
@@ -532,7 +591,9 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
         rim_ok = np.ones(k, bool)
     r = np.linalg.norm(e, axis=2)
     s = np.full(k, np.nan)
-    noise = np.nanmedian(r[:, outer]) if outer.any() else 5.0
+    ro = r[:, outer]
+    ro = ro[np.isfinite(ro)]
+    noise = np.median(ro) if len(ro) else 5.0
     tau = max(20.0, 4.0 * float(noise) if np.isfinite(noise) else 20.0)
     rr = np.where(np.isfinite(r), r, 0.0)
     bad = rr >= tau
@@ -586,8 +647,8 @@ def measure_edges(data: PhotoData, q: np.ndarray, n: np.ndarray, half_px: float,
     with np.errstate(invalid="ignore", divide="ignore"):
         frac = np.where(den < 0, 0.5 * (y0 - y2) / den, 0.0)
     frac = np.clip(frac, -1, 1)
-    ok &= y1 > 0.3 * D * 2 * STEP_PX  # a real step, not noise (a step of D rises by D over the blur)
-    s[ok] = (u[j] + frac * STEP_PX)[ok]
+    ok &= y1 > 0.3 * D * min(1.0, 2 * st)  # a real step, not noise (a step of D falls by D over the blur)
+    s[ok] = (u[j] + frac * st)[ok]
     s[np.abs(s) > half_px] = np.nan
     return s
 
@@ -736,7 +797,7 @@ def estimate_seating(
             halves[k] = max(6.0, min(halves[k], 2.0 * px + 6.0))
             # the part's z-buffer (about 1000 px across) is redrawn only while the part moves
             zbuf[k]["reuse"] = px < 0.5
-        if max(moved, default=0.0) < 0.02 and it >= 3:
+        if max(moved, default=0.0) < 0.05 and it >= 2:
             break
     info = H / max(sigma_px, 0.05) ** 2
     return _seating(R, t, c, rho, info, plate_mm, undetermined_mm, V, n_used, sigma_px)

@@ -82,8 +82,8 @@ def add_parser(sub) -> None:
         hi=1000,
         unit="mm",
         default=2.0,
-        help="a part seated farther than this from its outline (any vertex) is a warning: it was not set in its "
-        "outline (default 2)",
+        help="a part whose centre sits farther than this from where the fixture puts it is a warning: it was not set "
+        "in its outline (not a film fault; default 2)",
     )
     p.add_argument(
         "--jobs",

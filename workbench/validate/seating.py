@@ -56,7 +56,7 @@ SEARCH_MM = 4.0
 STEP_PX = 0.5
 COARSE_SAMPLES = 24
 # the plate's contact, as a measurement: the part rests on it (no lift, no tilt) to this, mm
-PLATE_MM = 0.01
+PLATE_MM = 0.002
 # the motion's out-of-plane terms: rotation about x and y (times rho), translation along z
 OUT_OF_PLANE = (0, 1, 5)
 # the least difference (RGB, 0-255) between the print at the rim and the plate beside it
@@ -876,11 +876,11 @@ def largest_displacement(V: np.ndarray, R: np.ndarray, t: np.ndarray) -> float:
 def seating_entry(seat: Seating, V: np.ndarray, max_seating_mm: float) -> dict:
     """validation.json's ``seating``: the motion, its uncertainty, what is undetermined, and the warning."""
     out = seat.to_dict()
-    moved = largest_displacement(V, seat.R, seat.t)
-    out["largest_vertex_motion_mm"] = moved
+    out["largest_vertex_motion_mm"] = largest_displacement(V, seat.R, seat.t)
     out["max_seating_mm"] = float(max_seating_mm)
+    moved = float(np.linalg.norm(out["offset_mm"]))
     out["warning"] = (
-        f"the part was not set in its outline: it sits up to {moved:.2f} mm from where the fixture puts it "
+        f"the part was not set in its outline: its centre sits {moved:.2f} mm from where the fixture puts it "
         f"(more than {max_seating_mm:g} mm); the film is judged on the part where it sits"
         if moved > max_seating_mm
         else None

@@ -272,6 +272,35 @@ def test_the_face_mask_is_seated_within_its_share_of_its_size(tmp_path):
     assert vertex_error_mm(face, s, p) <= 0.00035 * size
 
 
+@pytest.mark.parametrize("part", ["cow", "fandisk"])
+def test_real_meshes_of_the_corpus_are_seated(tmp_path, part):
+    """Two real parts of the validate corpus (a scanned animal, a CAD part with creases), 120 mm."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location("validate_corpus", ROOT / "benchmarks" / "validate_corpus.py")
+    vc = sys.modules.get("validate_corpus") or importlib.util.module_from_spec(spec)
+    if "validate_corpus" not in sys.modules:
+        sys.modules["validate_corpus"] = vc
+        spec.loader.exec_module(vc)
+    d = tmp_path / "design"
+    assert (
+        main(["design", str(ROOT / "tests" / "data" / "validate_corpus" / part / "job.toml"), "--out", str(d), "-q"])
+        == 0
+    )
+    des = Design(d)
+    az, el = vc.view_direction(part, "top")
+    orbit = vc.photo_orbit(d, az, el, SIZE, 0)
+    p = render(
+        des, tmp_path / "moved.png", "--part-offset-mm", "1.2,-0.8", "--part-rotation-deg", "0,0,0.7",
+        f"--fov-deg={orbit[3]:g}", orbit=f"{orbit[0]:g},{orbit[1]:g},{orbit[2]:.1f}",
+    )  # fmt: skip
+    status, report = validate(des, [p], tmp_path / "out", "--view", "top")
+    s = report["photos"][0]["seating"]
+    assert s["undetermined"] == []
+    assert vertex_error_mm(des, s, p) <= 0.05
+
+
 @pytest.mark.slow
 def test_seating_at_12_mpx(design, tmp_path):
     p = render(design, tmp_path / "big.jpg", "--part-offset-mm", "1.5,-1.0", "--part-rotation-deg", "0,0,0.8",

@@ -235,16 +235,35 @@ class Plate:
     corner_px: tuple = (0, 0)
 
 
-def plate_model(fixture: dict, px_per_mm: float, around=None, blur_px: float = BLUR_PX) -> Plate:
+def plate_model(fixture: dict, px_per_mm: float, around=None, blur_px: float = BLUR_PX, drawn=None) -> Plate:
     """The plate as a photo of ``px_per_mm`` (on the plate) and ``blur_px`` sees it.
 
     ``around``: (x0, y0, x1, y1) in the mesh frame, mm: only that part of the plate (where the
-    part's outline can be) is drawn and blurred.
+    part's outline can be) is drawn and blurred. ``drawn``: a dict that keeps the drawing
+    (unblurred) for the next call with another blur.
 
     The board image the renderer draws (:func:`workbench.render.photo.board_texture`),
     at about twice the photo's scale, blurred with the photo's blur and its pixel's
     footprint (a box of 1 px: variance 1/12).
     """
+    from workbench.render.photo import PLATE_MARGIN_MM
+
+    key = (round(float(px_per_mm), 3), None if around is None else tuple(np.round(around, 3)))
+    if drawn is not None and key in drawn:
+        img, ppm, origin, corner = drawn[key]
+    else:
+        img, ppm, origin, corner = _draw_plate(fixture, px_per_mm, around)
+        if drawn is not None:
+            drawn[key] = (img, ppm, origin, corner)
+    sigma = np.sqrt(blur_px**2 + 1.0 / 12.0) * ppm / px_per_mm
+    img = cv2.GaussianBlur(img, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+    if img.ndim == 2:
+        img = img[..., None]
+    return Plate(img, ppm, PLATE_MARGIN_MM, origin, corner)
+
+
+def _draw_plate(fixture: dict, px_per_mm: float, around):
+    """The plate's image (float32, one channel without a colour chart nearby), its px/mm, origin and corner."""
     from workbench.render.photo import PLATE_MARGIN_MM, board_texture
 
     # drawn at an even number of pixels per mm, at least twice the photo's (whole pixels for
@@ -274,12 +293,8 @@ def plate_model(fixture: dict, px_per_mm: float, around=None, blur_px: float = B
         i1 = int(np.clip(np.ceil((origin[1] - y0 + PLATE_MARGIN_MM) * ppm) + 1, i0 + 1, img.shape[0]))
         img = img[i0:i1, j0:j1]
     if fixture.get("colour_chart") is None:
-        img = img[..., :1]  # black and white: one channel
-    sigma = np.sqrt(blur_px**2 + 1.0 / 12.0) * ppm / px_per_mm
-    img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
-    if img.ndim == 2:
-        img = img[..., None]
-    return Plate(img, ppm, PLATE_MARGIN_MM, origin, (j0, i0))
+        img = img[..., 0]  # black and white: one channel
+    return np.ascontiguousarray(img, dtype=np.float32), ppm, origin, (j0, i0)
 
 
 def print_reference(flat_mm: np.ndarray, height_mm: float, rgb: np.ndarray, dpi: float, px_per_mm: float = 4.0):
@@ -360,7 +375,8 @@ def prepare(photo_rgb: np.ndarray, camera: Camera, fixture: dict, V: np.ndarray,
         if cache is not None and key in cache:
             model = cache[key]
         else:
-            model = plate_model(fixture, px_per_mm, around, blur)
+            drawn = cache.setdefault("seating plate drawings", {}) if cache is not None else {}
+            model = plate_model(fixture, px_per_mm, around, blur, drawn)
             if cache is not None:
                 cache[key] = model
         misfit = _plate_misfit(PhotoData(camera, photo, model), V, around)

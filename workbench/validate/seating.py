@@ -20,13 +20,18 @@ Method (model-based edge alignment, as in RAPiD / moving-edge trackers):
    kept where a z-buffer of the part says the part lies on one side and nothing of it on the
    other (so the far side is the plate);
 2. along each sample's image normal, the photo's profile against the plate's predicted
-   profile (the fixture's own board image, through the camera, blurred to the photo's
-   scale, with an affine gain per channel): where the photo stops looking like the plate is
-   the part's edge; the decoration's own edges lie inside it and are never taken (the
-   outermost departure from the plate is), the board's edges are in the prediction;
+   profile (the fixture's own board image through the camera, at the photo's scale and at
+   the blur that best predicts the photo's plate, with an affine gain per channel; beyond
+   the plate, the table as one colour): where the photo stops looking like the plate is the
+   part's edge; the decoration's own edges lie inside it and are never taken (the outermost
+   departure from the plate is; samples where the print's rim colour is the plate's, or
+   where the photo inside the edge is not the rim's colour, are dropped), the board's edges
+   are in the prediction;
 3. the edge to sub-pixel by the peak of the residual's derivative along the normal;
 4. Gauss-Newton over the 6-DoF motion on the samples' normal distances, Tukey-weighted,
-   long profiles first, then a narrow band; all photos of one part in one system.
+   a wide search at a coarse step on a halved photo first, then a narrow band at half a
+   pixel, with the plate's contact as a prior (:data:`PLATE_MM`); several photos of one part
+   in one system (:func:`estimate_seating`) or combined by their information (:func:`fuse`).
 
 Observability: the Gauss-Newton normal matrix, in units of vertex displacement (rotations
 scaled by the part's RMS radius), gives each direction of motion a standard deviation; a

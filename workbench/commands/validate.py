@@ -68,6 +68,24 @@ def add_parser(sub) -> None:
         help=f"largest accepted local defect, area on the print in mm² (default {MAX_DEFECT_MM2:g})",
     )
     p.add_argument(
+        "--seating",
+        choices=("on", "off"),
+        default="on",
+        help="on (default): measure the part's own pose on its plate from its outline in each photo and judge the "
+        "film on the part where it sits; off: the part is where the fixture puts it (a fixture that clamps it)",
+    )
+    p.add_argument(
+        "--max-seating-mm",
+        action=Number,
+        lo=0,
+        lo_open=True,
+        hi=1000,
+        unit="mm",
+        default=2.0,
+        help="a part whose centre sits farther than this from where the fixture puts it is a warning: it was not set "
+        "in its outline (not a film fault; default 2)",
+    )
+    p.add_argument(
         "--jobs",
         action=Number,
         lo=0,
@@ -193,17 +211,41 @@ def usable_profile(path: Path):
 
 
 def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None, dict]:
-    photo, stem, view, tolerance_mm, max_defect_mm2 = job
+    photo, stem, view, tolerance_mm, max_defect_mm2, seat = job
     return _timed(
-        Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, max_defect_mm2
-    )
+        Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, max_defect_mm2,
+        seat,
+    )  # fmt: skip
 
 
-def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2):
+def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat=("on", 2.0)):
     t0 = time.perf_counter()
-    entry, pics, state, pages = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2)
+    entry, pics, state, pages = validate_photo(
+        path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat[0], seat[1]
+    )
     entry["seconds"] = round(time.perf_counter() - t0, 3)
     return entry, pics, state, pages
+
+
+def part_seating(entries: list[dict], design: Design, mode: str, max_seating_mm: float) -> dict | None:
+    """The part's seating from all its photos (each photo's own stays in its entry); drops their normal matrices."""
+    from workbench.validate.seating import fuse, seating_entry
+
+    if mode == "off":
+        return {"mode": "off"}
+    seatings = [e.get("seating") for e in entries]
+    fused = fuse(seatings, design.V)
+    for s in seatings:
+        if s:
+            s.pop("_H", None)
+            s.pop("_rho", None)
+    if fused is None:
+        return None
+    seat, n = fused
+    out = {"source": f"all photos of the part ({n})", **seating_entry(seat, design.V, max_seating_mm)}
+    out.pop("contour_samples", None)
+    out.pop("contour_rms_px", None)
+    return out
 
 
 def run(args) -> int:
@@ -235,11 +277,13 @@ def run(args) -> int:
     check_output_dir(out, inputs)
     check_outputs(out / "validation.json", out / "qa_report.pdf", inputs=inputs)
     stems = output_stems(photos)
-    work = [(p, stem, args.view, args.tolerance_mm, args.max_defect_mm2) for p, stem in zip(photos, stems, strict=True)]
+    seat = (args.seating, args.max_seating_mm)
+    judge = (args.view, args.tolerance_mm, args.max_defect_mm2, seat)
+    work = [(p, stem, *judge) for p, stem in zip(photos, stems, strict=True)]
     if jobs > 1:
         results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
-        results = (_timed(Path(p), design, profile, v, t, cache, stem, m) for p, stem, v, t, m in work)
+        results = (_timed(Path(p), design, profile, v, t, cache, stem, m, st) for p, stem, v, t, m, st in work)
     pages: dict = {}
     for photo, (entry, pics, state, shown) in zip(photos, results, strict=True):
         entry["photo"] = recorded_path(photo, out)  # relative to the report's folder, beside its sha256
@@ -258,6 +302,7 @@ def run(args) -> int:
     if grid is None and any(s is not None for s in states):
         grid = dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
     part, combined, part_defects = part_summary(states, grid, names, entries)
+    part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm)
     if combined is not None:
         files[out / "coverage_print.png"] = pictures.coverage_figure(
             combined,

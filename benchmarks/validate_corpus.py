@@ -532,7 +532,8 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
             for m in res.get("match", [])
         )
         limit = json.dumps(res.get("detection_limit")) if res.get("detection_limit") else ""
-        reason = (res.get("reason") or res.get("why") or "").replace("|", "/")
+        reason = res.get("reason") or res.get("why") or ""
+        reason = ("; ".join(map(str, reason)) if isinstance(reason, list) else str(reason)).replace("|", "/")
         lines.append(
             f"| {p.id} | {art.get((p.part, p.view), '')} | {res.get('verdict', '')} | {res.get('outcome', '')} | "
             f"{found} | {truth} | {err} | {limit} | {reason} |"

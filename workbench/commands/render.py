@@ -166,6 +166,17 @@ def add_parser(sub) -> None:
         help="a coloured light: linear gains per channel on the whole scene, e.g. 1.1,1,0.85 (warm)",
     )
     g.add_argument(
+        "--part-offset-mm",
+        metavar="X,Y[,Z]",
+        help="the part set down off its outline: its centre (the bounding box's) moved by this on the plate, mesh "
+        "frame, mm (the truth is in PHOTO.json's part_pose: X_photo = R X_design + t)",
+    )
+    g.add_argument(
+        "--part-rotation-deg",
+        metavar="RX,RY,RZ",
+        help="the part turned about its centre by RX, RY, RZ degrees about the mesh frame's axes (R = Rz Ry Rx)",
+    )
+    g.add_argument(
         "--seed",
         action=Number,
         lo=0,
@@ -186,7 +197,18 @@ LIMITS = {
     "--light": {"lo": -1e6, "hi": 1e6},
     "--colour-shift-lab": {"lo": -50, "hi": 50},
     "--white-balance": {"lo": 0.1, "hi": 10},
+    "--part-offset-mm": {"lo": -1000, "hi": 1000, "unit": "mm"},
+    "--part-rotation-deg": {"lo": -360, "hi": 360, "unit": "degrees"},
 }
+
+
+def _part_offset(text: str | None) -> tuple | None:
+    """``X,Y`` or ``X,Y,Z`` mm (Z 0 when not given)."""
+    if text is None:
+        return None
+    n = len(str(text).split(","))
+    vals = _floats(text, 3 if n == 3 else 2, "--part-offset-mm")
+    return tuple(vals) + (0.0,) * (3 - len(vals))
 
 
 def _floats(text: str | None, n: int, flag: str) -> tuple | None:
@@ -258,6 +280,8 @@ def imperfections_from(args) -> Imperfections:
         "jpeg_quality": args.jpeg_quality,
         "colour_shift_lab": _floats(args.colour_shift_lab, 3, "--colour-shift-lab"),
         "white_balance": _floats(args.white_balance, 3, "--white-balance"),
+        "part_offset_mm": _part_offset(args.part_offset_mm),
+        "part_rotation_deg": _floats(args.part_rotation_deg, 3, "--part-rotation-deg"),
     }
     kw.update({k: v for k, v in pairs.items() if v is not None})
     kw["seed"] = args.seed
@@ -423,6 +447,7 @@ def truth(
         "imperfections": imp.to_dict(),
         # each defect's centre and area in print mm: what validate must find
         "defects": [Defect.parse(d).truth() for d in imp.defects],
+        "part_pose": part_pose(imp, design),
         "source": source,
         # relative to the folder of PHOTO.json, as every recorded path
         "design": {
@@ -432,6 +457,21 @@ def truth(
         },
         "software": {"name": "workbench", "version": __version__},
         **({"renderer": renderer} if renderer else {}),
+    }
+
+
+def part_pose(imp: Imperfections, design: Design) -> dict:
+    """Where the part sits on its plate: ``X_photo = R X_design + t`` (mesh frame, mm), and the motion's terms."""
+    from workbench.validate.seating import part_centre, part_motion
+
+    c = part_centre(design.V)
+    R, t = part_motion(imp.part_offset_mm, imp.part_rotation_deg, c)
+    return {
+        "R": R.tolist(),
+        "t_mm": t.tolist(),
+        "offset_mm": list(imp.part_offset_mm),
+        "rotation_deg": list(imp.part_rotation_deg),
+        "centre_mm": c.tolist(),
     }
 
 

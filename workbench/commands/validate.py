@@ -85,6 +85,24 @@ def add_parser(sub) -> None:
         "is the design's colours as that press prints them (default: the design's sRGB as it is)",
     )
     p.add_argument(
+        "--seating",
+        choices=("on", "off"),
+        default="on",
+        help="on (default): measure the part's own pose on its plate from its outline in each photo and judge the "
+        "film on the part where it sits; off: the part is where the fixture puts it (a fixture that clamps it)",
+    )
+    p.add_argument(
+        "--max-seating-mm",
+        action=Number,
+        lo=0,
+        lo_open=True,
+        hi=1000,
+        unit="mm",
+        default=2.0,
+        help="a part whose centre sits farther than this from where the fixture puts it is a warning: it was not set "
+        "in its outline (not a film fault; default 2)",
+    )
+    p.add_argument(
         "--jobs",
         action=Number,
         lo=0,
@@ -226,18 +244,43 @@ def usable_profile(path: Path):
 
 
 def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None, dict]:
-    photo, stem, view, tolerance_mm, limits = job
+    photo, stem, view, tolerance_mm, max_defect_mm2, seat, colour = job
     return _timed(
-        Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, limits
-    )
+        Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, max_defect_mm2,
+        seat, colour,
+    )  # fmt: skip
 
 
-def _timed(path, design, profile, view, tolerance_mm, cache, stem, limits):
-    """:func:`validate_photo`, timed; ``limits``: (max_defect_mm2, max_delta_e, output_profile bytes or None)."""
+def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat=("on", 2.0), colour=None):
+    """:func:`validate_photo`, timed; ``colour``: (max_delta_e, the soft proof's output profile bytes or None)."""
+    max_delta_e, proof = colour or (MAX_DELTA_E, None)
     t0 = time.perf_counter()
-    entry, pics, state, pages = validate_photo(path, design, profile, view, tolerance_mm, cache, stem, *limits)
+    entry, pics, state, pages = validate_photo(
+        path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat[0], seat[1], max_delta_e, proof
+    )
     entry["seconds"] = round(time.perf_counter() - t0, 3)
     return entry, pics, state, pages
+
+
+def part_seating(entries: list[dict], design: Design, mode: str, max_seating_mm: float) -> dict | None:
+    """The part's seating from all its photos (each photo's own stays in its entry); drops their normal matrices."""
+    from workbench.validate.seating import fuse, seating_entry
+
+    if mode == "off":
+        return {"mode": "off"}
+    seatings = [e.get("seating") for e in entries]
+    fused = fuse(seatings, design.V)
+    for s in seatings:
+        if s:
+            s.pop("_H", None)
+            s.pop("_rho", None)
+    if fused is None:
+        return None
+    seat, n = fused
+    out = {"source": f"all photos of the part ({n})", **seating_entry(seat, design.V, max_seating_mm)}
+    out.pop("contour_samples", None)
+    out.pop("contour_rms_px", None)
+    return out
 
 
 def run(args) -> int:
@@ -273,12 +316,13 @@ def run(args) -> int:
     check_outputs(out / "validation.json", out / "qa_report.pdf", inputs=inputs)
     proof = read_output_profile(output_profile) if output_profile else None
     stems = output_stems(photos)
-    limits = (args.max_defect_mm2, args.max_delta_e, proof)
-    work = [(p, stem, args.view, args.tolerance_mm, limits) for p, stem in zip(photos, stems, strict=True)]
+    seat = (args.seating, args.max_seating_mm)
+    judge = (args.view, args.tolerance_mm, args.max_defect_mm2, seat, (args.max_delta_e, proof))
+    work = [(p, stem, *judge) for p, stem in zip(photos, stems, strict=True)]
     if jobs > 1:
         results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
-        results = (_timed(Path(p), design, profile, v, t, cache, stem, m) for p, stem, v, t, m in work)
+        results = (_timed(Path(p), design, profile, v, t, cache, stem, m, st, c) for p, stem, v, t, m, st, c in work)
     pages: dict = {}
     for photo, (entry, pics, state, shown) in zip(photos, results, strict=True):
         entry["photo"] = recorded_path(photo, out)  # relative to the report's folder, beside its sha256
@@ -297,6 +341,7 @@ def run(args) -> int:
     if grid is None and any(s is not None for s in states):
         grid = dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
     part, combined, part_defects = part_summary(states, grid, names, entries)
+    part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm)
     if combined is not None:
         files[out / "coverage_print.png"] = pictures.coverage_figure(
             combined,

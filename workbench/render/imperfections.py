@@ -64,6 +64,14 @@ class Imperfections:
         profile or press): the truth for colour QA.
     white_balance : (3,) float
         Linear gains per channel on the whole scene (part and fixture alike): a coloured light.
+
+    The part on its plate (:mod:`workbench.validate.seating` defines the motion):
+
+    part_offset_mm : (3,) float
+        The part's centre (its bounding box's centre) moved by this, mesh frame, mm.
+    part_rotation_deg : (3,) float
+        The part turned about its centre by (rx, ry, rz): ``R = Rz Ry Rx``, about the mesh
+        frame's axes. A design point X is then at ``R X + t``.
     """
 
     film_offset_mm: tuple[float, float] = (0.0, 0.0)
@@ -87,6 +95,8 @@ class Imperfections:
     defects: tuple = ()
     colour_shift_lab: tuple[float, float, float] = (0.0, 0.0, 0.0)
     white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    part_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    part_rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self):

@@ -59,17 +59,16 @@ def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
-def board_texture(definition: dict) -> tuple[np.ndarray, float]:
+def board_texture(definition: dict, ppm: float = BOARD_PX_PER_MM) -> tuple[np.ndarray, float]:
     """The fixture's board as an image with a white margin, and its pixels per mm.
 
-    At 20 px/mm the squares, and the markers' offsets in them, are whole pixels for
+    At 20 px/mm (the default) the squares, and the markers' offsets in them, are whole pixels for
     sizes in 0.05 mm steps, so OpenCV draws every ChArUco and marker corner exactly.
     """
     from workbench.printing.boards import CharucoSpec
 
     spec = CharucoSpec.from_definition(definition)
     bw, bh = spec.size_mm
-    ppm = BOARD_PX_PER_MM
     img = spec.opencv().generateImage((int(round(bw * ppm)), int(round(bh * ppm))), marginSize=0, borderBits=1)
     m = int(round(PLATE_MARGIN_MM * ppm))
     extra = int(round(plate_extension_mm(definition) * ppm))
@@ -171,6 +170,12 @@ def build_scene(
         # the film shows, at print point p, what should be at p - d
         q[vertex_film == film - 1] -= [dx, dy]
     uv = q * ppm - 0.5
+    if any(imp.part_offset_mm) or any(imp.part_rotation_deg):
+        # the part set down off its outline: every point of it moved rigidly, the plate not
+        from workbench.validate.seating import part_centre, part_motion
+
+        Rp, tp = part_motion(imp.part_offset_mm, imp.part_rotation_deg, part_centre(V))
+        V = V @ Rp.T + tp
     normals = vertex_normals(V, F)
     if any(imp.colour_shift_lab):
         print_rgb = shift_colours(print_rgb, imp.colour_shift_lab)

@@ -94,6 +94,8 @@ def validate_photo(
     cache,
     stem: str | None = None,
     max_defect_mm2: float = MAX_DEFECT_MM2,
+    seating="on",
+    max_seating_mm: float = 2.0,
     max_delta_e: float = MAX_DELTA_E,
     output_profile: bytes | None = None,
 ) -> tuple[dict, dict, np.ndarray | None, dict]:
@@ -101,6 +103,9 @@ def validate_photo(
 
     ``profile`` is the camera profile, or the reason it cannot be used (every photo is then INVALID).
     ``output_profile``: the ICC profile the colour's soft proof goes through (None: the design's sRGB).
+    ``seating``: ``"on"`` measures the part's motion on its plate from this photo
+    (:mod:`workbench.validate.seating`) and judges the film on the part where it sits, ``"off"``
+    takes the part where the fixture puts it, an ``(R, t)`` pair is a motion measured already.
 
     Returns
     -------
@@ -154,6 +159,18 @@ def validate_photo(
             f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"
         )
         return entry, files, None, {}
+    clock.append(time.perf_counter())  # pose
+    if seating == "off":
+        entry["seating"] = {"mode": "off"}
+    else:
+        # the part's own pose on the plate: the camera composed with it sees the design where the part is
+        from workbench.validate.seating import seat_photo, seated_camera
+
+        seat, entry["seating"] = seat_photo(
+            photo, pose.camera, design, cache, max_seating_mm, None if isinstance(seating, str) else seating
+        )
+        pose.camera = seated_camera(pose.camera, seat.R, seat.t)
+    clock.append(time.perf_counter())  # seating
     # one z-buffer of the part in the photo: for this check and for both warps
     face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
     hidden = markers_under_the_part(pose, design, face_buffer)
@@ -180,7 +197,7 @@ def validate_photo(
         )
         cache[vi] += (printed_view(cache[vi][0], design.rgb, p["dpi"] / 25.4, cache[vi][1]),)
     surface, view_rgb = cache[vi][:2]
-    clock.append(time.perf_counter())  # pose
+    clock.append(time.perf_counter())  # checks and the view
     warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
     p = design.info["print"]
     clock.append(time.perf_counter())  # warps
@@ -298,7 +315,10 @@ def validate_photo(
         files[f"{stem}_colour_print.png"] = png_bytes(shown_de, compression=1)
         pages[f"{stem}_colour_print.png"] = page_picture(Image.fromarray(shown_de))
     clock.append(time.perf_counter())  # pictures
-    stages = ("pose", "view warp", "tiles", "print warp", "dense analysis", "colour", "figures and verdict", "pictures")
+    stages = (
+        *("pose", "seating", "checks and view", "view warp", "tiles", "print warp"),
+        *("dense analysis", "colour", "figures and verdict", "pictures"),
+    )
     entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
     # a photo at fault says nothing of the part's print: neither its coverage nor its defects count
     return entry, files, None if entry["photo_quality"]["problems"] else dr.state, pages

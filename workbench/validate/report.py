@@ -359,6 +359,8 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
     from reportlab.lib.utils import ImageReader
     from reportlab.pdfgen import canvas as rl_canvas
 
+    from workbench.validate.seating import seating_text
+
     pages = pages or {}
     buf = io.BytesIO()
     c = rl_canvas.Canvas(buf, pagesize=A4, invariant=1, pageCompression=1)
@@ -378,7 +380,8 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
         f"print.png sha256 {report['design']['print_sha256']}",
         f"camera profile {report['camera_profile']['file']}  sha256 {report['camera_profile']['sha256']}",
     ]
-    for line in ids:
+    part_seat = (report.get("part") or {}).get("seating")
+    for line in ids + ([f"the part: {seating_text(part_seat)}"[:170]] if part_seat else []):
         c.drawString(20 * mm, y, line)
         y -= 4.2 * mm
     y -= 4 * mm
@@ -412,6 +415,9 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
         y -= 4 * mm
         c.setFont("Helvetica-Oblique", 7)
         c.drawString(24 * mm, y, f"{e['reason']}  (photo sha256 {e.get('sha256', '?')[:16]})"[:150])
+        if e.get("seating"):
+            y -= 3.6 * mm
+            c.drawString(24 * mm, y, seating_text(e["seating"])[:170])
         c.setFont("Helvetica", 8)
         if y < 30 * mm:
             c.showPage()

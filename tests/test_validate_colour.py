@@ -81,7 +81,8 @@ def truth(design, photo_path, entry, shift):
     on_print, state, scale, footprint = dense.warp_to_print(photo, cam, grid, design.V, design.F, depth)
     dr = dense.analyse(grid, on_print, state, 0.5, scale, footprint)
     again, de_map = col.photo_colour(photo, cam, design, grid, on_print, dr.state, footprint, depth)
-    assert again["delta_e00"]["mean"] == entry["colour"]["delta_e00"]["mean"]  # the same pixels as validate's
+    # nearly the same pixels as validate's: validate also seats the part on its plate (a hair's motion here)
+    assert again["delta_e00"]["mean"] == pytest.approx(entry["colour"]["delta_e00"]["mean"], abs=0.05)
     lab = col.linear_srgb_to_lab(col.srgb_decode(grid.reference / 255.0))
     drifted = col.linear_srgb_to_lab(col.srgb_decode(shift_colours(grid.reference, shift) / 255.0))
     de = col.delta_e00(lab, drifted)[np.isfinite(de_map)]

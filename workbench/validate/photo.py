@@ -34,7 +34,6 @@ from workbench.validate.score import (
     warp_photo,
 )
 
-
 # the smallest seating applied: twice what the seating is specified to measure a vertex to (0.05 mm,
 # or 0.035 % of a part larger than 150 mm)
 SEATING_MIN_MM = 0.1

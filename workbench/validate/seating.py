@@ -964,6 +964,8 @@ def seating_text(s: dict | None) -> str:
     )
     if s.get("undetermined"):
         line += "; undetermined, held at zero: " + ", ".join(u["motion"] for u in s["undetermined"])
+    if s.get("applied") is False:
+        line += f"; under {s['min_applied_mm']:g} mm a vertex, within what seating measures: not applied"
     if s.get("warning"):
         line += "; WARNING: " + s["warning"]
     return line

@@ -1013,7 +1013,9 @@ def analyse(
     # to it (glare), never takes it away; where the window's design has contrast, a local gain
     # that collapses against the photo's own is the decoration painted over, covered or torn
     # off, which the fit would otherwise absorb into its offset
-    lost = texture_lost(gain, contrast, seen & ~sat)
+    determined = contrast >= LOST_MIN_CONTRAST
+    g0 = photo_gain(gain, determined, seen & ~sat)
+    lost = texture_lost(gain, determined, seen & ~sat, g0)
     # glare: light added to every channel over a broad area, beyond the window's offset
     white = gain * np.float32(255.0) + offset  # the film's white as the photo would show it here
     # (the exposure fit's window is larger than any defect it must find, so a broad glare goes
@@ -1119,7 +1121,6 @@ def analyse(
     if lost.any():
         # judged against the design at the photo's own gain: the fit's collapsed gain would
         # have explained the lost texture away
-        g0 = photo_gain(gain, contrast >= LOST_MIN_CONTRAST, seen & ~sat)
         local_mean = cv2.GaussianBlur(moved, (0, 0), EXPOSURE_SIGMA_PX)
         res_lost = _residual(pho, pred + (g0 - gain) * (moved - local_mean))
         beyond = (lost & colour_scored & ~glossed & (res_lost > colour_limit)).astype(np.uint8)
@@ -1311,29 +1312,28 @@ def photo_gain(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray) -> 
     return out
 
 
-def texture_lost(gain: np.ndarray, contrast: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+def texture_lost(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray, g0: np.ndarray | None) -> np.ndarray:
     """Where the photo has lost the design's texture: the local gain collapsed where it is determined.
 
     Parameters
     ----------
-    gain, contrast : (H, W, 3) float32
-        The exposure fit's local gain and the design's contrast in its window
-        (:func:`exposure_fit`).
+    gain : (H, W, 3) float32
+        The exposure fit's local gain (:func:`exposure_fit`).
+    determined : (H, W, 3) bool
+        Where each channel's window holds at least LOST_MIN_CONTRAST of the design's contrast.
     fitted : (H, W) bool
         The pixels the photo shows and the fit may use.
+    g0 : (3,) float or None
+        The photo's own gain (:func:`photo_gain`); None: nothing determines it.
 
     Returns
     -------
     (H, W) bool
-        Pixels where every channel whose window holds at least LOST_MIN_CONTRAST of the
-        design's contrast has a gain below LOST_GAIN of the photo's median gain.
+        Pixels where every determined channel has a gain below LOST_GAIN of ``g0``.
     """
-    determined = contrast >= LOST_MIN_CONTRAST
-    g0 = photo_gain(gain, determined, fitted)
     if g0 is None:
         return np.zeros(fitted.shape, bool)
-    ratio = gain / g0
-    low = np.where(determined, ratio < LOST_GAIN, True).all(axis=2)
+    low = np.where(determined, gain / g0 < LOST_GAIN, True).all(axis=2)
     return fitted & determined.any(axis=2) & low
 
 
@@ -1465,7 +1465,7 @@ def light_or_ink(
     n, lab, st, _ = cv2.connectedComponentsWithStats(bad, connectivity=8)
     if n <= 1:
         return highlight, missing
-    k, s, fit_res = additive_light(photo, pred, light)
+    _, s, fit_res = additive_light(photo, pred, light)
     for r in range(1, n):
         x0, y0, w, h, _ = st[r]
         ys, xs = slice(y0, y0 + h), slice(x0, x0 + w)

@@ -10,6 +10,14 @@ REPORT_IMAGE_PX = 1200  # widest picture embedded in the report
 VERDICT_COLOURS = {"PASS": (0.1, 0.55, 0.2), "FAIL": (0.8, 0.1, 0.1), "INVALID": (0.55, 0.45, 0.1)}
 
 
+def draw_row(c, cols: list[float], cells: list[str], y: float) -> None:
+    """One row of a table: each cell at its column's x (mm from the left), at height y (points), in the current font."""
+    from reportlab.lib.units import mm
+
+    for x, v in zip(cols, cells, strict=True):
+        c.drawString(x * mm, y, v)
+
+
 def page_names(stem: str, view: str) -> list[str]:
     """The pictures on a photo's page, by file name, top to bottom."""
     return [f"{stem}_dense_print.png", f"{stem}_defects_photo.png", f"{stem}_defects_{view}.png"]
@@ -95,8 +103,7 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     if defects:
         cols = [20, 28, 46, 86, 108, 128, 150]
         heads = ["#", "kind", "position on the print (mm)", "area mm²", "view", "over limit", "photos"]
-        for x, h in zip(cols, heads, strict=True):
-            c.drawString(x * mm, y, h)
+        draw_row(c, cols, heads, y)
         c.setFont("Helvetica", 8)
         for k, d in enumerate(defects[:12]):
             y -= 4.2 * mm
@@ -112,8 +119,7 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
             ]
             if over:
                 c.setFillColorRGB(*VERDICT_COLOURS["FAIL"])
-            for x, v in zip(cols, row, strict=True):
-                c.drawString(x * mm, y, v)
+            draw_row(c, cols, row, y)
             c.setFillColorRGB(0, 0, 0)
         if len(defects) > 12:
             y -= 4.2 * mm
@@ -180,8 +186,7 @@ def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, b
     cols = [20, 66, 88, 104, 120, 136, 156, 172]
     heads = ["photo", "colour", "mean", "p95", "max", "chromatic", "chart fit", "shading"]
     c.setFont("Helvetica-Bold", 8)
-    for x, h in zip(cols, heads, strict=True):
-        c.drawString(x * mm, y, h)
+    draw_row(c, cols, heads, y)
     c.setFont("Helvetica", 8)
     for e in photos:
         y -= 5 * mm
@@ -202,8 +207,7 @@ def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, b
             f"{col['chart_fit_delta_e00']:.2f}",
             f"{100 * sh['share']:.0f} %" if sh.get("directional") else "none",
         ]
-        for x, v in zip(cols, row, strict=True):
-            c.drawString(x * mm, y, v)
+        draw_row(c, cols, row, y)
         if y < 30 * mm:
             c.showPage()
             c.setFont("Helvetica", 8)
@@ -265,8 +269,7 @@ def film_pages(c, report: dict, W: float, H: float) -> None:
         heads = ["photo", "tiles", "p95 mm", "offset mm (x, y)", "rotation °", "scale %"]
         y = H - 36 * mm
         c.setFont("Helvetica-Bold", 8)
-        for x, h in zip(cols, heads, strict=True):
-            c.drawString(x * mm, y, h)
+        draw_row(c, cols, heads, y)
         c.setFont("Helvetica", 8)
         for e in report["photos"]:
             f = next((f for f in e.get("films") or [] if f["name"] == name), None)
@@ -283,8 +286,7 @@ def film_pages(c, report: dict, W: float, H: float) -> None:
                 f"{f['rotation_deg']:+.3f}" if off else "",
                 f"{f['scale_pct']:+.3f}" if off else "",
             ]
-            for x, v in zip(cols, row, strict=True):
-                c.drawString(x * mm, y, v)
+            draw_row(c, cols, row, y)
             if y < 30 * mm:
                 c.showPage()
                 y = H - 20 * mm
@@ -311,8 +313,7 @@ def seam_page(c, report: dict, W: float, H: float) -> None:
     heads = ["photo", "films", "seen / seam mm", "mean mm", "max mm"]
     y = H - 36 * mm
     c.setFont("Helvetica-Bold", 8)
-    for x, h in zip(cols, heads, strict=True):
-        c.drawString(x * mm, y, h)
+    draw_row(c, cols, heads, y)
     c.setFont("Helvetica", 8)
     for e, s in rows:
         y -= 5 * mm
@@ -324,8 +325,7 @@ def seam_page(c, report: dict, W: float, H: float) -> None:
             f"{mis['mean']:.3f}" if mis else "not measured: " + ", ".join(s.get("unmeasured", [])),
             f"{mis['max']:.3f}" if mis else "",
         ]
-        for x, v in zip(cols, row, strict=True):
-            c.drawString(x * mm, y, v)
+        draw_row(c, cols, row, y)
         if y < 30 * mm:
             c.showPage()
             c.setFont("Helvetica", 8)
@@ -388,8 +388,7 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
     cols = [20, 62, 80, 98, 118, 134, 150, 172]
     heads = ["photo", "view", "verdict", "p95 mm", "max mm", "SSIM", "coverage", "film offset mm / rot"]
     c.setFont("Helvetica-Bold", 8)
-    for x, h in zip(cols, heads, strict=True):
-        c.drawString(x * mm, y, h)
+    draw_row(c, cols, heads, y)
     c.setFont("Helvetica", 8)
     for e in report["photos"]:
         y -= 5 * mm

@@ -288,11 +288,59 @@ def find_detection_limit(entry: dict) -> dict:
     return found
 
 
-def below_stated_limit(truth: list[dict], limit: dict) -> bool:
-    """Whether a true defect is under the detection limit validate states (an area or a bubble's slide).
+def footprint(t: dict, shape: tuple, px_per_mm: float) -> np.ndarray:
+    """A true defect's pixels on the print's analysis grid: a disc (bubble, dropout) or a stroke (scratch)."""
+    mask = np.zeros(shape, np.uint8)
+    s = 16  # cv2's sub-pixel drawing: coordinates in 1/16 px
+    if t["kind"] == "scratch":
+        a = np.rint((np.asarray(t["from_mm"]) * px_per_mm - 0.5) * s).astype(int)
+        b = np.rint((np.asarray(t["to_mm"]) * px_per_mm - 0.5) * s).astype(int)
+        cv2.line(mask, tuple(a), tuple(b), 1, max(1, int(round(t["width_mm"] * px_per_mm))), cv2.LINE_8, 4)
+    else:
+        c = np.rint((np.asarray(t["centre_mm"]) * px_per_mm - 0.5) * s).astype(int)
+        cv2.circle(mask, tuple(c), int(round(t["radius_mm"] * px_per_mm * s)), 1, -1, cv2.LINE_8, 4)
+    return mask.astype(bool)
 
-    Reads keys ending in ``min_area_mm2`` and ``min_shift_mm``; False when validate states none.
+
+def stated_limit(truth: list[dict], vdir: Path, report: dict, index: int = 0) -> list[dict] | None:
+    """Per true defect, whether validate states it can find it there (its ``detection.npz`` maps).
+
+    None when validate wrote no maps (an earlier validate, or a photo it could not score).
+    The rule is validate's own (:func:`workbench.validate.detection.above_limit`): missing ink
+    over at least 75 % of its footprint, a slide over at least 25 %, and the area found there
+    at least ``min_area_mm2``.
     """
+    from workbench.validate import detection
+
+    info = report.get("detection")
+    entry = report["photos"][index]
+    if not info or not (vdir / info["file"]).is_file() or "dense" not in entry:
+        return None
+    maps = np.load(vdir / info["file"])
+    if f"photo{index}_dropout" not in maps:
+        return None
+    limit, drop = maps[f"photo{index}_shift_limit_um"], maps[f"photo{index}_dropout"]
+    ppm = float(entry["dense"]["grid_px_per_mm"])
+    min_area = float(entry["dense"]["detection_limit"]["min_area_mm2"])
+    out = []
+    for t in truth:
+        fp = footprint(t, limit.shape, ppm)
+        slide = float(np.hypot(*t["shift_mm"])) if "shift_mm" in t else 0.0
+        above, share = detection.above_limit(t["kind"], fp, limit, drop, slide)
+        above = above and t["area_mm2"] >= min_area
+        out.append({"above": bool(above), "share_found": round(share, 3)})
+    return out
+
+
+def below_stated_limit(truth: list[dict], limit: dict, stated: list[dict] | None = None) -> bool:
+    """Whether a true defect is under the detection limit validate states.
+
+    From validate's maps where it writes them (``stated``: :func:`stated_limit`); else from
+    the figures it states (keys ending in ``min_area_mm2`` and ``min_shift_mm``). False when
+    validate states none.
+    """
+    if stated is not None:
+        return not all(s["above"] for s in stated)
     areas = [v for k, v in limit.items() if k.endswith("min_area_mm2") and isinstance(v, int | float)]
     shifts = [v for k, v in limit.items() if k.endswith("min_shift_mm") and isinstance(v, int | float)]
     for t in truth:
@@ -336,16 +384,24 @@ def false_defects(truth: list[dict], found: list[dict], max_defect_mm2: float) -
     return n
 
 
-def outcome(photo: Photo, entry: dict, truth: list[dict]) -> str:
-    """``pass`` / ``false reject`` / ``invalid`` for a perfect photo; ``found`` / ``fail, not located`` / ``escape``."""
+def outcome(photo: Photo, entry: dict, truth: list[dict], stated: list[dict] | None = None) -> str:
+    """``pass`` / ``false reject`` / ``invalid`` for a perfect photo; ``found`` / ``fail, not located`` / ``escape``.
+
+    A defect photo that PASSes is an ``escape`` when validate states it finds the defect
+    there, ``below stated limit`` otherwise; one that FAILs without locating it is ``fail, not
+    located`` (``fail, not located, below stated limit`` when validate states it cannot).
+    """
     v = entry.get("verdict")
     if v == "INVALID":
         return "invalid"
     if photo.defect is None:
         return "pass" if v == "PASS" else "false reject"
+    below = below_stated_limit(truth, find_detection_limit(entry), stated)
     if v == "PASS":
-        return "below stated limit" if below_stated_limit(truth, find_detection_limit(entry)) else "escape"
-    return "found" if all(m["located"] for m in match(truth, entry.get("defects", []))) else "fail, not located"
+        return "below stated limit" if below else "escape"
+    if all(m["located"] for m in match(truth, entry.get("defects", []))):
+        return "found"
+    return "fail, not located, below stated limit" if below else "fail, not located"
 
 
 def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_render: dict, args) -> Photo:
@@ -410,8 +466,10 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
     report = json.loads((vdir / "validation.json").read_text())
     entry = report["photos"][0]
     truth = json.loads(truth_file.read_text()).get("defects", [])
+    stated = stated_limit(truth, vdir, report) if truth else None
     photo.result = {
-        "outcome": outcome(photo, entry, truth),
+        "outcome": outcome(photo, entry, truth, stated),
+        "stated": stated,
         "verdict": entry.get("verdict"),
         "reason": entry.get("reason"),
         "defects_found": [
@@ -454,6 +512,9 @@ def rates(photos: list[Photo]) -> dict:
                 "photos": len(dp),
                 "found": sum(p.result["outcome"] == "found" for p in dp),
                 "fail_not_located": sum(p.result["outcome"] == "fail, not located" for p in dp),
+                "fail_not_located_below": sum(
+                    p.result["outcome"] == "fail, not located, below stated limit" for p in dp
+                ),
                 "escapes": sum(p.result["outcome"] == "escape" for p in dp),
                 "below_stated_limit": sum(p.result["outcome"] == "below stated limit" for p in dp),
                 "found_with_false_defects": sum(
@@ -464,7 +525,16 @@ def rates(photos: list[Photo]) -> dict:
     return out
 
 
-OUTCOMES = ("pass", "false reject", "invalid", "found", "fail, not located", "escape", "below stated limit")
+OUTCOMES = (
+    "pass",
+    "false reject",
+    "invalid",
+    "found",
+    "fail, not located",
+    "fail, not located, below stated limit",
+    "escape",
+    "below stated limit",
+)
 
 
 def pct(a: int, b: int) -> str:
@@ -491,15 +561,16 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
         )
     lines += [
         "",
-        "| defect | renderer | photos | found | of which with false defects beside it | FAIL, not located | escapes "
-        "| PASS below stated limit | invalid |",
+        "| defect | renderer | photos | found | of which with false defects beside it | FAIL, not located "
+        "(of which below the stated limit) | escapes (PASS above the stated limit) | PASS below the stated limit "
+        "| invalid |",
         "|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for d, per in summary["defects"].items():
         for r, s in per.items():
             lines.append(
                 f"| {d} | {r} | {s['photos']} | {pct(s['found'], s['photos'])} | {s['found_with_false_defects']} | "
-                f"{s['fail_not_located']} | "
+                f"{s['fail_not_located'] + s['fail_not_located_below']} ({s['fail_not_located_below']}) | "
                 f"{pct(s['escapes'], s['photos'])} | {s['below_stated_limit']} | {s['invalid']} |"
             )
     lines += ["", "## Why photos get the wrong verdict", ""]
@@ -548,7 +619,7 @@ def wrong_verdict_reasons(photos: list[Photo]) -> dict:
     out: dict = {}
     for p in photos:
         o = p.result.get("outcome")
-        if o not in ("false reject", "fail, not located", "escape", "invalid"):
+        if o not in ("false reject", "fail, not located", "fail, not located, below stated limit", "escape", "invalid"):
             continue
         text = p.result.get("reason") or o
         # one line per rule: "a; b" are two reasons

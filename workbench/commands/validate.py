@@ -25,7 +25,7 @@ from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
 from workbench.options import Number
-from workbench.validate import dense, landing, pictures
+from workbench.validate import dense, detection, landing, pictures
 from workbench.validate.part import part_summary
 from workbench.validate.photo import sha256, validate_photo
 from workbench.validate.report import qa_report
@@ -371,6 +371,7 @@ def run(args) -> int:
         "photos": entries,
     }
     files.update(landing.add_to_report(report, entries, out))
+    files.update(detection.add_to_report(report, entries, out))
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
     files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"}, pages)
     write_folder(out, files, inputs)

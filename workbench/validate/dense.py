@@ -34,6 +34,7 @@ import numpy as np
 from workbench.camera import Camera
 from workbench.raster import depth_buffer, interpolate, rasterize_triangles
 from workbench.render.defects import FILM_RGB
+from workbench.validate import detection
 from workbench.views.visibility import _unoccluded_many, faces_facing
 
 MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at most this many pixels
@@ -695,8 +696,13 @@ class DenseResult:
         How finely the photo samples the print (photo px per surface mm, median), what it
         cannot resolve (share of the scored print) and the resolution that would resolve it.
     detection_limit : dict
-        The smallest defects this photo can find: area (mm² on the print) and misregistration
-        (mm on the surface, median over what it measures).
+        The smallest defects this photo can find: area (mm² on the print), misregistration
+        (mm on the surface), and the shares of the print where it finds a slide and ink that
+        is gone (:mod:`workbench.validate.detection`).
+    shift_limit_mm : (rows, cols) float32
+        The smallest slide of the film found at each pixel, mm on the surface (NaN: none).
+    dropout_found : (rows, cols) bool
+        Where ink that is gone is found.
     """
 
     warped: np.ndarray
@@ -714,6 +720,8 @@ class DenseResult:
     noise: float = 0.0
     resolution: dict | None = None
     detection_limit: dict | None = None
+    shift_limit_mm: np.ndarray | None = None
+    dropout_found: np.ndarray | None = None
 
 
 def flow_uncertainty(
@@ -813,13 +821,25 @@ def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray)
 BLUR_LEVELS = (0.0, 0.75, 1.0, 1.5, 2.0, 3.0, 4.5, 6.0)  # grid px: the blurs a local PSF is rounded to
 
 
+PRINT_BLUR_PX = 0.5  # the print's own blur, grid px: see local_psf
+
+
 def local_psf(blur: float, scale: float, footprint: np.ndarray) -> np.ndarray:
     """The photo's blur at each grid pixel, Gaussian sigma in grid px.
 
     ``blur`` is measured over the whole photo, where it samples the print at ``scale``
-    photo pixels per grid pixel (its median); a lens's blur is fixed in photo pixels, so
-    where the photo samples the print at ``footprint`` it is ``blur · scale / footprint``
-    (and never less than ``blur``: the print itself is no sharper than measured).
+    photo pixels per grid pixel (its median). It has two parts. The print's own, fixed on
+    the print: a print pixel is a box (sigma 0.29 px) that the film shows interpolated (a
+    triangle, 0.41 px) and the ink spreads a little, PRINT_BLUR_PX in all (never more than
+    was measured). And the camera's (lens, sensor, demosaicing, the warp's anti-aliasing),
+    fixed in photo pixels, so that where the photo samples the print at ``footprint`` it is
+    ``scale / footprint`` times what it is at the median. Variances add:
+    ``b² = b0² + (blur² - b0²) (scale / footprint)²``.
+
+    (Where a deep part is seen partly from far and partly from near, the photo can be three
+    times finer than its median on the print: the near surface's blur is then a third,
+    and the print's detail there is resolved. Holding it to the median's blur made the
+    model blurrier than the photo, and the print's sharp checker there "ink gone".)
 
     Parameters
     ----------
@@ -835,9 +855,12 @@ def local_psf(blur: float, scale: float, footprint: np.ndarray) -> np.ndarray:
     (H, W) float32
         At most BLUR_LEVELS[-1].
     """
+    b0 = min(blur, PRINT_BLUR_PX)
+    camera2 = blur * blur - b0 * b0
     with np.errstate(divide="ignore", invalid="ignore"):
-        b = np.where(footprint > 0, blur * scale / footprint, blur)
-    return np.clip(np.maximum(b, blur), 0.0, BLUR_LEVELS[-1]).astype(np.float32)
+        r = np.where(footprint > 0, scale / footprint, 1.0)
+    b = np.sqrt(b0 * b0 + camera2 * r * r)
+    return np.clip(b, 0.0, BLUR_LEVELS[-1]).astype(np.float32)
 
 
 def blur_levels(sigma: np.ndarray) -> np.ndarray:
@@ -1055,6 +1078,20 @@ def analyse(
     unresolved &= scored
     full &= ~unresolved
     normal &= ~unresolved
+    # the detection limit, stated for a sound part: the photo's noise through the texture it
+    # resolves (the mismatch and the flow back, which a defect itself raises, left out)
+    weak_e, strong_e = detection.expected_flow_sigma(noise, l1, l2, TENSOR_SIGMA_PX, FLOW_FLOOR_PX)
+    stated = scored.copy()  # (before light is told from ink: that depends on the defect)
+    measurable = stated & ~unresolved
+    limit_mm = detection.shift_limit(
+        tolerance_mm,
+        SIGNIFICANCE_Z,
+        weak_e * mm_per_px,
+        strong_e * mm_per_px,
+        measurable & (p2 >= MIN_TWO_WAY),
+        measurable & (p1 >= MIN_EDGE),
+        usable,
+    )
     shift = np.full((H, W, 2), np.nan, np.float32)
     shift[full] = m[full]
     mn = (m * e1).sum(axis=2, keepdims=True) * e1  # the component across the edge
@@ -1095,6 +1132,8 @@ def analyse(
     with np.errstate(divide="ignore"):
         position = np.maximum(0.5, np.where(fp > 0, 0.5 / fp, 0.5)).astype(np.float32)
     colour_limit = COLOUR_TOL + position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
+    # ink that is gone is found where the step from the ink to the bare film is beyond the limit
+    dropout_found = inked & (_residual(film_pred, pred) > colour_limit)
     # light, not ink: a crease's own shading changes faster than the exposure fit's window
     # follows, and scales every channel alike; so the colour test allows each pixel a gain of
     # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
@@ -1223,10 +1262,18 @@ def analyse(
     # a defect must cover MIN_DEFECT_MM2 and span a few photo pixels each way (the opening
     # and closing in find_defects work on 3 x 3 grid pixels) to be found
     px_mm = (1.0 / median_res) if median_res else None
-    detection = {
+    ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
+    limit = {
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),
         "min_shift_mm": (tolerance_mm + SIGNIFICANCE_Z * med_sigma) if med_sigma is not None else None,
         "significance_z": SIGNIFICANCE_Z,
+        **detection.summary(limit_mm, dropout_found & stated, stated, inked & stated, max(2 * COLOUR_TOL, ink_step)),
+        "note": (
+            "stated for a sound part from the design, the photo's noise, blur and sampling: a slide of the film is "
+            "found where the print has texture the photo resolves (min_shift_mm_*: over the pixels that find one), "
+            "ink that is gone where its step to the bare film exceeds min_ink_step_grey_levels; the maps are in "
+            "detection.npz"
+        ),
     }
     return DenseResult(
         warped,
@@ -1243,7 +1290,9 @@ def analyse(
         sigma_mm,
         noise,
         resolution,
-        detection,
+        limit,
+        limit_mm,
+        dropout_found & stated,
     )
 
 

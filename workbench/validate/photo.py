@@ -17,7 +17,7 @@ from workbench.design_dir import Design, read_image
 from workbench.errors import WorkbenchError
 from workbench.export import png_bytes
 from workbench.raster import depth_buffer
-from workbench.validate import dense, pictures
+from workbench.validate import dense, detection, pictures
 from workbench.validate.colour import photo_colour
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
 from workbench.validate.landing import photo_landing
@@ -290,6 +290,11 @@ def validate_photo(
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     # arrays: the command moves them to landing.npz; a photo at fault lands nothing
     entry["landing"] = None if entry["photo_quality"]["problems"] else photo_landing(dr, grid)
+    if not entry["photo_quality"]["problems"]:
+        entry["detection_maps"] = {
+            "shift_limit_um": detection.to_stored(dr.shift_limit_mm),
+            "dropout": dr.dropout_found.astype(np.uint8),
+        }
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
     clock.append(time.perf_counter())  # summary
@@ -323,6 +328,10 @@ def validate_photo(
     files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
     shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
     pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
+    files[f"{stem}_detectable_print.png"] = png_bytes(
+        pictures.detectable_print(grid.reference, dr.shift_limit_mm, dr.dropout_found, grid.px_per_mm, tolerance_mm),
+        compression=1,
+    )
     if de_map is not None:
         shown_de = pictures.colour_difference(grid.reference, de_map, grid.px_per_mm, 2 * max_delta_e)
         files[f"{stem}_colour_print.png"] = png_bytes(shown_de, compression=1)

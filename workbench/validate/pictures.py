@@ -257,3 +257,64 @@ def tile_heatmap(design_rgb, sc, title: str) -> bytes:
     ax.set_title(title, fontsize=9)
     ax.set_axis_off()
     return figure_png(fig)
+
+
+def detectable_print(
+    reference: np.ndarray, limit_mm: np.ndarray, dropout: np.ndarray, px_per_mm: float, tolerance_mm: float
+) -> np.ndarray:
+    """What the photo can find over the print: two panels with a scale; (rows', cols', 3) uint8 RGB.
+
+    Left, the smallest slide of the film found at each pixel ('viridis': the tolerance dark
+    blue to three times it yellow; the print in grey where none is found). Right, in green,
+    where ink that is gone is found. Halved when the grid exceeds a megapixel (a picture to
+    look at, not a measurement: the numbers are in ``detection.npz``).
+
+    Parameters
+    ----------
+    reference : (rows, cols, 3) uint8
+        The print on the grid.
+    limit_mm : (rows, cols) float32
+        Smallest slide found, mm on the surface, NaN where none is.
+    dropout : (rows, cols) bool
+        Where ink that is gone is found.
+    px_per_mm : float
+        Grid resolution: a tick every 10 mm along the top and left edges.
+    tolerance_mm : float
+        The bottom of the scale.
+    """
+    import matplotlib
+
+    step = 2 if reference.shape[0] * reference.shape[1] > 1_000_000 else 1
+    ref = reference[::step, ::step]
+    lim = limit_mm[::step, ::step]
+    drop = dropout[::step, ::step]
+    ppm = px_per_mm / step
+    lut = (matplotlib.colormaps["viridis"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+    grey = cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY) // 2 + 96
+    left = np.repeat(grey[..., None], 3, axis=2)
+    on = np.isfinite(lim)
+    vmax = 3.0 * tolerance_mm
+    left[on] = lut[np.clip((lim[on] - tolerance_mm) / (vmax - tolerance_mm) * 255, 0, 255).astype(np.uint8)]
+    right = np.repeat(grey[..., None], 3, axis=2)
+    right[drop] = (0.4 * right[drop] + 0.6 * np.array([30, 170, 60])).astype(np.uint8)
+    rows, cols = lim.shape
+    for img in (left, right):
+        for k in range(0, int(max(rows, cols) / ppm) + 1, 10):
+            t = int(round(k * ppm))
+            img[:6, t : t + 2] = 0
+            img[t : t + 2, :6] = 0
+    gap = np.full((rows, 12, 3), 255, np.uint8)
+    bar_w = max(70, cols // 10)
+    bar = np.full((rows, bar_w, 3), 255, np.uint8)
+    top, bottom = rows // 10, rows - rows // 10
+    bar[top:bottom, 8 : bar_w // 3] = lut[np.linspace(255, 0, bottom - top).astype(np.uint8)][:, None, :]
+    scale = max(0.4, rows / 1500)
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    for v, y in ((vmax, top), ((vmax + tolerance_mm) / 2, (top + bottom) // 2), (tolerance_mm, bottom)):
+        cv2.putText(bar, f"{v:.2g}", (bar_w // 3 + 4, y + 5), font, scale, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(bar, "mm", (4, top - 30), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
+    img = np.concatenate([left, bar, gap, right], axis=1)
+    head = np.full((max(24, int(30 * scale)), img.shape[1], 3), 255, np.uint8)
+    for text, x in (("smallest slide found", 6), ("ink gone found (green)", cols + bar_w + 18)):
+        cv2.putText(head, text, (x, head.shape[0] - 8), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.concatenate([head, img], axis=0)

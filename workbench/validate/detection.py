@@ -1,0 +1,210 @@
+"""What a photo can find: its detection limit at every print pixel, stated before any defect is sought.
+
+A photo finds a defect only where it measures what the defect changes. A film that slid
+(a bubble) changes the misregistration, which the flow measures where the print has texture
+the photo resolves, to a standard uncertainty set by the photo's noise through that texture;
+ink that is gone changes the colour, which the colour test sees where the step from the ink
+to the bare film exceeds the test's limit. Both are known from the design, the photo's
+noise, its blur and its sampling of the print alone, so the limit is stated for a sound
+part: the terms a defect itself raises where it is (the model's mismatch, the flow back's
+disagreement) are left out, and so are the masks that depend on the defect (light that is
+told from ink). A defect the photo states it can find and does not find is an escape; one it
+states it cannot find is below its stated limit.
+
+validate writes the maps to ``detection.npz`` beside validation.json (referenced with its
+sha256 under ``detection``; per photo ``photoK_shift_limit_um``, the smallest slide found,
+µm on the surface, 65535 where none is, and ``photoK_dropout``, 1 where ink that is gone is
+found; the part's, best over its photos, as ``part_*``), the figures to each photo's
+``dense.detection_limit``, and a picture, ``*_detectable_print.png``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+NONE_UM = 65535  # shift_limit_um where no slide is found (uint16's largest)
+# a true defect is above the stated limit when its footprint is found over at least this
+# share (its area then comes out within 25 %) for missing ink, and for a slid film over
+# the share of its pixels find_defects asks of a shift region's evidence
+DROPOUT_SHARE = 0.75
+SHIFT_SHARE = 0.25
+
+
+def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, window_px: float, floor_px: float):
+    """The flow's standard uncertainty on a sound part: the photo's noise through the print's texture.
+
+    σ² = σ_n² / (N λ) + floor² along an eigenvector of the structure tensor with eigenvalue
+    λ, N = 4π s² the window's effective pixels (:func:`workbench.validate.dense.flow_uncertainty`
+    without its mismatch term, which a defect raises).
+
+    Parameters
+    ----------
+    noise : float
+        The photo's noise, grey levels.
+    l1, l2 : (H, W) float32
+        The model's structure tensor eigenvalues (strongest, weakest), grey levels² per px².
+    window_px : float
+        The flow's window, Gaussian sigma, grid px.
+    floor_px : float
+        The flow's own floor, grid px.
+
+    Returns
+    -------
+    weak, strong : (H, W) float32
+        Grid px along the weakest and the strongest direction (inf without texture).
+    """
+    n_eff = 4.0 * np.pi * window_px * window_px
+    with np.errstate(divide="ignore", invalid="ignore"):
+        weak = np.sqrt(noise * noise / (n_eff * l2) + floor_px * floor_px)
+        strong = np.sqrt(noise * noise / (n_eff * l1) + floor_px * floor_px)
+    return (
+        np.where(np.isfinite(weak), weak, np.inf).astype(np.float32),
+        np.where(np.isfinite(strong), strong, np.inf).astype(np.float32),
+    )
+
+
+def shift_limit(
+    tolerance_mm: float,
+    z: float,
+    weak_mm: np.ndarray,
+    strong_mm: np.ndarray,
+    two_way: np.ndarray,
+    one_way: np.ndarray,
+    usable_mm: float,
+) -> np.ndarray:
+    """The smallest slide of the film found at each print pixel, mm on the surface.
+
+    A pixel finds a slide where it measures one (the full vector where the texture has two
+    directions, the component across the edge where it has one, each to within
+    ``usable_mm``) and the slide exceeds the tolerance by ``z`` of its uncertainty.
+
+    Parameters
+    ----------
+    tolerance_mm, z, usable_mm : float
+        The tolerance (mm), the significance (standard uncertainties) and the largest
+        uncertainty a measuring pixel may have (mm).
+    weak_mm, strong_mm : (H, W) float32
+        Expected uncertainties (:func:`expected_flow_sigma`), mm on the surface.
+    two_way, one_way : (H, W) bool
+        Scored pixels whose print texture has two directions, and one, as the flow needs them.
+
+    Returns
+    -------
+    (H, W) float32
+        mm; NaN where no slide is found.
+    """
+    full = two_way & (weak_mm <= usable_mm)
+    normal = ~full & one_way & (strong_mm <= usable_mm)
+    out = np.full(weak_mm.shape, np.nan, np.float32)
+    out[full] = tolerance_mm + z * weak_mm[full]
+    out[normal] = tolerance_mm + z * strong_mm[normal]
+    return out
+
+
+def summary(shift_mm: np.ndarray, dropout: np.ndarray, scored: np.ndarray, inked: np.ndarray, ink_step: float) -> dict:
+    """The detection limit's figures over what the photo scores.
+
+    Parameters
+    ----------
+    shift_mm : (H, W) float32
+        :func:`shift_limit`.
+    dropout : (H, W) bool
+        Where ink that is gone is found.
+    scored, inked : (H, W) bool
+        Scored pixels; scored pixels whose ink differs from the bare film.
+    ink_step : float
+        The smallest step from the ink to the bare film a dropout needs, grey levels (median).
+
+    Returns
+    -------
+    dict
+    """
+    n = max(int(scored.sum()), 1)
+    found = np.isfinite(shift_mm) & scored
+    vals = shift_mm[found]
+    return {
+        "shift_found_share": round(float(found.sum() / n), 4),
+        "min_shift_mm_p10": round(float(np.percentile(vals, 10)), 4) if len(vals) else None,
+        "min_shift_mm_median": round(float(np.median(vals)), 4) if len(vals) else None,
+        "dropout_found_share": round(float((dropout & scored).sum() / n), 4),
+        "dropout_found_share_of_inked": (
+            round(float((dropout & inked).sum() / max(int(inked.sum()), 1)), 4) if inked.any() else None
+        ),
+        "min_ink_step_grey_levels": round(float(ink_step), 1),
+    }
+
+
+def to_stored(shift_mm: np.ndarray) -> np.ndarray:
+    """``shift_limit`` as stored: µm, uint16, NONE_UM where no slide is found."""
+    um = np.where(np.isfinite(shift_mm), np.rint(shift_mm * 1000.0), NONE_UM)
+    return np.clip(um, 0, NONE_UM).astype(np.uint16)
+
+
+def footprint_share(found: np.ndarray, footprint: np.ndarray) -> float:
+    """Share of a defect's footprint (bool, grid pixels) where ``found`` holds; 0 for an empty footprint."""
+    n = int(footprint.sum())
+    return float((found & footprint).sum() / n) if n else 0.0
+
+
+def above_limit(kind: str, footprint: np.ndarray, limit_um: np.ndarray, dropout: np.ndarray, slide_mm: float = 0.0):
+    """Whether the photo states it finds a true defect of this kind over this footprint.
+
+    Parameters
+    ----------
+    kind : str
+        ``bubble`` (a slide of ``slide_mm``), ``dropout`` or ``scratch`` (ink gone).
+    footprint : (H, W) bool
+        The defect's pixels on the grid.
+    limit_um, dropout : (H, W)
+        A photo's stored maps (``photoK_shift_limit_um``, ``photoK_dropout``).
+
+    Returns
+    -------
+    above : bool
+    share : float
+        The share of the footprint found.
+    """
+    if kind == "bubble":
+        share = footprint_share(limit_um < slide_mm * 1000.0, footprint)
+        return share >= SHIFT_SHARE, share
+    share = footprint_share(dropout.astype(bool), footprint)
+    return share >= DROPOUT_SHARE, share
+
+
+def add_to_report(report: dict, entries: list[dict], out) -> dict:
+    """Take each photo's detection maps out of its entry and return the side file ``detection.npz``.
+
+    ``report["detection"]`` gets its name, sha256 and what it holds. The part's maps are the
+    best over its photos: the smallest slide any photo finds, ink gone that any photo finds.
+    """
+    from workbench.validate.landing import npz_bytes
+
+    arrays: dict = {}
+    part_limit = part_drop = None
+    for k, e in enumerate(entries):
+        got = e.pop("detection_maps", None)
+        if got is None:
+            continue
+        arrays[f"photo{k}_shift_limit_um"] = got["shift_limit_um"]
+        arrays[f"photo{k}_dropout"] = got["dropout"]
+        part_limit = got["shift_limit_um"] if part_limit is None else np.minimum(part_limit, got["shift_limit_um"])
+        part_drop = got["dropout"] if part_drop is None else (part_drop | got["dropout"])
+    if part_limit is None:
+        return {}
+    arrays["part_shift_limit_um"] = part_limit
+    arrays["part_dropout"] = part_drop
+    data = npz_bytes(arrays)
+    report["detection"] = {
+        "file": "detection.npz",
+        "sha256": hashlib.sha256(data).hexdigest(),
+        "note": (
+            "what each photo can find, per pixel of the print's analysis grid (dense.grid_px_per_mm): "
+            f"photoK_shift_limit_um, the smallest slide of the film it finds (µm on the surface, {NONE_UM}: none), "
+            "and photoK_dropout, 1 where it finds ink that is gone; part_*: the best over the photos. Stated for "
+            "a sound part, from the design, the photo's noise, blur and sampling: a defect found nowhere here is "
+            "below the stated limit"
+        ),
+    }
+    return {out / "detection.npz": data}

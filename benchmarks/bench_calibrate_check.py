@@ -173,7 +173,7 @@ def load_views(photos: list[str], board: dict) -> tuple[list, int, int, list[str
     if bad:
         raise WorkbenchError(f"{bad[0]}: cannot read image")
     (H, W), _ = Counter(g.shape[:2] for _, g in images).most_common(1)[0]
-    odd = [p for p, g in images if g.shape[:2] != (H, W)]
+    odd = [f"{p}: {g.shape[1]} x {g.shape[0]} pixels, most are {W} x {H}" for p, g in images if g.shape[:2] != (H, W)]
     views, per_view = board_views([(p, g) for p, g in images if g.shape[:2] == (H, W)], board)
     left = [f"{v['name']}: {v['reason']}" for v in per_view if not v["used"]]
     return views, W, H, odd + left

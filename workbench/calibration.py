@@ -523,8 +523,10 @@ class CameraCheck:
     remeasured : dict or None
         For each re-measured intrinsic (fx, fy, cx, cy; fx alone with few photos),
         ``value``, ``profile``, ``delta`` (px), ``sigma`` (combined standard deviation,
-        px), ``z``; and ``views``, ``rms_px``, ``ray_shift_px`` (largest shift across the
-        image), ``measured`` (the names). None when even a focal length could not be fitted.
+        px), ``z``, ``limit`` (the largest |z| that is no drift: :func:`z_limits`) and
+        ``dof`` (the combined deviation's degrees of freedom); and ``views``, ``rms_px``,
+        ``ray_shift_px`` (largest shift across the image), ``measured`` (the names). None
+        when even a focal length could not be fitted.
     why_not : str or None
         Why fx, fy, cx, cy were not all re-measured.
     tolerance_sigma : float
@@ -555,7 +557,8 @@ def check_camera(
     5 % off moves the RMS from 0.25 to below 0.5 px), so the intrinsics are also
     re-measured from the photos, the profile's distortion held, and each must lie within
     ``tolerance_sigma`` combined standard deviations (the profile's and the
-    re-measurement's, each from its views' scatter) of the stored value. With MIN_VIEWS
+    re-measurement's, each from its views' scatter) of the stored value, widened to
+    Student's t where a deviation comes from few photos (:func:`z_limits`). With MIN_VIEWS
     usable photos whose board normals turn at least MIN_TILT_SPREAD_DEG, fx, fy, cx and cy
     are re-measured; with MIN_FOCAL_VIEWS or more, or too little tilt, the focal length
     alone (principal point and aspect held): the intrinsic a pose absorbs by moving closer

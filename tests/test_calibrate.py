@@ -301,9 +301,11 @@ def test_the_stored_camera_regression_on_real_photos(tmp_path, capsys):
     right = sorted(REAL.glob("right*.jpg"))
     assert main(["calibrate", "check", str(LEFT_PROFILE), *map(str, right), "-q"]) == 1
     line = capsys.readouterr().err.strip()
-    assert "the camera drifted: " in line and "re-measured cx " in line and ", cy " in line
-    # drifts these photos resolve: the profile knows fx to 0.75 % (7 photos of 640 x 480), so 4 % and 20 px
-    for fx, cx, what in ((1.04, 0.0, "fx"), (0.96, 0.0, "fx"), (1.0, 20.0, "cx")):
+    assert "the camera drifted: " in line and "re-measured cy " in line
+    # drifts these photos resolve: the profile knows fx to 0.75 % (7 photos of 640 x 480), and the
+    # limit widens to about 4 sigma for standard deviations from 5 and 7 photos (Student's t), so
+    # 4 to 5 % and 20 px (-4 % gives 3.5 sigma: within the limit)
+    for fx, cx, what in ((1.04, 0.0, "fx"), (0.95, 0.0, "fx"), (1.0, 20.0, "cx")):
         assert (
             main(["calibrate", "check", str(drifted(LEFT_PROFILE, tmp_path, fx, cx)), *map(str, HELD_OUT), "-q"]) == 1
         )

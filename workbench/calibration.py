@@ -414,6 +414,22 @@ def calibrate_camera(images: list[tuple[str, np.ndarray]], definition: dict) -> 
     """
     W, H = check_sizes(images)
     views, per_view = board_views(images, definition)
+    return calibrate_views(views, per_view, W, H)
+
+
+def calibrate_views(views: list, per_view: list, W: int, H: int) -> CameraCalibration:
+    """:func:`calibrate_camera` on corners already found (:func:`board_views`).
+
+    ``views`` and ``per_view`` are changed in place (outliers left out, each view's RMS).
+    Split from :func:`calibrate_camera` so that a measurement of the check's power
+    (``benchmarks/bench_calibrate_check.py``) runs this very code on many subsets of
+    the photos without detecting their corners again.
+
+    Raises
+    ------
+    WorkbenchError
+        Fewer than MIN_VIEWS usable views, views too alike, or no plausible camera.
+    """
     if len(views) < MIN_VIEWS:
         reasons = [f"{v['name']}: {v['reason']}" for v in per_view if not v["used"]]
         raise WorkbenchError(
@@ -507,8 +523,10 @@ class CameraCheck:
     remeasured : dict or None
         For each re-measured intrinsic (fx, fy, cx, cy; fx alone with few photos),
         ``value``, ``profile``, ``delta`` (px), ``sigma`` (combined standard deviation,
-        px), ``z``; and ``views``, ``rms_px``, ``ray_shift_px`` (largest shift across the
-        image), ``measured`` (the names). None when even a focal length could not be fitted.
+        px), ``z``, ``limit`` (the largest |z| that is no drift: :func:`z_limits`) and
+        ``dof`` (the combined deviation's degrees of freedom); and ``views``, ``rms_px``,
+        ``ray_shift_px`` (largest shift across the image), ``measured`` (the names). None
+        when even a focal length could not be fitted.
     why_not : str or None
         Why fx, fy, cx, cy were not all re-measured.
     tolerance_sigma : float
@@ -539,7 +557,8 @@ def check_camera(
     5 % off moves the RMS from 0.25 to below 0.5 px), so the intrinsics are also
     re-measured from the photos, the profile's distortion held, and each must lie within
     ``tolerance_sigma`` combined standard deviations (the profile's and the
-    re-measurement's, each from its views' scatter) of the stored value. With MIN_VIEWS
+    re-measurement's, each from its views' scatter) of the stored value, widened to
+    Student's t where a deviation comes from few photos (:func:`z_limits`). With MIN_VIEWS
     usable photos whose board normals turn at least MIN_TILT_SPREAD_DEG, fx, fy, cx and cy
     are re-measured; with MIN_FOCAL_VIEWS or more, or too little tilt, the focal length
     alone (principal point and aspect held): the intrinsic a pose absorbs by moving closer
@@ -563,18 +582,33 @@ def check_camera(
     WorkbenchError
         A photo of another size than the profile's (naming it), or no photo showing the board.
     """
-    W, H = (int(v) for v in profile["image_size"])
-    check_sizes(images, (W, H))
-    K0 = np.asarray(profile["K"], dtype=np.float64)
-    dist0 = np.zeros(5)
-    d = np.asarray(profile.get("dist") or [], dtype=np.float64).ravel()[:5]
-    dist0[: len(d)] = d
+    check_sizes(images, tuple(int(v) for v in profile["image_size"]))
     views, per_photo = board_views(images, definition)
     if not views:
         raise WorkbenchError(
             "no photo shows the board: "
             + name_list([f"{v['name']}: {v['reason']}" for v in per_photo if not v["used"]])
         )
+    return check_views(views, per_photo, profile, tolerance_px, tolerance_sigma)
+
+
+def check_views(
+    views: list,
+    per_photo: list,
+    profile: dict,
+    tolerance_px: float | None = None,
+    tolerance_sigma: float = TOLERANCE_SIGMA,
+) -> CameraCheck:
+    """:func:`check_camera` on corners already found (:func:`board_views`); ``per_photo`` is changed in place.
+
+    Split from :func:`check_camera` so that a measurement of the check's power
+    (``benchmarks/bench_calibrate_check.py``) runs this very code on many subsets.
+    """
+    W, H = (int(v) for v in profile["image_size"])
+    K0 = np.asarray(profile["K"], dtype=np.float64)
+    dist0 = np.zeros(5)
+    d = np.asarray(profile.get("dist") or [], dtype=np.float64).ravel()[:5]
+    dist0[: len(d)] = d
     if tolerance_px is None:
         stored_limit = profile.get("view_rms_limit_px")
         tolerance_px = float(stored_limit or view_rms_limit(np.array([float(profile.get("rms_px") or 0.0)])))
@@ -617,18 +651,28 @@ def check_camera(
         return CameraCheck(per_photo, float(tolerance_px), None, why_not, float(tolerance_sigma), drift)
     stored = profile.get("intrinsics_std") or {}
     std0 = np.array([float(stored.get(k, 0.0)) for k in INTRINSICS])
-    jack = jackknife_std(views, W, H, flags, (K0, dist0))
-    if jack is not None:
-        std = np.maximum(std, jack)
+    stored_cv = profile.get("intrinsics_std_opencv") or {}
+    std0_cv = np.array([float(stored_cv.get(k, 0.0)) for k in INTRINSICS])
     n_profile = sum(1 for v in profile.get("views") or [] if v.get("used"))
+    # each standard deviation's degrees of freedom: a jackknife over G groups has G - 1
+    # where it is the larger (OpenCV's, from thousands of corners, has as good as infinitely many)
+    dof0 = np.where(std0 > std0_cv, max(min(n_profile, JACKKNIFE_GROUPS) - 1, 1), np.inf)
+    jack = jackknife_std(views, W, H, flags, (K0, dist0))
+    dof = np.full(4, np.inf)
+    if jack is not None:
+        dof = np.where(jack > std, min(len(views), JACKKNIFE_GROUPS) - 1.0, np.inf)
+        std = np.maximum(std, jack)
     if stored and n_profile and (jack is None or len(names) < len(INTRINSICS)):
         # too few photos for their own scatter to be trusted: at least what the profile's photos
-        # showed, for as many photos as these (a standard deviation shrinks as 1 / sqrt(views))
+        # showed, for as many photos as these (a standard deviation shrinks as 1 / sqrt(views)),
+        # and the confidence of the profile's (its degrees of freedom), not of a jackknife of 3 or 4
         std = np.maximum(std, std0 * np.sqrt(n_profile / len(views)))
+        dof = dof0
     theta = np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
     theta0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2]])
     sigma = np.sqrt(std**2 + std0**2)
     z = (theta - theta0) / np.maximum(sigma, 1e-12)
+    limit, nu = z_limits(tolerance_sigma, std0, dof0, std, dof)
     remeasured = {
         k: {
             "value": float(theta[i]),
@@ -636,6 +680,8 @@ def check_camera(
             "delta": float(theta[i] - theta0[i]),
             "sigma": float(sigma[i]),
             "z": float(z[i]),
+            "limit": float(limit[i]),
+            "dof": float(nu[i]),
         }
         for i, k in enumerate(INTRINSICS)
         if k in names
@@ -648,13 +694,50 @@ def check_camera(
         measured=list(names),
     )
     off = [
-        f"{k} {theta[i]:.2f} against {theta0[i]:.2f} px ({z[i]:+.1f} sigma)"
+        f"{k} {theta[i]:.2f} against {theta0[i]:.2f} px ({z[i]:+.1f} sigma, limit {limit[i]:.1f})"
         for i, k in enumerate(INTRINSICS)
-        if k in names and abs(z[i]) > tolerance_sigma
+        if k in names and abs(z[i]) > limit[i]
     ]
     if off:
         drift.append("re-measured " + ", ".join(off) + f" (tolerance {tolerance_sigma:g} sigma)")
     return CameraCheck(per_photo, float(tolerance_px), remeasured, why_not, float(tolerance_sigma), drift)
+
+
+def z_limits(
+    tolerance_sigma: float, std0: np.ndarray, dof0: np.ndarray, std: np.ndarray, dof: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The largest |z| of a re-measured intrinsic that is no drift, and its degrees of freedom.
+
+    ``tolerance_sigma`` is a confidence in the units of a normal distribution: 3 leaves a
+    true profile 0.27 % of failing an intrinsic. A standard deviation estimated from the
+    scatter of a few photos (the jackknife, G - 1 degrees of freedom) is itself uncertain,
+    and a z divided by it has Student's t distribution, whose tails are heavier: with 5
+    photos (4 degrees of freedom) |z| exceeds 3 in 4 % of true profiles, not 0.27 %. So
+    the limit is the t quantile of the same tail probability, with the degrees of freedom
+    of the combined standard deviation (Welch-Satterthwaite); it is ``tolerance_sigma``
+    itself when both deviations are OpenCV's (infinitely many).
+
+    Parameters
+    ----------
+    tolerance_sigma : float
+    std0, dof0 : (4,) float
+        The profile's standard deviations of fx, fy, cx, cy and their degrees of freedom.
+    std, dof : (4,) float
+        The re-measurement's.
+
+    Returns
+    -------
+    limit, dof : (4,) float
+    """
+    from scipy.stats import norm, t
+
+    a, b = np.asarray(std0, float) ** 2, np.asarray(std, float) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        den = np.where(np.isfinite(dof0), a**2 / dof0, 0.0) + np.where(np.isfinite(dof), b**2 / dof, 0.0)
+        nu = np.where(den > 0, (a + b) ** 2 / np.where(den > 0, den, 1.0), np.inf)
+    tail = norm.sf(tolerance_sigma)
+    limit = np.where(np.isfinite(nu), t.isf(tail, np.where(np.isfinite(nu), nu, 1.0)), tolerance_sigma)
+    return limit, nu
 
 
 def check_views_vary(views: list, width: int, height: int) -> float:

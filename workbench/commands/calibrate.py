@@ -89,7 +89,8 @@ def add_parser(sub) -> None:
         hi=1e6,
         default=TOLERANCE_SIGMA,
         help="camera: largest difference between re-measured and stored fx, fy, cx, cy, in standard "
-        f"deviations of the two (default {TOLERANCE_SIGMA:g})",
+        f"deviations of the two (default {TOLERANCE_SIGMA:g}); a confidence in the units of a normal "
+        "distribution, widened to Student's t where a standard deviation comes from the scatter of few photos",
     )
     k.add_argument("-q", "--quiet", action="store_true")
     k.set_defaults(run=run_check)
@@ -310,12 +311,16 @@ def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[
         log(f"fx, fy, cx, cy not all re-measured ({c.why_not})")
     if r is not None:
         names = r["measured"]
-        parts = [f"{k} {r[k]['value']:.2f} ({r[k]['delta']:+.2f} px, {r[k]['z']:+.1f} sigma)" for k in names]
+        parts = [
+            f"{k} {r[k]['value']:.2f} ({r[k]['delta']:+.2f} px, {r[k]['z']:+.1f} sigma, limit {r[k]['limit']:.1f})"
+            for k in names
+        ]
         held = "" if len(names) == len(INTRINSICS) else ", principal point and aspect held"
         log(
             f"re-measured on {r['views']} photos{held} (RMS {r['rms_px']:.3f} px): {', '.join(parts)}; "
             f"largest shift across the image {r['ray_shift_px']:.2f} px "
-            f"(tolerance {c.tolerance_sigma:g} sigma): {'DRIFT' if any('re-measured' in d for d in c.drift) else 'OK'}"
+            f"(tolerance {c.tolerance_sigma:g} sigma, widened for standard deviations taken from few photos): "
+            f"{'DRIFT' if any('re-measured' in d for d in c.drift) else 'OK'}"
         )
         if not r["profile_uncertainty"]:
             log("the profile records no uncertainty of its intrinsics (made before it did): the photos' alone counts")

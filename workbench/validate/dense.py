@@ -539,7 +539,39 @@ def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     return l1, l2, e1.astype(np.float32)
 
 
-def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray, normalised: bool = False):
+FLOW_RESOLUTION = 0.75  # below this many photo px per grid px the flow runs at the photo's resolution
+
+
+def flow_factor(scale: float) -> int:
+    """By how much the grid is reduced for the flow: to about one photo pixel a pixel where the photo is coarser.
+
+    A flow on a grid several times finer than the photo compares patches of a few photo
+    pixels, blurred over several grid pixels, normalised over a window not much larger: on
+    a 2000 x 1500 photo that samples a face mask's print at a third of a pixel per grid
+    pixel, DIS wandered by 2 px where its uncertainty said 0.1. At about one photo pixel per
+    pixel its patches, windows and the uncertainty's calibration hold again.
+    """
+    return max(1, int(round(1.0 / scale))) if 0 < scale < FLOW_RESOLUTION else 1
+
+
+def _reduce(img: np.ndarray, factor: int) -> np.ndarray:
+    H, W = img.shape[:2]
+    return cv2.resize(img, (max(1, -(-W // factor)), max(1, -(-H // factor))), interpolation=cv2.INTER_AREA)
+
+
+def _enlarge_flow(flow: np.ndarray, shape: tuple) -> np.ndarray:
+    """A flow of a reduced grid on the full grid: resampled, its vectors scaled to full-grid px."""
+    H, W = shape
+    h, w = flow.shape[:2]
+    out = cv2.resize(flow, (W, H), interpolation=cv2.INTER_LINEAR)
+    out[..., 0] *= W / w
+    out[..., 1] *= H / h
+    return out
+
+
+def dense_flow(
+    ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray, normalised: bool = False, factor: int = 1
+):
     """Where each photo pixel's content sits in the design: misregistration per pixel, grid px.
 
     DIS optical flow from the warped photo to the print, both normalised for local
@@ -558,19 +590,32 @@ def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray
 
     normalised : bool
         Also return the two normalised images the flow compared.
+    factor : int
+        The flow runs on the grid reduced by this (:func:`flow_factor`; the images are
+        expected smoothed to it already) and is resampled back.
 
     Returns
     -------
     (H, W, 2) float32
         Misregistration m, grid pixels (x right, y down).
     ref_n, photo_n : (H, W) uint8
-        With ``normalised``: the print and the photo as the flow saw them.
+        With ``normalised``: the print and the photo as the flow saw them (on the full grid).
     """
+    shape = ref_gray.shape
+    if factor > 1:
+        ref_gray, warped_gray = _reduce(ref_gray, factor), _reduce(warped_gray, factor)
+        scored = _reduce(scored.astype(np.float32), factor) > 0.5
     r = local_normalise(ref_gray, NORM_SIGMA_PX)
     w = local_normalise(warped_gray, NORM_SIGMA_PX)
     w = np.where(scored, w, r)
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
     g = dis.calc(w, r, None)
+    if factor > 1:
+        g = _enlarge_flow(g, shape)
+        if normalised:
+            size = (shape[1], shape[0])
+            r = cv2.resize(r, size, interpolation=cv2.INTER_LINEAR)
+            w = cv2.resize(w, size, interpolation=cv2.INTER_LINEAR)
     return (-g, r, w) if normalised else -g
 
 
@@ -703,6 +748,8 @@ class DenseResult:
         The smallest slide of the film found at each pixel, mm on the surface (NaN: none).
     dropout_found : (rows, cols) bool
         Where ink that is gone is found.
+    window_px : float
+        The flow's window, Gaussian sigma, grid px: a measurement's independent neighbourhood.
     """
 
     warped: np.ndarray
@@ -722,10 +769,40 @@ class DenseResult:
     detection_limit: dict | None = None
     shift_limit_mm: np.ndarray | None = None
     dropout_found: np.ndarray | None = None
+    window_px: float = TENSOR_SIGMA_PX
+
+
+def effective_samples(window_px: float, noise_corr_px) -> np.ndarray | float:
+    """Independent noise samples in a Gaussian window of sigma ``window_px``: N = 4π s² / c², at least 1.
+
+    ``noise_corr_px`` (a number or (H, W)) is the noise's correlation length in grid px,
+    relative to the flow's own smoothing of 1 px (REGISTRATION_BLUR_PX, with which the
+    uncertainty's prediction was checked against the flow's error): more smoothing, or a
+    photo coarser than the grid (one photo pixel spans 1 / footprint grid pixels, all of them
+    carrying its one noise sample), leaves the window fewer independent samples. (Without
+    it the flow where a 2000 x 1500 photo sees a face mask's flank at a quarter of a photo
+    pixel per grid pixel claimed 0.1 px and erred by 2.)
+    """
+    c = np.maximum(np.asarray(noise_corr_px, np.float32), 1.0)
+    return np.maximum(4.0 * np.pi * window_px * window_px / (c * c), 1.0)
+
+
+def noise_correlation(reg_px: float, footprint: np.ndarray | None) -> np.ndarray | float:
+    """The photo's noise correlation on the grid, px: the flow's smoothing, or one photo pixel where that is larger."""
+    if footprint is None:
+        return max(reg_px, 1.0)
+    with np.errstate(divide="ignore"):
+        return np.maximum(reg_px, np.where(footprint > 0, 1.0 / footprint, 1.0)).astype(np.float32)
 
 
 def flow_uncertainty(
-    pred_s: np.ndarray, photo_s: np.ndarray, weight: np.ndarray, window_px: float, correlation_px: float = 1.0
+    pred_s: np.ndarray,
+    photo_s: np.ndarray,
+    weight: np.ndarray,
+    window_px: float,
+    correlation_px: float = 1.0,
+    noise_corr_px=1.0,
+    floor_px: float = FLOW_FLOOR_PX,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
     """Standard uncertainty of a local flow estimate, along the weakest and the strongest direction.
 
@@ -755,6 +832,11 @@ def flow_uncertainty(
         The flow's window, Gaussian sigma, grid px.
     correlation_px : float
         Over how far the model's error is correlated: the photo's blur, grid px (at least 1).
+    noise_corr_px : float or (H, W) float
+        Over how far the photo's noise is correlated on the grid (:func:`noise_correlation`):
+        the window then holds :func:`effective_samples` independent samples of it.
+    floor_px : float
+        The flow's own floor, grid px (FLOW_FLOOR_PX of the grid the flow runs on).
 
     Returns
     -------
@@ -777,9 +859,9 @@ def flow_uncertainty(
     r2 = cv2.GaussianBlur(res * res * w, (0, 0), window_px) / sw
     mismatch = np.maximum(r2 - noise * noise, 0.0)
     l1, l2, e1 = structure_tensor(pred_s, window_px)
-    n_eff = 4.0 * np.pi * window_px * window_px
-    m_eff = max(1.0, (window_px / max(correlation_px, 1.0)) ** 2)
-    floor2 = FLOW_FLOOR_PX * FLOW_FLOOR_PX
+    n_eff = effective_samples(window_px, noise_corr_px)
+    m_eff = np.maximum(1.0, (window_px / np.maximum(correlation_px, noise_corr_px)) ** 2)
+    floor2 = floor_px * floor_px
     with np.errstate(divide="ignore", invalid="ignore"):
         weak = np.sqrt(noise * noise / (n_eff * l2) + mismatch / (m_eff * l2) + floor2)
         strong = np.sqrt(noise * noise / (n_eff * l1) + mismatch / (m_eff * l1) + floor2)
@@ -788,7 +870,7 @@ def flow_uncertainty(
     return weak, strong, e1, noise, l1, l2
 
 
-def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray) -> np.ndarray:
+def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray, factor: int = 1) -> np.ndarray:
     """How far the flow from the photo to the print and the flow back disagree, grid px.
 
     With m the misregistration at the photo's pixel y (its content was designed at
@@ -802,6 +884,8 @@ def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray)
         Misregistration from :func:`dense_flow`, grid px.
     ref_n, photo_n : (H, W) uint8
         The locally normalised print and photo the forward flow compared.
+    factor : int
+        The grid's reduction for the flow (:func:`flow_factor`), as the forward flow's.
 
     Returns
     -------
@@ -809,9 +893,12 @@ def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray)
         |b(y - m(y)) - m(y)|, grid px.
     """
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    # print(x) ≈ photo(x + b(x)): b carries a print pixel to where the photo shows it
-    b = dis.calc(ref_n, photo_n, None)
     H, W = flow_m.shape[:2]
+    # print(x) ≈ photo(x + b(x)): b carries a print pixel to where the photo shows it
+    if factor > 1:
+        b = _enlarge_flow(dis.calc(_reduce(ref_n, factor), _reduce(photo_n, factor), None), (H, W))
+    else:
+        b = dis.calc(ref_n, photo_n, None)
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     back = cv2.remap(b, jj - flow_m[..., 0], ii - flow_m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     bx, by = back[..., 0], back[..., 1]
@@ -1009,7 +1096,10 @@ def analyse(
     reg = max(REGISTRATION_BLUR_PX, REGISTRATION_BLUR_PX / max(scale, 1e-3))
     rgb_ = cv2.GaussianBlur(rg, (0, 0), reg)
     pgb_ = cv2.GaussianBlur(pg, (0, 0), reg)
-    m, ref_n, pho_n = dense_flow(rgb_, pgb_, seen & ~sat, normalised=True)
+    # (at about the photo's resolution where it is coarser than the grid, its windows with it)
+    factor = flow_factor(scale)
+    win = TENSOR_SIGMA_PX * factor
+    m, ref_n, pho_n = dense_flow(rgb_, pgb_, seen & ~sat, normalised=True, factor=factor)
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
     H, W = rg.shape
@@ -1055,10 +1145,11 @@ def analyse(
     # through the texture the photo resolves (the model is the print blurred like the photo,
     # in the photo's own contrast), and where the flow back disagrees, half that disagreement
     pred_s = cv2.GaussianBlur(cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY), (0, 0), reg)
+    corr = noise_correlation(reg, fp)
     weak, strong, e1, noise, l1, l2 = flow_uncertainty(
-        pred_s, pgb_, scored & (weight > 0), TENSOR_SIGMA_PX, max(1.0, float(np.hypot(blur, reg)))
+        pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, FLOW_FLOOR_PX * factor
     )
-    fb = forward_backward(m, ref_n, pho_n)
+    fb = forward_backward(m, ref_n, pho_n, factor)
     weak = np.hypot(weak, 0.5 * fb)
     strong = np.hypot(strong, 0.5 * fb)
     # surface mm per grid px: print mm times the film's local stretch
@@ -1070,7 +1161,9 @@ def analyse(
     usable = tolerance_mm / SIGNIFICANCE_Z
     # (the flow compares locally normalised images, so whether it is the pixel's own depends
     # on the print's texture, not on the photo's exposure)
-    p1, p2, _ = structure_tensor(rgb_, TENSOR_SIGMA_PX, direction=False)
+    # (in grey levels² per pixel of the flow's grid: the gates hold for the images the flow compares)
+    p1, p2, _ = structure_tensor(rgb_, win, direction=False)
+    p1, p2 = p1 * factor * factor, p2 * factor * factor
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
     # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
@@ -1080,7 +1173,9 @@ def analyse(
     normal &= ~unresolved
     # the detection limit, stated for a sound part: the photo's noise through the texture it
     # resolves (the mismatch and the flow back, which a defect itself raises, left out)
-    weak_e, strong_e = detection.expected_flow_sigma(noise, l1, l2, TENSOR_SIGMA_PX, FLOW_FLOOR_PX)
+    weak_e, strong_e = detection.expected_flow_sigma(
+        noise, l1, l2, effective_samples(win, corr), FLOW_FLOOR_PX * factor
+    )
     stated = scored.copy()  # (before light is told from ink: that depends on the defect)
     measurable = stated & ~unresolved
     limit_mm = detection.shift_limit(
@@ -1190,10 +1285,10 @@ def analyse(
     # to it is 0, which bounds the shift from below only, and would cut a bubble into stripes
     # (along a long straight line the flow's tangential part is unconstrained: there the
     # measured component is used)
-    _, l2_wide, _ = structure_tensor(rgb_, 4 * TENSOR_SIGMA_PX, direction=False)
+    _, l2_wide, _ = structure_tensor(rgb_, 4 * win, direction=False)
     with np.errstate(divide="ignore", invalid="ignore"):
-        wide_sigma = np.sqrt(noise * noise / (4 * np.pi * (4 * TENSOR_SIGMA_PX) ** 2 * l2_wide)) * mm_per_px
-    wide_ok = (l2_wide >= MIN_TWO_WAY) & (np.nan_to_num(wide_sigma, nan=np.inf) <= usable)
+        wide_sigma = np.sqrt(noise * noise / (effective_samples(4 * win, corr) * l2_wide)) * mm_per_px
+    wide_ok = (l2_wide * factor * factor >= MIN_TWO_WAY) & (np.nan_to_num(wide_sigma, nan=np.inf) <= usable)
     m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
     m_use = np.where(wide_ok, m_mm, shift_mm)
     s_use = np.where(wide_ok, np.maximum(np.nan_to_num(sigma_mm, nan=0.0), np.nan_to_num(wide_sigma)), sigma_mm)
@@ -1215,7 +1310,7 @@ def analyse(
         evidence,
         z_shift,
         z_colour,
-        TENSOR_SIGMA_PX,
+        win,
         m_mm,
         scored,
     )
@@ -1293,6 +1388,7 @@ def analyse(
         limit,
         limit_mm,
         dropout_found & stated,
+        win,
     )
 
 
@@ -1595,6 +1691,24 @@ def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
     return _cmax(r)
 
 
+def _hull(region: np.ndarray, reach_px: int) -> np.ndarray:
+    """The convex hull of a region's pixels, grown by ``reach_px``; (H, W) bool."""
+    ii, jj = np.nonzero(region)
+    out = np.zeros(region.shape, np.uint8)
+    if len(ii) == 0:
+        return out.astype(bool)
+    pts = np.stack([jj, ii], axis=1).astype(np.int32)
+    hull = cv2.convexHull(pts)
+    # (the hull's box plus the reach: the dilation need not sweep the whole grid)
+    x0, y0 = max(int(jj.min()) - reach_px, 0), max(int(ii.min()) - reach_px, 0)
+    x1, y1 = min(int(jj.max()) + reach_px + 1, region.shape[1]), min(int(ii.max()) + reach_px + 1, region.shape[0])
+    sub = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillConvexPoly(sub, hull - np.array([x0, y0], np.int32), 1)
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach_px + 1, 2 * reach_px + 1))
+    out[y0:y1, x0:x1] = cv2.dilate(sub, disc)
+    return out.astype(bool)
+
+
 def _filled(region: np.ndarray) -> np.ndarray:
     """The region with its holes filled (a bubble's plain squares are inside it, not around it)."""
     cs, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
@@ -1686,7 +1800,11 @@ def find_defects(
                 level = 0.5 * float(np.median(extent[s_px]))
                 _, lab_h = cv2.connectedComponents(((extent >= level) & measured).astype(np.uint8), connectivity=8)
                 hit = np.unique(lab_h[s_px])
-                s_px = np.isin(lab_h, hit[hit > 0]) | s_px
+                # (within the hull of its evidence and the flow's reach around it: a slid
+                # region's plain patches lie between its textured edges, and beyond them the
+                # flow ramps down over its window; a weak region's half height is the flow's
+                # noise, which would otherwise grow it over the print: 53,000 mm² on a face)
+                s_px = (np.isin(lab_h, hit[hit > 0]) & _hull(s_px, int(math.ceil(3 * window_px)))) | s_px
         regions.append([kind, region, s_px, c_px, ns, nc])
     merged: list = []
     for r in sorted(regions, key=lambda r: -int(r[2].sum())):
@@ -1803,7 +1921,7 @@ def placement_samples(dr: DenseResult, grid: PrintGrid, max_sigma_mm: float, str
         the ``stride`` samples).
     """
     ok = (dr.texture == 2) & np.isfinite(dr.sigma_mm) & (dr.sigma_mm <= max_sigma_mm)
-    windows = float(ok.sum()) / (4.0 * np.pi * TENSOR_SIGMA_PX**2)
+    windows = float(ok.sum()) / (4.0 * np.pi * dr.window_px**2)
     sub = np.zeros_like(ok)
     sub[::stride, ::stride] = True
     ii, jj = np.nonzero(ok & sub)

@@ -32,11 +32,11 @@ DROPOUT_SHARE = 0.75
 SHIFT_SHARE = 0.25
 
 
-def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, window_px: float, floor_px: float):
+def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, n_eff, floor_px: float):
     """The flow's standard uncertainty on a sound part: the photo's noise through the print's texture.
 
     σ² = σ_n² / (N λ) + floor² along an eigenvector of the structure tensor with eigenvalue
-    λ, N = 4π s² the window's effective pixels (:func:`workbench.validate.dense.flow_uncertainty`
+    λ, N the window's independent noise samples (:func:`workbench.validate.dense.flow_uncertainty`
     without its mismatch term, which a defect raises).
 
     Parameters
@@ -45,8 +45,9 @@ def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, window_px:
         The photo's noise, grey levels.
     l1, l2 : (H, W) float32
         The model's structure tensor eigenvalues (strongest, weakest), grey levels² per px².
-    window_px : float
-        The flow's window, Gaussian sigma, grid px.
+    n_eff : float or (H, W) float
+        Independent noise samples in the flow's window
+        (:func:`workbench.validate.dense.effective_samples`).
     floor_px : float
         The flow's own floor, grid px.
 
@@ -55,7 +56,6 @@ def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, window_px:
     weak, strong : (H, W) float32
         Grid px along the weakest and the strongest direction (inf without texture).
     """
-    n_eff = 4.0 * np.pi * window_px * window_px
     with np.errstate(divide="ignore", invalid="ignore"):
         weak = np.sqrt(noise * noise / (n_eff * l2) + floor_px * floor_px)
         strong = np.sqrt(noise * noise / (n_eff * l1) + floor_px * floor_px)

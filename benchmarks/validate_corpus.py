@@ -389,14 +389,17 @@ def outcome(photo: Photo, entry: dict, truth: list[dict], stated: list[dict] | N
 
     A defect photo that PASSes is an ``escape`` when validate states it finds the defect
     there, ``below stated limit`` otherwise; one that FAILs without locating it is ``fail, not
-    located`` (``fail, not located, below stated limit`` when validate states it cannot).
+    located`` (``fail, not located, below stated limit`` when validate states it cannot); one
+    that is INVALID is ``invalid`` (``invalid, above stated limit`` when validate states it finds
+    the defect there: it was not found, and the part was not failed).
     """
     v = entry.get("verdict")
-    if v == "INVALID":
-        return "invalid"
     if photo.defect is None:
-        return "pass" if v == "PASS" else "false reject"
+        return "invalid" if v == "INVALID" else "pass" if v == "PASS" else "false reject"
     below = below_stated_limit(truth, find_detection_limit(entry), stated)
+    if v == "INVALID":
+        # a defect the photo states it finds there, not found: INVALID says "not judged", not FAIL
+        return "invalid" if below or stated is None else "invalid, above stated limit"
     if v == "PASS":
         return "below stated limit" if below else "escape"
     if all(m["located"] for m in match(truth, entry.get("defects", []))):
@@ -521,6 +524,7 @@ def rates(photos: list[Photo]) -> dict:
                     p.result["outcome"] == "found" and p.result["false_defects"] > 0 for p in dp
                 ),
                 "invalid": sum(p.result["outcome"] == "invalid" for p in dp),
+                "invalid_above": sum(p.result["outcome"] == "invalid, above stated limit" for p in dp),
             }
     return out
 
@@ -534,6 +538,7 @@ OUTCOMES = (
     "fail, not located, below stated limit",
     "escape",
     "below stated limit",
+    "invalid, above stated limit",
 )
 
 
@@ -571,7 +576,8 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
             lines.append(
                 f"| {d} | {r} | {s['photos']} | {pct(s['found'], s['photos'])} | {s['found_with_false_defects']} | "
                 f"{s['fail_not_located'] + s['fail_not_located_below']} ({s['fail_not_located_below']}) | "
-                f"{pct(s['escapes'], s['photos'])} | {s['below_stated_limit']} | {s['invalid']} |"
+                f"{pct(s['escapes'], s['photos'])} | {s['below_stated_limit']} | "
+                f"{s['invalid'] + s['invalid_above']} ({s['invalid_above']}) |"
             )
     lines += ["", "## Why photos get the wrong verdict", ""]
     lines += ["| reason (figures as #) | perfect photos | defect photos |", "|---|---:|---:|"]
@@ -619,7 +625,14 @@ def wrong_verdict_reasons(photos: list[Photo]) -> dict:
     out: dict = {}
     for p in photos:
         o = p.result.get("outcome")
-        if o not in ("false reject", "fail, not located", "fail, not located, below stated limit", "escape", "invalid"):
+        if o not in (
+            "false reject",
+            "fail, not located",
+            "fail, not located, below stated limit",
+            "escape",
+            "invalid",
+            "invalid, above stated limit",
+        ):
             continue
         text = p.result.get("reason") or o
         # one line per rule: "a; b" are two reasons

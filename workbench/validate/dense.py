@@ -598,24 +598,20 @@ def dense_flow(
     -------
     (H, W, 2) float32
         Misregistration m, grid pixels (x right, y down).
-    ref_n, photo_n : (H, W) uint8
-        With ``normalised``: the print and the photo as the flow saw them (on the full grid).
+    ref_n, photo_n : (h, w) uint8
+        With ``normalised``: the print and the photo as the flow saw them, on the grid reduced
+        by ``factor`` (the full grid where it is 1).
     """
     shape = ref_gray.shape
     if factor > 1:
         ref_gray, warped_gray = _reduce(ref_gray, factor), _reduce(warped_gray, factor)
         scored = _reduce(scored.astype(np.float32), factor) > 0.5
     r = local_normalise(ref_gray, NORM_SIGMA_PX)
-    w = local_normalise(warped_gray, NORM_SIGMA_PX)
-    w = np.where(scored, w, r)
+    w = np.where(scored, local_normalise(warped_gray, NORM_SIGMA_PX), r)
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
     g = dis.calc(w, r, None)
     if factor > 1:
         g = _enlarge_flow(g, shape)
-        if normalised:
-            size = (shape[1], shape[0])
-            r = cv2.resize(r, size, interpolation=cv2.INTER_LINEAR)
-            w = cv2.resize(w, size, interpolation=cv2.INTER_LINEAR)
     return (-g, r, w) if normalised else -g
 
 
@@ -750,6 +746,8 @@ class DenseResult:
         Where ink that is gone is found.
     window_px : float
         The flow's window, Gaussian sigma, grid px: a measurement's independent neighbourhood.
+    normal_dir : (rows, cols, 2) float32
+        The dominant edge's unit normal, where only the component across it is measured.
     """
 
     warped: np.ndarray
@@ -770,6 +768,7 @@ class DenseResult:
     shift_limit_mm: np.ndarray | None = None
     dropout_found: np.ndarray | None = None
     window_px: float = TENSOR_SIGMA_PX
+    normal_dir: np.ndarray | None = None
 
 
 def effective_samples(window_px: float, noise_corr_px) -> np.ndarray | float:
@@ -882,10 +881,11 @@ def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray,
     ----------
     flow_m : (H, W, 2) float32
         Misregistration from :func:`dense_flow`, grid px.
-    ref_n, photo_n : (H, W) uint8
-        The locally normalised print and photo the forward flow compared.
+    ref_n, photo_n : (h, w) uint8
+        The locally normalised print and photo the forward flow compared (on the grid
+        reduced by ``factor``, :func:`dense_flow`).
     factor : int
-        The grid's reduction for the flow (:func:`flow_factor`), as the forward flow's.
+        The grid's reduction for the flow (:func:`flow_factor`).
 
     Returns
     -------
@@ -895,10 +895,9 @@ def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray,
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
     H, W = flow_m.shape[:2]
     # print(x) ≈ photo(x + b(x)): b carries a print pixel to where the photo shows it
+    b = dis.calc(ref_n, photo_n, None)
     if factor > 1:
-        b = _enlarge_flow(dis.calc(_reduce(ref_n, factor), _reduce(photo_n, factor), None), (H, W))
-    else:
-        b = dis.calc(ref_n, photo_n, None)
+        b = _enlarge_flow(b, (H, W))
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     back = cv2.remap(b, jj - flow_m[..., 0], ii - flow_m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     bx, by = back[..., 0], back[..., 1]
@@ -1097,9 +1096,9 @@ def analyse(
     rgb_ = cv2.GaussianBlur(rg, (0, 0), reg)
     pgb_ = cv2.GaussianBlur(pg, (0, 0), reg)
     # (at about the photo's resolution where it is coarser than the grid, its windows with it)
-    factor = flow_factor(scale)
-    win = TENSOR_SIGMA_PX * factor
-    m, ref_n, pho_n = dense_flow(rgb_, pgb_, seen & ~sat, normalised=True, factor=factor)
+    flow_k = flow_factor(scale)
+    win = TENSOR_SIGMA_PX * flow_k
+    m, ref_n, pho_n = dense_flow(rgb_, pgb_, seen & ~sat, normalised=True, factor=flow_k)
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
     H, W = rg.shape
@@ -1147,9 +1146,9 @@ def analyse(
     pred_s = cv2.GaussianBlur(cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY), (0, 0), reg)
     corr = noise_correlation(reg, fp)
     weak, strong, e1, noise, l1, l2 = flow_uncertainty(
-        pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, FLOW_FLOOR_PX * factor
+        pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, FLOW_FLOOR_PX * flow_k
     )
-    fb = forward_backward(m, ref_n, pho_n, factor)
+    fb = forward_backward(m, ref_n, pho_n, flow_k)
     weak = np.hypot(weak, 0.5 * fb)
     strong = np.hypot(strong, 0.5 * fb)
     # surface mm per grid px: print mm times the film's local stretch
@@ -1163,7 +1162,7 @@ def analyse(
     # on the print's texture, not on the photo's exposure)
     # (in grey levels² per pixel of the flow's grid: the gates hold for the images the flow compares)
     p1, p2, _ = structure_tensor(rgb_, win, direction=False)
-    p1, p2 = p1 * factor * factor, p2 * factor * factor
+    p1, p2 = p1 * flow_k * flow_k, p2 * flow_k * flow_k
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
     # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
@@ -1174,7 +1173,7 @@ def analyse(
     # the detection limit, stated for a sound part: the photo's noise through the texture it
     # resolves (the mismatch and the flow back, which a defect itself raises, left out)
     weak_e, strong_e = detection.expected_flow_sigma(
-        noise, l1, l2, effective_samples(win, corr), FLOW_FLOOR_PX * factor
+        noise, l1, l2, effective_samples(win, corr), FLOW_FLOOR_PX * flow_k
     )
     stated = scored.copy()  # (before light is told from ink: that depends on the defect)
     measurable = stated & ~unresolved
@@ -1288,7 +1287,7 @@ def analyse(
     _, l2_wide, _ = structure_tensor(rgb_, 4 * win, direction=False)
     with np.errstate(divide="ignore", invalid="ignore"):
         wide_sigma = np.sqrt(noise * noise / (effective_samples(4 * win, corr) * l2_wide)) * mm_per_px
-    wide_ok = (l2_wide * factor * factor >= MIN_TWO_WAY) & (np.nan_to_num(wide_sigma, nan=np.inf) <= usable)
+    wide_ok = (l2_wide * flow_k * flow_k >= MIN_TWO_WAY) & (np.nan_to_num(wide_sigma, nan=np.inf) <= usable)
     m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
     m_use = np.where(wide_ok, m_mm, shift_mm)
     s_use = np.where(wide_ok, np.maximum(np.nan_to_num(sigma_mm, nan=0.0), np.nan_to_num(wide_sigma)), sigma_mm)
@@ -1320,7 +1319,7 @@ def analyse(
     keep = []
     for i, d in enumerate(defects):
         if d["kind"] == "shift":
-            d["explained_share"] = shift_explained(ref_n, pho_n, m, (labels == i + 1) & (full | normal))
+            d["explained_share"] = shift_explained(ref_n, pho_n, m, (labels == i + 1) & (full | normal), flow_k)
             if d["explained_share"] is not None and d["explained_share"] < SHIFT_EXPLAINS:
                 continue
         keep.append(i)
@@ -1389,6 +1388,7 @@ def analyse(
         limit_mm,
         dropout_found & stated,
         win,
+        np.where(normal[..., None], e1, np.float32(0.0)).astype(np.float32),
     )
 
 
@@ -1639,17 +1639,26 @@ def light_or_ink(
     return highlight, missing
 
 
-def shift_explained(ref_n: np.ndarray, pho_n: np.ndarray, flow: np.ndarray, region: np.ndarray) -> float | None:
+def shift_explained(
+    ref_n: np.ndarray, pho_n: np.ndarray, flow: np.ndarray, region: np.ndarray, factor: int = 1
+) -> float | None:
     """Share of the residual over a region that moving the print by the flow takes away.
+
+    Judged at the flow's own resolution: where the photo is coarser than the grid, the
+    print's detail finer than the photo's pixel is a residual no shift explains (a 12 mm
+    bubble's flow explained 0.37 of the full grid's residual and 0.96 of the flow grid's).
 
     Parameters
     ----------
-    ref_n, pho_n : (H, W) float32
-        The print and the photo on it, locally normalised (:func:`dense_flow`).
+    ref_n, pho_n : (h, w) float32
+        The print and the photo on it, locally normalised, as the flow compared them
+        (:func:`dense_flow`: on the grid reduced by ``factor``).
     flow : (H, W, 2) float32
         The dense flow, grid px.
     region : (H, W) bool
         The pixels of the region.
+    factor : int
+        The flow's reduction of the grid (:func:`flow_factor`).
 
     Returns
     -------
@@ -1657,9 +1666,17 @@ def shift_explained(ref_n: np.ndarray, pho_n: np.ndarray, flow: np.ndarray, regi
         1 - |r1|² / |r0|², with r0 the residual of the print where it is and r1 that of the
         print moved by the flow; None for an empty region.
     """
+    if factor > 1:
+        h, w = ref_n.shape
+        flow = cv2.resize(flow, (w, h), interpolation=cv2.INTER_AREA)
+        flow[..., 0] *= w / region.shape[1]
+        flow[..., 1] *= h / region.shape[0]
+        region = cv2.resize(region.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA) > 0.5
     ii, jj = np.nonzero(region)
     if len(ii) == 0:
         return None
+    # (in floats: the normalised images are uint8, whose differences and squares wrap)
+    ref_n, pho_n = ref_n.astype(np.float32), pho_n.astype(np.float32)
     y0, y1, x0, x1 = ii.min(), ii.max() + 1, jj.min(), jj.max() + 1
     box = (slice(y0, y1), slice(x0, x1))
     gx, gy = np.meshgrid(np.arange(x0, x1, dtype=np.float32), np.arange(y0, y1, dtype=np.float32))
@@ -1898,8 +1915,19 @@ def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> 
     return out
 
 
-def placement_samples(dr: DenseResult, grid: PrintGrid, max_sigma_mm: float, stride: int = 4):
-    """Print points the dense field measures accurately, and where the photo shows their content.
+def dense_placement(dr: DenseResult, grid: PrintGrid, max_sigma_mm: float, print_size_mm, stride: int = 4) -> dict:
+    """The film's placement from the dense field: its full vectors and its components across edges.
+
+    The film moved by t', rotated and scaled by M = [[a, -b], [b, a]] about the print's centre
+    c shows, at the print point y, the content designed at M (y - c) + c - t' (the convention of
+    :func:`workbench.validate.score.fit_film`): a misregistration m(y) = K (y - c) + t' with
+    K = I - M, linear in (K, t'). A pixel with the full vector gives both components; one on
+    an edge gives the component across it, n · m(y) (a logo's outline, edges in every
+    direction, fixes the placement as a textured patch does). Weighted least squares (each
+    pixel by its own uncertainty), pixels beyond 3 median normalised residuals dropped twice.
+    The film's offset is M⁻¹ t'. Its uncertainty is the fit's covariance, each pixel counted
+    as the share of an independent flow window it is (neighbours share their window), scaled
+    by the fit's reduced chi² where that exceeds 1.
 
     Parameters
     ----------
@@ -1907,25 +1935,94 @@ def placement_samples(dr: DenseResult, grid: PrintGrid, max_sigma_mm: float, str
     grid : PrintGrid
     max_sigma_mm : float
         Largest uncertainty (mm on the surface) of a pixel taken.
+    print_size_mm : (2,) float
+        The print's size; its centre is the film's centre.
     stride : int
-        Every ``stride``-th pixel along each axis (neighbours share their flow window).
+        Every ``stride``-th pixel along each axis.
 
     Returns
     -------
-    p_design, p_shown : (n, 2) float
-        Print mm (x right, y down): the content designed at p_design shows at p_shown.
-    shift_mm : (n,) float
-        The misregistration there, mm on the surface.
-    windows : float
-        How many independent flow windows the accurate pixels hold (all of them, not only
-        the ``stride`` samples).
+    dict
+        ``film``: offset_mm [x, y] (print mm), rotation_deg, scale_pct, rms_mm (print mm), samples;
+        or None when fewer than 4 samples or a degenerate fit. ``uncertainty_mm``: the offset's
+        standard uncertainty (print mm, the worse axis; inf when undetermined). ``windows``:
+        independent flow windows taken (an edge pixel counts half). ``shift_mm`` (n,): the
+        misregistration at each sample, mm on the surface (on an edge: the fitted vector with
+        its measured component across the edge).
     """
-    ok = (dr.texture == 2) & np.isfinite(dr.sigma_mm) & (dr.sigma_mm <= max_sigma_mm)
-    windows = float(ok.sum()) / (4.0 * np.pi * dr.window_px**2)
-    sub = np.zeros_like(ok)
+    ppm = grid.px_per_mm
+    sig = np.nan_to_num(dr.sigma_mm, nan=np.inf)
+    full = (dr.texture == 2) & (sig <= max_sigma_mm)
+    edge = (dr.texture == 1) & (sig <= max_sigma_mm) & (dr.normal_dir is not None)
+    area = 4.0 * np.pi * dr.window_px**2
+    windows = float(full.sum() + 0.5 * edge.sum()) / area
+    out = {"film": None, "uncertainty_mm": float("inf"), "windows": windows, "shift_mm": np.zeros(0)}
+    sub = np.zeros_like(full)
     sub[::stride, ::stride] = True
-    ii, jj = np.nonzero(ok & sub)
-    # the photo's pixel y shows the content designed at y - m (grid px; centres at + 0.5)
-    y = np.stack([jj + 0.5, ii + 0.5], axis=1) / grid.px_per_mm
-    m = dr.flow_px[ii, jj].astype(np.float64) / grid.px_per_mm
-    return y - m, y, dr.shift_mm[ii, jj].astype(np.float64), windows
+    fi, fj = np.nonzero(full & sub)
+    ei, ej = np.nonzero(edge & sub)
+    if len(fi) + len(ei) < 4:
+        return out
+    c = 0.5 * np.asarray(print_size_mm, dtype=np.float64)
+    stretch = grid.surface_per_print
+
+    def centred(ii, jj):
+        return np.stack([jj + 0.5, ii + 0.5], axis=1) / ppm - c
+
+    # rows of m = K y + t' with K = [[u, v], [-v, u]]: (x, y, 1, 0) and (y, -x, 0, 1)
+    yf, ye = centred(fi, fj), centred(ei, ej)
+    Af = np.stack(
+        [np.stack([yf[:, 0], yf[:, 1], np.ones(len(yf)), np.zeros(len(yf))], 1),
+         np.stack([yf[:, 1], -yf[:, 0], np.zeros(len(yf)), np.ones(len(yf))], 1)], 1,
+    )  # fmt: skip
+    mf = dr.flow_px[fi, fj].astype(np.float64) / ppm
+    sf = (sig[fi, fj] / stretch[fi, fj]).astype(np.float64)
+    n = dr.normal_dir[ei, ej].astype(np.float64) if len(ei) else np.zeros((0, 2))
+    Ae = np.stack(
+        [np.stack([ye[:, 0], ye[:, 1], np.ones(len(ye)), np.zeros(len(ye))], 1),
+         np.stack([ye[:, 1], -ye[:, 0], np.zeros(len(ye)), np.ones(len(ye))], 1)], 1,
+    )  # fmt: skip
+    Ae = np.einsum("nk,nkp->np", n, Ae)
+    se_n = (dr.shift_px[ei, ej].astype(np.float64) * n).sum(axis=1) / ppm
+    se = (sig[ei, ej] / stretch[ei, ej]).astype(np.float64)
+    A = np.concatenate([Af.reshape(-1, 4), Ae]) / np.concatenate([np.repeat(sf, 2), se])[:, None]
+    b = np.concatenate([mf.ravel(), se_n]) / np.concatenate([np.repeat(sf, 2), se])
+    keep = np.ones(len(b), bool)
+    for _ in range(3):
+        sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
+        r = np.abs(A @ sol - b)
+        keep = r <= max(3.0 * float(np.median(r[keep])), 1e-6)
+    AtA = A[keep].T @ A[keep]
+    if np.linalg.cond(AtA) > 1e12:
+        return out
+    dof = max(int(keep.sum()) - 4, 1)
+    chi2 = float((r[keep] ** 2).sum()) / dof
+    samples_per_window = max(1.0, area / stride**2)
+    cov = np.linalg.inv(AtA) * max(chi2, 1.0) * samples_per_window
+    u, v, tx, ty = sol
+    M = np.array([[1.0 - u, -v], [v, 1.0 - u]])
+    Minv = np.linalg.inv(M)
+    d = Minv @ np.array([tx, ty])
+    cov_d = Minv @ cov[2:, 2:] @ Minv.T
+    model_f = np.einsum("nkp,p->nk", Af, sol)
+    model_e = np.einsum("nkp,p->nk", np.stack([
+        np.stack([ye[:, 0], ye[:, 1], np.ones(len(ye)), np.zeros(len(ye))], 1),
+        np.stack([ye[:, 1], -ye[:, 0], np.zeros(len(ye)), np.ones(len(ye))], 1)], 1), sol)  # fmt: skip
+    # an edge pixel's vector: the fit's, with the component across the edge as measured
+    vec_e = model_e + (se_n - (model_e * n).sum(axis=1))[:, None] * n
+    res_f = np.linalg.norm(mf - model_f, axis=1)
+    res_e = np.abs(se_n - (model_e * n).sum(axis=1))
+    kf = keep[: 2 * len(fi)].reshape(-1, 2).all(axis=1)
+    ke = keep[2 * len(fi) :]
+    out["film"] = {
+        "offset_mm": d.tolist(),
+        "rotation_deg": float(np.degrees(np.arctan2(M[1, 0], M[0, 0]))),
+        "scale_pct": float((1.0 / np.sqrt(np.linalg.det(M)) - 1.0) * 100.0),
+        "rms_mm": float(np.sqrt(np.mean(np.concatenate([res_f[kf], res_e[ke]]) ** 2))),
+        "samples": int(kf.sum() + ke.sum()),
+    }
+    out["uncertainty_mm"] = float(np.sqrt(np.linalg.eigvalsh(cov_d).max()))
+    out["shift_mm"] = np.concatenate(
+        [np.linalg.norm(mf, axis=1) * stretch[fi, fj], np.linalg.norm(vec_e, axis=1) * stretch[ei, ej]]
+    )
+    return out

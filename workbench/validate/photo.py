@@ -37,7 +37,6 @@ from workbench.validate.score import (
     TILE,
     TILE_SIGMA_SHARE,
     _bilinear,
-    fit_film,
     printed_view,
     score,
     view_surface,
@@ -256,20 +255,21 @@ def validate_photo(
     entry["misregistration_source"] = "tiles"
     if len(sc.shift_mm) < MIN_TILES:
         # too few tiles: the dense field measures placement where its pixels measure the full
-        # vector (each within a third of the tolerance, as for its defects) and the placement
-        # they give together is as accurate as a tile's: its uncertainty, the pixels' median
-        # over the root of their independent windows, within TILE_SIGMA_SHARE of the tolerance
-        pd_, ps_, smm, windows = dense.placement_samples(dr, grid, tolerance_mm / dense.SIGNIFICANCE_Z)
-        entry["dense_windows"] = round(windows, 1)
-        full = dr.sigma_mm[dr.texture == 2]
-        fit_sigma = float(np.nanmedian(full)) / np.sqrt(max(windows, 1.0)) if full.size else np.inf
+        # vector or the component across an edge (each within a third of the tolerance, as for
+        # its defects), when together they hold MIN_DENSE_WINDOWS independent windows and place
+        # the film as accurately as a tile: within TILE_SIGMA_SHARE of the tolerance
+        place = dense.dense_placement(
+            dr, grid, tolerance_mm / dense.SIGNIFICANCE_Z, (p["image_width_mm"], p["image_height_mm"])
+        )
+        entry["dense_windows"] = round(place["windows"], 1)
+        fit_sigma = place["uncertainty_mm"]
         entry["dense_placement_uncertainty_mm"] = round(fit_sigma, 4) if np.isfinite(fit_sigma) else None
-        if windows >= MIN_DENSE_WINDOWS and fit_sigma <= TILE_SIGMA_SHARE * tolerance_mm and len(smm) >= 4:
-            film = fit_film(pd_, ps_, (p["image_width_mm"], p["image_height_mm"]))
+        film = place["film"]
+        if film is not None and place["windows"] >= MIN_DENSE_WINDOWS and fit_sigma <= TILE_SIGMA_SHARE * tolerance_mm:
             entry.update(
                 {
                     "misregistration_source": "dense",
-                    "misregistration_mm": stats(smm),
+                    "misregistration_mm": stats(place["shift_mm"]),
                     "misregistration_uncertainty_mm": float(np.nanmedian(dr.sigma_mm)),
                     "film_offset_mm": film["offset_mm"],
                     "film_rotation_deg": film["rotation_deg"],

@@ -443,7 +443,7 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
     # the command and the design it renders (a design made again from a changed job differs)
     key = json.dumps([hashlib.sha256((design / "design.json").read_bytes()).hexdigest(), *render[3:]])
     if args.report_only:
-        if not (folder / "validation" / "validation.json").is_file():
+        if not (folder / args.validation / "validation.json").is_file():
             photo.result = {"outcome": "not run", "why": "--report-only: no validation.json yet"}
             return photo
     elif not (img.is_file() and truth_file.is_file() and stamp.is_file() and stamp.read_text() == key):
@@ -455,9 +455,10 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
             photo.result = {"outcome": "render failed", "why": r.stderr.strip().splitlines()[-1:]}
             return photo
         stamp.write_text(key)
-        (folder / "validation" / "validation.json").unlink(missing_ok=True)  # of an earlier photo
+        for old in folder.glob("validation*/validation.json"):  # of an earlier photo
+            old.unlink()
     t1 = time.perf_counter()
-    vdir = folder / "validation"
+    vdir = folder / args.validation
     validate = [sys.executable, "-m", "workbench", "validate", str(design), str(img), "--camera", str(truth_file)]
     validate += ["--view", photo.view, "--tolerance-mm", str(TOLERANCE_MM), "--jobs", "1", "--out", str(vdir), "-q"]
     if not args.report_only and (args.revalidate or not (vdir / "validation.json").is_file()):
@@ -653,6 +654,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--subset", choices=("fast", "bench", "full"), default="full")
     ap.add_argument("--renderer", choices=("workbench", "mitsuba", "both"), default="workbench")
     ap.add_argument("--jobs", type=int, default=1, help="photos rendered and validated at once (default 1)")
+    ap.add_argument("--only", help="only these photo ids (comma-separated)")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "validate_corpus")
     ap.add_argument("--parts", help="only these parts (comma-separated)")
     ap.add_argument("--sizes", help="only these photo sizes (comma-separated WxH)")
@@ -661,6 +663,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--limit", type=int, help="only the first N photos of the grid")
     ap.add_argument("--revalidate", action="store_true", help="validate again even where a report exists")
     ap.add_argument("--name", default="validate_corpus", help="the tables' file name, without suffix")
+    ap.add_argument(
+        "--validation",
+        default="validation",
+        help="each photo's validation folder (default validation): another name keeps another validate's reports",
+    )
     ap.add_argument(
         "--report-only", action="store_true", help="no rendering or validation: the tables from the photos in OUT"
     )
@@ -691,6 +698,9 @@ def main(argv: list[str] | None = None) -> int:
         photos = [p for p in photos if p.defect is None]
     if args.defects_only:
         photos = [p for p in photos if p.defect is not None]
+    if args.only:
+        keep = set(args.only.split(","))
+        photos = [p for p in photos if p.id in keep]
     if args.limit:
         photos = photos[: args.limit]
     args.out.mkdir(parents=True, exist_ok=True)

@@ -75,6 +75,7 @@ class Args:
     revalidate = True
     report_only = False
     spp = 16
+    validation = "validation"
 
 
 def run(photos: list, out) -> dict:

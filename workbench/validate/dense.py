@@ -63,6 +63,13 @@ SHADING = 1.6
 # (measured in tests/test_uncertainty.py: 0.040 px for features 1.5 px across, 0.019 px for
 # 3 px, at noise 1, where the least-squares bound is 0.005 px); the larger is taken
 FLOW_FLOOR_PX = 0.04
+# the flow's floor in the photo's own pixels: its sampling, interpolation, demosaicing, JPEG and
+# the renderer's or lens's pixel-level detail move an edge by a fraction of a photo pixel that no
+# window averages away (its errors are correlated over the flow's window). Measured on perfect
+# photos, per component: 0.12 to 0.18 photo px at 12 Mpx (a 1.2 photo px per grid px) and 0.17
+# to 0.25 where a 2000 x 1500 photo sees a face mask's flank at 0.25 photo px per grid px, where
+# the grid-pixel floor alone predicted a third of that
+PHOTO_FLOOR_PX = 0.15
 UNRESOLVED_KEEP = 0.25  # share of the print's gradient energy a photo must keep to resolve its detail
 EXPOSURE_SIGMA_PX = 40.0  # window of the local gain/offset fit: larger than any defect it must not absorb
 COLOUR_TOL = 40.0  # grey levels (0-255) beyond the exposure model that make a colour defect
@@ -786,6 +793,17 @@ def effective_samples(window_px: float, noise_corr_px) -> np.ndarray | float:
     return np.maximum(4.0 * np.pi * window_px * window_px / (c * c), 1.0)
 
 
+def flow_floor(footprint: np.ndarray, factor: int = 1) -> np.ndarray:
+    """The flow's own floor at each grid pixel, grid px: DIS's on the grid it runs on, and the photo's pixel's.
+
+    FLOW_FLOOR_PX of the flow's grid (``factor`` grid px each) and PHOTO_FLOOR_PX of the
+    photo's (1 / ``footprint`` grid px each), in quadrature.
+    """
+    with np.errstate(divide="ignore"):
+        photo = np.where(footprint > 0, PHOTO_FLOOR_PX / footprint, np.inf)
+    return np.hypot(FLOW_FLOOR_PX * factor, photo).astype(np.float32)
+
+
 def noise_correlation(reg_px: float, footprint: np.ndarray | None) -> np.ndarray | float:
     """The photo's noise correlation on the grid, px: the flow's smoothing, or one photo pixel where that is larger."""
     if footprint is None:
@@ -801,7 +819,7 @@ def flow_uncertainty(
     window_px: float,
     correlation_px: float = 1.0,
     noise_corr_px=1.0,
-    floor_px: float = FLOW_FLOOR_PX,
+    floor_px=FLOW_FLOOR_PX,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
     """Standard uncertainty of a local flow estimate, along the weakest and the strongest direction.
 
@@ -834,8 +852,8 @@ def flow_uncertainty(
     noise_corr_px : float or (H, W) float
         Over how far the photo's noise is correlated on the grid (:func:`noise_correlation`):
         the window then holds :func:`effective_samples` independent samples of it.
-    floor_px : float
-        The flow's own floor, grid px (FLOW_FLOOR_PX of the grid the flow runs on).
+    floor_px : float or (H, W) float
+        The flow's own floor, grid px (:func:`flow_floor`).
 
     Returns
     -------
@@ -1145,8 +1163,9 @@ def analyse(
     # in the photo's own contrast), and where the flow back disagrees, half that disagreement
     pred_s = cv2.GaussianBlur(cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY), (0, 0), reg)
     corr = noise_correlation(reg, fp)
+    floor = flow_floor(fp, flow_k)
     weak, strong, e1, noise, l1, l2 = flow_uncertainty(
-        pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, FLOW_FLOOR_PX * flow_k
+        pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, floor
     )
     fb = forward_backward(m, ref_n, pho_n, flow_k)
     weak = np.hypot(weak, 0.5 * fb)
@@ -1173,7 +1192,7 @@ def analyse(
     # the detection limit, stated for a sound part: the photo's noise through the texture it
     # resolves (the mismatch and the flow back, which a defect itself raises, left out)
     weak_e, strong_e = detection.expected_flow_sigma(
-        noise, l1, l2, effective_samples(win, corr), FLOW_FLOOR_PX * flow_k
+        noise, l1, l2, effective_samples(win, corr), floor
     )
     stated = scored.copy()  # (before light is told from ink: that depends on the defect)
     measurable = stated & ~unresolved

@@ -32,7 +32,7 @@ DROPOUT_SHARE = 0.75
 SHIFT_SHARE = 0.25
 
 
-def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, n_eff, floor_px: float):
+def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, n_eff, floor_px):
     """The flow's standard uncertainty on a sound part: the photo's noise through the print's texture.
 
     σ² = σ_n² / (N λ) + floor² along an eigenvector of the structure tensor with eigenvalue
@@ -48,8 +48,8 @@ def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, n_eff, flo
     n_eff : float or (H, W) float
         Independent noise samples in the flow's window
         (:func:`workbench.validate.dense.effective_samples`).
-    floor_px : float
-        The flow's own floor, grid px.
+    floor_px : float or (H, W) float
+        The flow's own floor, grid px (:func:`workbench.validate.dense.flow_floor`).
 
     Returns
     -------

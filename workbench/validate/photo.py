@@ -328,10 +328,11 @@ def validate_photo(
     files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
     shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
     pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
-    files[f"{stem}_detectable_print.png"] = png_bytes(
-        pictures.detectable_print(grid.reference, dr.shift_limit_mm, dr.dropout_found, grid.px_per_mm, tolerance_mm),
-        compression=1,
+    detectable = pictures.detectable_print(
+        grid.reference, dr.shift_limit_mm, dr.dropout_found, grid.px_per_mm, tolerance_mm
     )
+    files[f"{stem}_detectable_print.png"] = png_bytes(detectable, compression=1)
+    pages[f"{stem}_detectable_print.png"] = page_picture(Image.fromarray(detectable))
     if de_map is not None:
         shown_de = pictures.colour_difference(grid.reference, de_map, grid.px_per_mm, 2 * max_delta_e)
         files[f"{stem}_colour_print.png"] = png_bytes(shown_de, compression=1)

@@ -264,9 +264,10 @@ def detectable_print(
 ) -> np.ndarray:
     """What the photo can find over the print: two panels with a scale; (rows', cols', 3) uint8 RGB.
 
-    Left, the smallest slide of the film found at each pixel ('viridis': the tolerance dark
-    blue to three times it yellow; the print in grey where none is found). Right, in green,
-    where ink that is gone is found. Halved when the grid exceeds a megapixel (a picture to
+    Above, the smallest slide of the film found at each pixel ('viridis': the tolerance dark
+    blue to three times it yellow; the print in grey where none is found), with its scale.
+    Below, in green, where ink that is gone is found. (One above the other: the page of the
+    QA report is portrait.) Halved when the grid exceeds a megapixel (a picture to
     look at, not a measurement: the numbers are in ``detection.npz``).
 
     Parameters
@@ -303,7 +304,6 @@ def detectable_print(
             t = int(round(k * ppm))
             img[:6, t : t + 2] = 0
             img[t : t + 2, :6] = 0
-    gap = np.full((rows, 12, 3), 255, np.uint8)
     bar_w = max(70, cols // 10)
     bar = np.full((rows, bar_w, 3), 255, np.uint8)
     top, bottom = rows // 10, rows - rows // 10
@@ -313,8 +313,11 @@ def detectable_print(
     for v, y in ((vmax, top), ((vmax + tolerance_mm) / 2, (top + bottom) // 2), (tolerance_mm, bottom)):
         cv2.putText(bar, f"{v:.2g}", (bar_w // 3 + 4, y + 5), font, scale, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(bar, "mm", (4, top - 30), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
-    img = np.concatenate([left, bar, gap, right], axis=1)
-    head = np.full((max(24, int(30 * scale)), img.shape[1], 3), 255, np.uint8)
-    for text, x in (("smallest slide found", 6), ("ink gone found (green)", cols + bar_w + 18)):
-        cv2.putText(head, text, (x, head.shape[0] - 8), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
-    return np.concatenate([head, img], axis=0)
+    right = np.concatenate([right, np.full((rows, bar_w, 3), 255, np.uint8)], axis=1)
+    panels = []
+    for text, img in (("smallest slide of the film found", np.concatenate([left, bar], axis=1)),
+                      ("ink gone found (green)", right)):  # fmt: skip
+        head = np.full((max(24, int(30 * scale)), img.shape[1], 3), 255, np.uint8)
+        cv2.putText(head, text, (6, head.shape[0] - 8), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
+        panels += [head, img]
+    return np.concatenate(panels, axis=0)

@@ -18,6 +18,55 @@ def draw_row(c, cols: list[float], cells: list[str], y: float) -> None:
         c.drawString(x * mm, y, v)
 
 
+def detection_line(dn: dict) -> str:
+    """One line of what a photo can find (its ``dense.detection_limit``), for its page."""
+    lim = dn.get("detection_limit") or {}
+    res = dn.get("resolution") or {}
+    line = (
+        f"photo noise {dn.get('noise_grey_levels') or 0:.1f} grey levels, {res.get('photo_px_per_mm') or 0:.1f} "
+        f"px/mm on the part; finds defects from {lim.get('min_area_mm2', 0):.1f} mm²"
+    )
+    if lim.get("min_shift_mm_median") is not None:
+        line += (
+            f", a slide beyond {lim['min_shift_mm_median']:.2f} mm (median) over "
+            f"{100 * lim['shift_found_share']:.0f} % of what it sees"
+        )
+    if lim.get("dropout_found_share_of_inked") is not None:
+        line += f", ink gone over {100 * lim['dropout_found_share_of_inked']:.0f} % of the inked print it sees"
+    return line + f" (z = {lim.get('significance_z', 0):g})"
+
+
+def detectable_page(c, e: dict, stem: str, pictures: dict, pages: dict, W: float, H: float) -> None:
+    """A photo's page of what it can find: its detection limit over the print."""
+    from PIL import Image
+    from reportlab.lib.units import mm
+    from reportlab.lib.utils import ImageReader, simpleSplit
+
+    name = f"{stem}_detectable_print.png"
+    jpeg = pages.get(name) or (page_picture(Image.open(io.BytesIO(pictures[name]))) if name in pictures else None)
+    dn = e.get("dense") or {}
+    if jpeg is None or not dn.get("detection_limit"):
+        return
+    c.setFont("Helvetica-Bold", 11)
+    c.drawString(20 * mm, H - 20 * mm, f"{stem}: what this photo can find")
+    c.setFont("Helvetica", 8)
+    text = (
+        f"{detection_line(dn)}. Stated for a sound part from the design, the photo's noise, blur and sampling: "
+        "a defect where it finds nothing is below this photo's limit; another photo, nearer or sharper, may find it."
+    )
+    top = H - 26 * mm
+    for line in simpleSplit(text, "Helvetica", 8, W - 40 * mm):
+        c.drawString(20 * mm, top, line)
+        top -= 3.8 * mm
+    img = ImageReader(io.BytesIO(jpeg))
+    iw, ih = img.getSize()
+    w = W - 40 * mm
+    h = min(w * ih / iw, top - 20 * mm)
+    w = h * iw / ih
+    c.drawImage(img, 20 * mm, top - 2 * mm - h, width=w, height=h)
+    c.showPage()
+
+
 def page_names(stem: str, view: str) -> list[str]:
     """The pictures on a photo's page, by file name, top to bottom."""
     return [f"{stem}_dense_print.png", f"{stem}_defects_photo.png", f"{stem}_defects_{view}.png"]
@@ -356,7 +405,7 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
     from PIL import Image
     from reportlab.lib.pagesizes import A4
     from reportlab.lib.units import mm
-    from reportlab.lib.utils import ImageReader
+    from reportlab.lib.utils import ImageReader, simpleSplit
     from reportlab.pdfgen import canvas as rl_canvas
 
     from workbench.validate.seating import seating_text
@@ -451,14 +500,9 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
             lim = dn.get("detection_limit") or {}
             res = dn.get("resolution") or {}
             if lim:
-                line = (
-                    f"photo noise {dn.get('noise_grey_levels') or 0:.1f} grey levels, "
-                    f"{res.get('photo_px_per_mm') or 0:.1f} px/mm on the part; finds defects from "
-                    f"{lim['min_area_mm2']:.1f} mm² and misregistration beyond {lim.get('min_shift_mm') or 0:.2f} mm "
-                    f"(z = {lim['significance_z']:g})"
-                )
-                c.drawString(20 * mm, top, line)
-                top -= 4.2 * mm
+                for line in simpleSplit(detection_line(dn), "Helvetica", 8, W - 40 * mm):
+                    c.drawString(20 * mm, top, line)
+                    top -= 4.2 * mm
                 if res.get("needed_photo_px_per_mm"):
                     c.drawString(
                         20 * mm,
@@ -495,5 +539,6 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
             c.drawImage(img, 20 * mm, top - h, width=w, height=h)
             top -= h + 6 * mm
         c.showPage()
+        detectable_page(c, e, stem, pictures, pages, W, H)
     c.save()
     return buf.getvalue()

@@ -100,6 +100,7 @@ GLARE = 35.0  # additive brightness (grey levels) beyond the exposure model's of
 SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
 MIN_DEFECT_MM2 = 1.0  # smaller regions are noise, not defects
 SHIFT_CLOSE_MM = 1.0  # gaps between textured parts of a shifted region that are closed when sizing it
+MISSING_GAP_MM = 1.5  # pieces of ink gone this close are one defect (see find_defects)
 EDGE_PX = 6  # band along the edge of what a photo sees (the film's rim included) that is not scored
 DEPTH_STEP = 0.05  # relative depth jump between neighbouring photo pixels that is an outline or a fold
 DEPTH_STEP_BAND_PX = 3.0  # photo pixels not scored on each side of such a step, plus twice the pre-blur
@@ -574,6 +575,38 @@ def _enlarge_flow(flow: np.ndarray, shape: tuple) -> np.ndarray:
     out[..., 0] *= W / w
     out[..., 1] *= H / h
     return out
+
+
+MEDIAN_FLOW_MM = 2.0  # the window of the flow's median the colour's model follows
+
+
+def median_flow(flow: np.ndarray, px_per_mm: float) -> np.ndarray:
+    """The flow's median over a window of about MEDIAN_FLOW_MM, grid px.
+
+    A median keeps a slid region's edge where it is (a bubble's rim stays sharp) and drops
+    what is narrower than half the window: the flow's wiggle where a scratch or the rim of a
+    dropout looks like the neighbouring ink moved over the film. Taken on the grid reduced
+    so that a 5 x 5 median spans the window (OpenCV's float median stops at 5), then
+    resampled back.
+
+    Parameters
+    ----------
+    flow : (H, W, 2) float32
+        Grid px.
+    px_per_mm : float
+        The grid's resolution.
+
+    Returns
+    -------
+    (H, W, 2) float32
+    """
+    k = max(1, int(round(MEDIAN_FLOW_MM * px_per_mm / 5.0)))
+    small = _reduce(flow, k) if k > 1 else flow
+    med = np.dstack([cv2.medianBlur(np.ascontiguousarray(small[..., c]), 5) for c in range(2)])
+    if k == 1:
+        return med
+    H, W = flow.shape[:2]
+    return cv2.resize(med, (W, H), interpolation=cv2.INTER_LINEAR)
 
 
 def dense_flow(
@@ -1121,7 +1154,11 @@ def analyse(
     # then the photo's blur, measured on the aligned pair
     H, W = rg.shape
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
-    moved = cv2.remap(ref, jj - m[..., 0], ii - m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    # (the colour's model follows the flow's median over about 2 mm: a film's slide is smooth at
+    # that scale, and the flow's own wiggle along a scratch or a dropout's rim, which pulls the
+    # neighbouring ink over the bare film, would explain the ink that is gone away)
+    mc = median_flow(m, grid.px_per_mm)
+    moved = cv2.remap(ref, jj - mc[..., 0], ii - mc[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat)
     # the blur where the photo samples the print coarser than its median (a surface seen
     # obliquely or from farther): a photo pixel spans 1 / footprint grid pixels there, so its
@@ -1809,7 +1846,15 @@ def find_defects(
     sb = cv2.morphologyEx(shift_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
     cb = cv2.morphologyEx(colour_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
     both = cv2.morphologyEx(sb | cb, cv2.MORPH_CLOSE, k3)
-    n, lab = cv2.connectedComponents(both, connectivity=8)
+    # ink gone in pieces a short gap apart is one defect: a scratch across a checker loses its
+    # ink on the dark squares, and over the light ones the step to the film is too small to see
+    # (the gap's pixels join the region's connection, not its area; and a scratch's thin
+    # stretches, which the opening drops, connect its pieces too)
+    r = max(1, int(round(0.5 * MISSING_GAP_MM * grid.px_per_mm)))
+    gone = colour_bad & missing
+    bridge = cv2.dilate(gone.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+    n, lab = cv2.connectedComponents(both | bridge, connectivity=8)
+    lab[both == 0] = 0
     px_mm2 = 1.0 / grid.px_per_mm**2
     # each region's kind and pixels; a shift region grown to where the flow reaches half its
     # shift, and shift regions that grow into one another merged (one bubble, one defect)

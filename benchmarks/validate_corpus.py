@@ -123,7 +123,10 @@ def defect_centre(design: Path, view: str, defect: str) -> tuple[float, float] |
     A bubble slides the print: it shows only over texture, so it goes where the print's
     gradient energy over its footprint is highest. A dropout or a scratch uncovers the white
     film: it goes where the ink is darkest over its footprint. Both keep clear of the region's
-    border (the footprint plus 3 mm) and of the outline. None when nowhere fits.
+    border (the footprint plus 3 mm) and of the outline, and go where the view sees the
+    surface within 50° of head-on over the footprint plus 1 mm (near a fold or the silhouette
+    a photo a few degrees off the view sees the surface at a grazing angle or not at all: what
+    such a photo cannot see is no test of validate). None when nowhere fits.
     """
     info = json.loads((design / "design.json").read_text())
     names = [v["name"] for v in info["views"]]
@@ -136,6 +139,13 @@ def defect_centre(design: Path, view: str, defect: str) -> tuple[float, float] |
     region = ((owner == names.index(view)) & alpha).astype(np.uint8)
     kx, ky = 2 * int(math.ceil((hx + 3) * ppm)) + 1, 2 * int(math.ceil((hy + 3) * ppm)) + 1
     inside = cv2.erode(region, cv2.getStructuringElement(cv2.MORPH_RECT, (kx, ky)), borderValue=0) > 0
+    fx_, fy_ = 2 * int(math.ceil((hx + 1) * ppm)) + 1, 2 * int(math.ceil((hy + 1) * ppm)) + 1
+    frontal = cv2.erode(
+        facing_view(design, view, rgb.shape[:2]).astype(np.uint8),
+        cv2.getStructuringElement(cv2.MORPH_RECT, (fx_, fy_)),
+        borderValue=0,
+    )
+    inside &= frontal > 0
     if not inside.any():
         return None
     fx, fy = 2 * int(math.ceil(hx * ppm)) + 1, 2 * int(math.ceil(hy * ppm)) + 1
@@ -150,6 +160,26 @@ def defect_centre(design: Path, view: str, defect: str) -> tuple[float, float] |
     score = np.where(inside, score, -np.inf)
     i, j = np.unravel_index(int(np.argmax(score)), score.shape)
     return (j + 0.5) / ppm, (i + 0.5) / ppm
+
+
+def facing_view(design: Path, view: str, shape: tuple, max_deg: float = 50.0) -> np.ndarray:
+    """Print pixels whose surface the view sees within ``max_deg`` of head-on; (rows, cols) bool at the print's size."""
+    from workbench.design_dir import Design
+    from workbench.validate.dense import print_grid
+
+    d = Design(design)
+    p = d.info["print"]
+    grid = print_grid(d.V, d.F, d.flat, p["height_mm"], d.rgb, p["dpi"], d.owner)
+    cam = d.view_camera(view)
+    on = grid.face >= 0
+    tri = d.V[d.F[grid.face[on]]]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    to_cam = cam.center - grid.X[on]
+    to_cam /= np.maximum(np.linalg.norm(to_cam, axis=1, keepdims=True), 1e-12)
+    ok = np.zeros(grid.face.shape, np.uint8)
+    ok[on] = (n * to_cam).sum(axis=1) >= math.cos(math.radians(max_deg))
+    return cv2.resize(ok, (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST) > 0
 
 
 def view_direction(part: str, view: str) -> tuple[float, float]:

@@ -101,6 +101,7 @@ SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
 MIN_DEFECT_MM2 = 1.0  # smaller regions are noise, not defects
 SHIFT_CLOSE_MM = 1.0  # gaps between textured parts of a shifted region that are closed when sizing it
 MISSING_GAP_MM = 1.5  # pieces of ink gone this close are one defect (see find_defects)
+MIN_SHIFT_WINDOWS = 2.0  # independent flow windows of evidence a shift defect needs (see find_defects)
 EDGE_PX = 6  # band along the edge of what a photo sees (the film's rim included) that is not scored
 DEPTH_STEP = 0.05  # relative depth jump between neighbouring photo pixels that is an outline or a fold
 DEPTH_STEP_BAND_PX = 3.0  # photo pixels not scored on each side of such a step, plus twice the pre-blur
@@ -545,6 +546,58 @@ def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     theta = 0.5 * np.arctan2(2 * b, a - c)
     e1 = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
     return l1, l2, e1.astype(np.float32)
+
+
+def tensor_weighted_flow(gray: np.ndarray, flow: np.ndarray, sigma: float) -> np.ndarray:
+    """The slide each window's texture supports: its pixels' flows combined through their gradients.
+
+    A pixel's gradient g says of the flow only its component along g (the aperture problem);
+    the vector that agrees best with every pixel of a Gaussian window w, in least squares,
+    minimises Σ w (g · (v - m))², so v = (Σ w g gᵀ)⁻¹ Σ w g gᵀ m: the flows weighted by their
+    structure tensors. Where the window's texture has one direction only, the component
+    across it (the other is set to 0).
+
+    Parameters
+    ----------
+    gray : (H, W) float32
+        The print, as the flow's texture gate saw it.
+    flow : (H, W, 2) float32
+        Grid px.
+    sigma : float
+        The window, Gaussian sigma, grid px.
+
+    Returns
+    -------
+    (H, W, 2) float32
+    """
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
+    xx, xy, yy = gx * gx, gx * gy, gy * gy
+    mx, my = flow[..., 0], flow[..., 1]
+    H, W = gray.shape
+    q = 4 if sigma >= 8 else 1  # a wide window at a quarter of the resolution (as structure_tensor)
+
+    def win(p):
+        if q == 1:
+            return cv2.GaussianBlur(p, (0, 0), sigma)
+        small = cv2.GaussianBlur(cv2.resize(p, (W // q, H // q), interpolation=cv2.INTER_AREA), (0, 0), sigma / q)
+        return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
+
+    a, b, c = win(xx), win(xy), win(yy)
+    nx, ny = win(xx * mx + xy * my), win(xy * mx + yy * my)
+    det = a * c - b * b
+    tr = a + c
+    two_way = det > 1e-3 * tr * tr
+    # (one direction: the tensor is about λ e eᵀ with e ∝ its larger column, λ its trace)
+    ex, ey = np.where(a >= c, a, b), np.where(a >= c, b, c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        norm = np.sqrt(ex * ex + ey * ey)
+        ex, ey = ex / norm, ey / norm
+        along = (ex * nx + ey * ny) / tr
+        vx = np.where(two_way, (c * nx - b * ny) / det, along * ex)
+        vy = np.where(two_way, (a * ny - b * nx) / det, along * ey)
+    out = np.stack([vx, vy], axis=-1)
+    return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
 
 
 FLOW_RESOLUTION = 0.75  # below this many photo px per grid px the flow runs at the photo's resolution
@@ -1228,18 +1281,24 @@ def analyse(
     normal &= ~unresolved
     # the detection limit, stated for a sound part: the photo's noise through the texture it
     # resolves (the mismatch and the flow back, which a defect itself raises, left out)
-    weak_e, strong_e = detection.expected_flow_sigma(
+    weak_e, _ = detection.expected_flow_sigma(
         noise, l1, l2, effective_samples(win, corr), floor
     )
     stated = scored.copy()  # (before light is told from ink: that depends on the defect)
     measurable = stated & ~unresolved
+    # a window of about a millimetre's slide (below): its uncertainty is the photo's noise
+    # through the window's weaker direction, and the floor, none of it raised by a defect
+    _, l2_wide, _ = structure_tensor(rgb_, 4 * win, direction=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wide_sigma = np.sqrt(noise * noise / (effective_samples(4 * win, corr) * l2_wide) + floor * floor) * mm_per_px
+    wide_sigma = np.nan_to_num(wide_sigma, nan=np.inf).astype(np.float32)
     limit_mm = detection.shift_limit(
         tolerance_mm,
         SIGNIFICANCE_Z,
         weak_e * mm_per_px,
-        strong_e * mm_per_px,
+        wide_sigma,
         measurable & (p2 >= MIN_TWO_WAY),
-        measurable & (p1 >= MIN_EDGE),
+        measurable,
         usable,
     )
     shift = np.full((H, W, 2), np.nan, np.float32)
@@ -1335,23 +1394,33 @@ def analyse(
         a[glossed] = np.nan
     texture[glossed] = 0
     missing = gone
-    # a defect's extent from the flow's own vector wherever a window of about a millimetre
-    # has texture in two directions: along an edge the normal component of a shift parallel
-    # to it is 0, which bounds the shift from below only, and would cut a bubble into stripes
-    # (along a long straight line the flow's tangential part is unconstrained: there the
-    # measured component is used)
-    _, l2_wide, _ = structure_tensor(rgb_, 4 * win, direction=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        wide_sigma = np.sqrt(noise * noise / (effective_samples(4 * win, corr) * l2_wide)) * mm_per_px
-    wide_ok = (l2_wide * flow_k * flow_k >= MIN_TWO_WAY) & (np.nan_to_num(wide_sigma, nan=np.inf) <= usable)
-    m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
-    m_use = np.where(wide_ok, m_mm, shift_mm)
-    s_use = np.where(wide_ok, np.maximum(np.nan_to_num(sigma_mm, nan=0.0), np.nan_to_num(wide_sigma)), sigma_mm)
-    shift_bad = (full | normal) & (m_use > tolerance_mm + SIGNIFICANCE_Z * s_use)
-    # the honest measure (full vector, or the component across an edge) significantly beyond
-    # the tolerance: a region without any of it is the flow's guess along edges, not a defect
+    # a slide over a window of about a millimetre: the least-squares vector its pixels' texture
+    # supports (each pixel's flow through its gradients: :func:`tensor_weighted_flow`), with the
+    # window's own uncertainty (the photo's noise through its weaker direction, and the
+    # floor, which no window averages away). Along an edge a pixel knows only the component
+    # across it, which a slide parallel to it leaves 0 (a bubble cut into stripes), and DIS's
+    # own vector there is its guess (it drifted 13 px over a photograph's soft background); a
+    # window whose edges turn knows the whole slide. Usable where its uncertainty is, as a
+    # pixel's (no gate on the texture's grey levels: a photograph's soft edges measure well)
+    m_wide = tensor_weighted_flow(rgb_, m, 4 * win)
+    wide_ok = scored & ~unresolved & (wide_sigma <= usable)
+    wide_mm = np.hypot(m_wide[..., 0], m_wide[..., 1]) * mm_per_px
+    z_wide = np.where(wide_ok, (wide_mm - tolerance_mm) / wide_sigma, np.nan)
+    # the honest measures (the full vector, the component across an edge, a window's slide)
+    # significantly beyond the tolerance: a region without any is the flow's guess, not a defect
     z_shift = (shift_mm - tolerance_mm) / sigma_mm
-    evidence = (full | normal) & (z_shift > SIGNIFICANCE_Z)
+    # (a window's slide spreads past a slid region's rim by about its own radius: eroded by
+    # half the window's width, the window's evidence stays inside the region it measured)
+    e = max(1, int(round(2 * win)))
+    wide_evidence = cv2.erode(
+        (wide_ok & (z_wide > SIGNIFICANCE_Z)).astype(np.uint8),
+        cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * e + 1, 2 * e + 1)),
+    ).astype(bool)
+    evidence = ((full | normal) & (z_shift > SIGNIFICANCE_Z)) | wide_evidence
+    shift_bad = evidence
+    z_region = np.fmax(z_shift, z_wide)
+    # (sized by the flow's own vector, whose edges are sharp: the window's blurs a bubble's rim)
+    m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
     # (ink that is gone by the raw residual: the shading allowance would explain most of it)
     z_colour = (np.where(missing, res_raw, res) - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
     labels, defects = find_defects(
@@ -1363,7 +1432,7 @@ def analyse(
         grid,
         alpha,
         evidence,
-        z_shift,
+        z_region,
         z_colour,
         win,
         m_mm,
@@ -1375,7 +1444,9 @@ def analyse(
     keep = []
     for i, d in enumerate(defects):
         if d["kind"] == "shift":
-            d["explained_share"] = shift_explained(ref_n, pho_n, m, (labels == i + 1) & (full | normal), flow_k)
+            d["explained_share"] = shift_explained(
+                ref_n, pho_n, m, (labels == i + 1) & (full | normal | wide_ok), flow_k
+            )
             if d["explained_share"] is not None and d["explained_share"] < SHIFT_EXPLAINS:
                 continue
         keep.append(i)
@@ -1901,6 +1972,11 @@ def find_defects(
     for kind, region, s_px, c_px, ns, nc in merged:
         if kind != "shift":
             sized = c_px
+        elif evidence is not None and (s_px & evidence).sum() < MIN_SHIFT_WINDOWS * 4 * np.pi * window_px**2:
+            # evidence within a single flow window is one measurement: DIS's errors have tails
+            # its uncertainty does not describe (it drifted 13 px over a photograph's soft
+            # background, 12 pixels beyond 3 sigma), so a slid region needs two windows of it
+            continue
         else:
             # a shift shows only where there is texture: the slid region's plain patches between
             # its edges belong to it too (a closing of SHIFT_CLOSE_MM: 1.5 mm made a 12 mm bubble

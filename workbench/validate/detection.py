@@ -69,38 +69,43 @@ def shift_limit(
     tolerance_mm: float,
     z: float,
     weak_mm: np.ndarray,
-    strong_mm: np.ndarray,
+    window_mm: np.ndarray,
     two_way: np.ndarray,
-    one_way: np.ndarray,
+    measurable: np.ndarray,
     usable_mm: float,
 ) -> np.ndarray:
-    """The smallest slide of the film found at each print pixel, mm on the surface.
+    """The smallest slide of the film, in any direction, found at each print pixel, mm on the surface.
 
-    A pixel finds a slide where it measures one (the full vector where the texture has two
-    directions, the component across the edge where it has one, each to within
-    ``usable_mm``) and the slide exceeds the tolerance by ``z`` of its uncertainty.
+    A slide is found where the pixel measures the full vector (its texture has two
+    directions, to within ``usable_mm``), or where the window of about a millimetre around it
+    measures the slide its texture supports (:func:`workbench.validate.dense.tensor_weighted_flow`:
+    edges that turn within it), and the slide exceeds the tolerance by ``z`` of the better of
+    the two uncertainties. (A pixel on a single edge measures only the component across it,
+    which a slide along the edge leaves 0: it finds a slide in some directions, and is not
+    counted.)
 
     Parameters
     ----------
     tolerance_mm, z, usable_mm : float
         The tolerance (mm), the significance (standard uncertainties) and the largest
         uncertainty a measuring pixel may have (mm).
-    weak_mm, strong_mm : (H, W) float32
-        Expected uncertainties (:func:`expected_flow_sigma`), mm on the surface.
-    two_way, one_way : (H, W) bool
-        Scored pixels whose print texture has two directions, and one, as the flow needs them.
+    weak_mm, window_mm : (H, W) float32
+        Expected uncertainties, mm on the surface: the pixel's full vector
+        (:func:`expected_flow_sigma`) and the window's slide.
+    two_way, measurable : (H, W) bool
+        Scored pixels the photo resolves whose print texture has two directions; all of them.
 
     Returns
     -------
     (H, W) float32
         mm; NaN where no slide is found.
     """
+    sigma = np.full(weak_mm.shape, np.inf, np.float32)
     full = two_way & (weak_mm <= usable_mm)
-    normal = ~full & one_way & (strong_mm <= usable_mm)
-    out = np.full(weak_mm.shape, np.nan, np.float32)
-    out[full] = tolerance_mm + z * weak_mm[full]
-    out[normal] = tolerance_mm + z * strong_mm[normal]
-    return out
+    sigma[full] = weak_mm[full]
+    window = measurable & (window_mm <= usable_mm)
+    sigma[window] = np.minimum(sigma[window], window_mm[window])
+    return np.where(np.isfinite(sigma), tolerance_mm + z * sigma, np.nan).astype(np.float32)
 
 
 def summary(shift_mm: np.ndarray, dropout: np.ndarray, scored: np.ndarray, inked: np.ndarray, ink_step: float) -> dict:

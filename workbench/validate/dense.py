@@ -1416,7 +1416,8 @@ def analyse(
         (wide_ok & (z_wide > SIGNIFICANCE_Z)).astype(np.uint8),
         cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * e + 1, 2 * e + 1)),
     ).astype(bool)
-    evidence = ((full | normal) & (z_shift > SIGNIFICANCE_Z)) | wide_evidence
+    own_evidence = (full | normal) & (z_shift > SIGNIFICANCE_Z)
+    evidence = own_evidence | wide_evidence
     shift_bad = evidence
     z_region = np.fmax(z_shift, z_wide)
     # (sized by the flow's own vector, whose edges are sharp: the window's blurs a bubble's rim)
@@ -1437,6 +1438,7 @@ def analyse(
         win,
         m_mm,
         scored,
+        own_evidence,
     )
     # a moved film explains the photo: the print moved by the region's flow must take most of
     # the residual away; a flow that explains little follows shading, gloss or the photo's
@@ -1875,6 +1877,7 @@ def find_defects(
     window_px: float = TENSOR_SIGMA_PX,
     extent=None,
     measured=None,
+    core=None,
 ):
     """Connected regions of excess misregistration or colour residual, sized on the print.
 
@@ -1903,7 +1906,11 @@ def find_defects(
         The misregistration that sizes a shift region (mm; the flow's own vector, which DIS
         spreads evenly over plain patches and across the region's edge) and where the photo
         is scored: a region extends over the scored pixels around it where ``extent`` is at
-        least half its median.
+        least half its upper quartile.
+    core : (H, W) bool, optional
+        The part of ``evidence`` that pixels measure on their own (not a window of about a
+        millimetre around them, which reaches past a slid region's rim): where it holds two
+        windows of a region, it alone places and sizes the region.
 
     Returns
     -------
@@ -1949,14 +1956,20 @@ def find_defects(
                 # region's shift to 0 over the flow's window, and crosses half of it at the
                 # region's edge whatever the tolerance (the tolerance's threshold would size a
                 # large slide too large and a slide just above the tolerance too small)
-                level = 0.5 * float(np.median(extent[s_px]))
+                # (from the pixels' own evidence where it holds two windows: a millimetre
+                # window's reaches past the rim, where the flow is already down; and the upper
+                # quartile's half, which that reach does not lower as it would a median's)
+                seeds = s_px
+                if core is not None and (s_px & core).sum() >= MIN_SHIFT_WINDOWS * 4 * np.pi * window_px**2:
+                    seeds = s_px & core
+                level = 0.5 * float(np.percentile(extent[seeds], 75))
                 _, lab_h = cv2.connectedComponents(((extent >= level) & measured).astype(np.uint8), connectivity=8)
-                hit = np.unique(lab_h[s_px])
+                hit = np.unique(lab_h[seeds])
                 # (within the hull of its evidence and the flow's reach around it: a slid
                 # region's plain patches lie between its textured edges, and beyond them the
                 # flow ramps down over its window; a weak region's half height is the flow's
                 # noise, which would otherwise grow it over the print: 53,000 mm² on a face)
-                s_px = (np.isin(lab_h, hit[hit > 0]) & _hull(s_px, int(math.ceil(3 * window_px)))) | s_px
+                s_px = (np.isin(lab_h, hit[hit > 0]) & _hull(seeds, int(math.ceil(3 * window_px)))) | seeds
         regions.append([kind, region, s_px, c_px, ns, nc])
     merged: list = []
     for r in sorted(regions, key=lambda r: -int(r[2].sum())):

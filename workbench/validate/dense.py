@@ -1356,6 +1356,13 @@ def analyse(
     # (a step towards the bare film's colour is ink gone whatever gain might mimic it: film
     # white over a light ink is a gain of 1.2)
     gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
+    # a scratch: ink gone along a line thinner than any shading, highlight or exposure error,
+    # judged against its own surroundings, with no tolerance for what is broad
+    thin_limit = position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
+    thin, thin_found, thin_alpha = thin_ink_loss(pho, pred, film_pred, colour_scored, grid.px_per_mm, thin_limit)
+    gone |= thin
+    # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
+    alpha = np.maximum(alpha, thin_alpha)
     colour_bad = (colour_scored & (res > colour_limit)) | gone
     # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
     # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
@@ -1382,7 +1389,11 @@ def analyse(
         # a region the surface turns towards the lamp as the photo's sure highlights (clipped,
         # or light over ink that keeps its texture) is one more of them: over flat pale ink,
         # one photo cannot tell a highlight that reaches the film's white from ink gone there
-        glossed |= mirrors_highlights(colour_bad & ~glossed, sat | glossed, grid.X, camera_center)
+        # (a thin line over ink that varies along it is told by that: a glint keeps the ink's
+        # variation, a scratch shows the film; only one over uniform ink is left to the lamp)
+        told = thin_told(thin, pho, pred)
+        glossed |= told == 1
+        glossed |= mirrors_highlights(colour_bad & ~glossed & (told != 2), sat | glossed, grid.X, camera_center)
         colour_bad &= ~glossed
         gone &= ~glossed
     state[glossed] = HIGHLIGHT
@@ -1827,6 +1838,105 @@ def _cmax(a: np.ndarray) -> np.ndarray:
 def _cmin(a: np.ndarray) -> np.ndarray:
     """Smallest of the three channels."""
     return np.minimum(np.minimum(a[..., 0], a[..., 1]), a[..., 2])
+
+
+SCRATCH_MM = 1.5  # ink gone along a line narrower than about half this is a scratch (thin_ink_loss)
+
+
+def thin_ink_loss(
+    photo: np.ndarray, pred: np.ndarray, film: np.ndarray, scored: np.ndarray, px_per_mm: float, limit: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where a line thinner than a scratch's width steps the photo towards the bare film, over any ink.
+
+    t = (photo - pred) · u, u the unit step from the design's colour to the film's: how far
+    the photo moved towards the film, grey levels. Shading, a highlight or an exposure error
+    change t over areas much broader than a scratch; a white top-hat of t (t less its
+    opening by a disc of SCRATCH_MM) keeps what is thinner than about half the disc. A pixel
+    has lost its ink where that reaches half the step to the film and exceeds ``limit`` (the
+    noise, and half a pixel's placement at the design's edges): over pale ink too, where a
+    broad step of that size is shading or light. (The colour test's fixed tolerance is for
+    what is broad; a thin line of film over a light grey square is what a scratch across a
+    checker shows.)
+
+    Parameters
+    ----------
+    photo, pred, film : (H, W, 3) float32
+        The photo on the print, the model, and the bare film's colour as the photo would show it.
+    scored : (H, W) bool
+    px_per_mm : float
+    limit : (H, W) float32
+        Grey levels.
+
+    Returns
+    -------
+    found : (H, W) bool
+        Ink gone along a thin line.
+    findable : (H, W) bool
+        Where a scratch is found (the step to the film at least twice ``limit``): the detection
+        limit's scratch map.
+    alpha : (H, W) float32
+        Where findable, the share of the step to the film the line takes against its
+        surroundings (0 to 1); 0 elsewhere.
+    """
+    step = film - pred
+    size = np.sqrt((step * step).sum(axis=2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = ((photo - pred) * step).sum(axis=2) / np.maximum(size, 1e-3)
+    t = np.where(scored, t, 0.0).astype(np.float32)
+    r = max(1, int(round(0.5 * SCRATCH_MM * px_per_mm)))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    hat = cv2.morphologyEx(t, cv2.MORPH_TOPHAT, disc)
+    findable = scored & (size >= 2.0 * limit)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        alpha = np.where(findable, np.clip(hat / np.maximum(size, 1e-3), 0.0, 1.0), 0.0).astype(np.float32)
+    return findable & (hat > np.maximum(0.5 * size, limit)), findable, alpha
+
+
+def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """Each thin line of film-ward step told as light or as ink gone, where the ink under it varies.
+
+    Light added to the ink (a glint along a ridge) keeps the ink's variation along the line:
+    the photo follows the design there (correlation KEPT_TEXTURE at least, at a gain of
+    KEPT_CONTRAST at least), as a highlight over a checker does. Ink that is gone shows the
+    film all along it, whatever ink it crosses. Where the ink under the line is uniform (its
+    grey levels' spread below LOST_MIN_CONTRAST) nothing tells them apart in one photo.
+
+    Parameters
+    ----------
+    thin : (H, W) bool
+        :func:`thin_ink_loss`'s lines.
+    photo, pred : (H, W, 3) float32
+
+    Returns
+    -------
+    (H, W) uint8
+        Per pixel of a line: 1 light, 2 ink gone, 3 not told (uniform ink); 0 off the lines.
+    """
+    out = np.zeros(thin.shape, np.uint8)
+    n, lab = cv2.connectedComponents(thin.astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return out
+    g_ph = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY)[thin].astype(np.float64)
+    g_pr = cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY)[thin].astype(np.float64)
+    k = lab[thin]
+
+    def per(v):
+        return np.bincount(k, v, n)
+
+    cnt = np.maximum(per(np.ones_like(g_ph)), 1.0)
+    mx, my = per(g_pr) / cnt, per(g_ph) / cnt
+    vx = per(g_pr * g_pr) / cnt - mx * mx
+    vy = per(g_ph * g_ph) / cnt - my * my
+    cxy = per(g_pr * g_ph) / cnt - mx * my
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cxy / np.sqrt(vx * vy)
+        gain = cxy / vx
+    varied = np.sqrt(np.maximum(vx, 0.0)) >= LOST_MIN_CONTRAST
+    light = varied & (corr >= KEPT_TEXTURE) & (gain >= KEPT_CONTRAST)
+    verdict = np.where(varied, np.where(light, 1, 2), 3).astype(np.uint8)
+    verdict[0] = 0
+    out[thin] = verdict[k]
+    return out
 
 
 def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:

@@ -350,13 +350,14 @@ def stated_limit(truth: list[dict], vdir: Path, report: dict, index: int = 0) ->
     if f"photo{index}_dropout" not in maps:
         return None
     limit, drop = maps[f"photo{index}_shift_limit_um"], maps[f"photo{index}_dropout"]
+    scratch = maps[f"photo{index}_scratch"] if f"photo{index}_scratch" in maps else None
     ppm = float(entry["dense"]["grid_px_per_mm"])
     min_area = float(entry["dense"]["detection_limit"]["min_area_mm2"])
     out = []
     for t in truth:
         fp = footprint(t, limit.shape, ppm)
         slide = float(np.hypot(*t["shift_mm"])) if "shift_mm" in t else 0.0
-        above, share = detection.above_limit(t["kind"], fp, limit, drop, slide)
+        above, share = detection.above_limit(t["kind"], fp, limit, drop, slide, scratch)
         above = above and t["area_mm2"] >= min_area
         out.append({"above": bool(above), "share_found": round(share, 3)})
     return out

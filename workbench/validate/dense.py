@@ -841,6 +841,8 @@ class DenseResult:
         The flow's window, Gaussian sigma, grid px: a measurement's independent neighbourhood.
     normal_dir : (rows, cols, 2) float32
         The dominant edge's unit normal, where only the component across it is measured.
+    scratch_found : (rows, cols) bool
+        Where a scratch (a thin line of ink gone) is found.
     """
 
     warped: np.ndarray
@@ -862,6 +864,7 @@ class DenseResult:
     dropout_found: np.ndarray | None = None
     window_px: float = TENSOR_SIGMA_PX
     normal_dir: np.ndarray | None = None
+    scratch_found: np.ndarray | None = None
 
 
 def effective_samples(window_px: float, noise_corr_px) -> np.ndarray | float:
@@ -1501,12 +1504,16 @@ def analyse(
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),
         "min_shift_mm": (tolerance_mm + SIGNIFICANCE_Z * med_sigma) if med_sigma is not None else None,
         "significance_z": SIGNIFICANCE_Z,
-        **detection.summary(limit_mm, dropout_found & stated, stated, inked & stated, max(2 * COLOUR_TOL, ink_step)),
+        **detection.summary(
+            limit_mm, dropout_found & stated, stated, inked & stated, max(2 * COLOUR_TOL, ink_step), thin_found & stated
+        ),
         "note": (
             "stated for a sound part from the design, the photo's noise, blur and sampling: a slide of the film is "
             "found where the print has texture the photo resolves (min_shift_mm_*: over the pixels that find one), "
-            "ink that is gone where its step to the bare film exceeds min_ink_step_grey_levels; the maps are in "
-            "detection.npz"
+            "ink that is gone where its step to the bare film exceeds min_ink_step_grey_levels, a scratch (a line of "
+            "ink gone, thinner than about 0.7 mm) wherever the ink differs from the film by twice the noise and "
+            "placement (but over uniform ink within the lamp's reflection, where a glint looks the same); the maps "
+            "are in detection.npz"
         ),
     }
     return DenseResult(
@@ -1529,6 +1536,7 @@ def analyse(
         dropout_found & stated,
         win,
         np.where(normal[..., None], e1, np.float32(0.0)).astype(np.float32),
+        thin_found & stated,
     )
 
 

@@ -13,8 +13,9 @@ states it cannot find is below its stated limit.
 
 validate writes the maps to ``detection.npz`` beside validation.json (referenced with its
 sha256 under ``detection``; per photo ``photoK_shift_limit_um``, the smallest slide found,
-µm on the surface, 65535 where none is, and ``photoK_dropout``, 1 where ink that is gone is
-found; the part's, best over its photos, as ``part_*``), the figures to each photo's
+µm on the surface, 65535 where none is, ``photoK_dropout``, 1 where ink that is gone is
+found, and ``photoK_scratch``, 1 where a scratch is; the part's, best over its photos, as
+``part_*``), the figures to each photo's
 ``dense.detection_limit``, and a picture, ``*_detectable_print.png``.
 """
 
@@ -108,7 +109,14 @@ def shift_limit(
     return np.where(np.isfinite(sigma), tolerance_mm + z * sigma, np.nan).astype(np.float32)
 
 
-def summary(shift_mm: np.ndarray, dropout: np.ndarray, scored: np.ndarray, inked: np.ndarray, ink_step: float) -> dict:
+def summary(
+    shift_mm: np.ndarray,
+    dropout: np.ndarray,
+    scored: np.ndarray,
+    inked: np.ndarray,
+    ink_step: float,
+    scratch: np.ndarray | None = None,
+) -> dict:
     """The detection limit's figures over what the photo scores.
 
     Parameters
@@ -121,6 +129,8 @@ def summary(shift_mm: np.ndarray, dropout: np.ndarray, scored: np.ndarray, inked
         Scored pixels; scored pixels whose ink differs from the bare film.
     ink_step : float
         The smallest step from the ink to the bare film a dropout needs, grey levels (median).
+    scratch : (H, W) bool, optional
+        Where a scratch (a thin line of ink gone) is found.
 
     Returns
     -------
@@ -138,6 +148,7 @@ def summary(shift_mm: np.ndarray, dropout: np.ndarray, scored: np.ndarray, inked
             round(float((dropout & inked).sum() / max(int(inked.sum()), 1)), 4) if inked.any() else None
         ),
         "min_ink_step_grey_levels": round(float(ink_step), 1),
+        **({"scratch_found_share": round(float((scratch & scored).sum() / n), 4)} if scratch is not None else {}),
     }
 
 
@@ -153,17 +164,25 @@ def footprint_share(found: np.ndarray, footprint: np.ndarray) -> float:
     return float((found & footprint).sum() / n) if n else 0.0
 
 
-def above_limit(kind: str, footprint: np.ndarray, limit_um: np.ndarray, dropout: np.ndarray, slide_mm: float = 0.0):
+def above_limit(
+    kind: str,
+    footprint: np.ndarray,
+    limit_um: np.ndarray,
+    dropout: np.ndarray,
+    slide_mm: float = 0.0,
+    scratch: np.ndarray | None = None,
+):
     """Whether the photo states it finds a true defect of this kind over this footprint.
 
     Parameters
     ----------
     kind : str
-        ``bubble`` (a slide of ``slide_mm``), ``dropout`` or ``scratch`` (ink gone).
+        ``bubble`` (a slide of ``slide_mm``), ``dropout`` or ``scratch`` (ink gone; a
+        scratch by the scratch map where there is one).
     footprint : (H, W) bool
         The defect's pixels on the grid.
-    limit_um, dropout : (H, W)
-        A photo's stored maps (``photoK_shift_limit_um``, ``photoK_dropout``).
+    limit_um, dropout, scratch : (H, W)
+        A photo's stored maps (``photoK_shift_limit_um``, ``photoK_dropout``, ``photoK_scratch``).
 
     Returns
     -------
@@ -174,7 +193,8 @@ def above_limit(kind: str, footprint: np.ndarray, limit_um: np.ndarray, dropout:
     if kind == "bubble":
         share = footprint_share(limit_um < slide_mm * 1000.0, footprint)
         return share >= SHIFT_SHARE, share
-    share = footprint_share(dropout.astype(bool), footprint)
+    found = scratch if kind == "scratch" and scratch is not None else dropout
+    share = footprint_share(found.astype(bool), footprint)
     return share >= DROPOUT_SHARE, share
 
 
@@ -187,19 +207,22 @@ def add_to_report(report: dict, entries: list[dict], out) -> dict:
     from workbench.validate.landing import npz_bytes
 
     arrays: dict = {}
-    part_limit = part_drop = None
+    part_limit = part_drop = part_scratch = None
     for k, e in enumerate(entries):
         got = e.pop("detection_maps", None)
         if got is None:
             continue
         arrays[f"photo{k}_shift_limit_um"] = got["shift_limit_um"]
         arrays[f"photo{k}_dropout"] = got["dropout"]
+        arrays[f"photo{k}_scratch"] = got["scratch"]
         part_limit = got["shift_limit_um"] if part_limit is None else np.minimum(part_limit, got["shift_limit_um"])
         part_drop = got["dropout"] if part_drop is None else (part_drop | got["dropout"])
+        part_scratch = got["scratch"] if part_scratch is None else (part_scratch | got["scratch"])
     if part_limit is None:
         return {}
     arrays["part_shift_limit_um"] = part_limit
     arrays["part_dropout"] = part_drop
+    arrays["part_scratch"] = part_scratch
     data = npz_bytes(arrays)
     report["detection"] = {
         "file": "detection.npz",
@@ -207,7 +230,8 @@ def add_to_report(report: dict, entries: list[dict], out) -> dict:
         "note": (
             "what each photo can find, per pixel of the print's analysis grid (dense.grid_px_per_mm): "
             f"photoK_shift_limit_um, the smallest slide of the film it finds (µm on the surface, {NONE_UM}: none), "
-            "and photoK_dropout, 1 where it finds ink that is gone; part_*: the best over the photos. Stated for "
+            "photoK_dropout, 1 where it finds ink that is gone, and photoK_scratch, 1 where it finds a scratch; "
+            "part_*: the best over the photos. Stated for "
             "a sound part, from the design, the photo's noise, blur and sampling: a defect found nowhere here is "
             "below the stated limit"
         ),

@@ -294,6 +294,7 @@ def validate_photo(
         entry["detection_maps"] = {
             "shift_limit_um": detection.to_stored(dr.shift_limit_mm),
             "dropout": dr.dropout_found.astype(np.uint8),
+            "scratch": dr.scratch_found.astype(np.uint8),
         }
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
@@ -329,7 +330,7 @@ def validate_photo(
     shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
     pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
     detectable = pictures.detectable_print(
-        grid.reference, dr.shift_limit_mm, dr.dropout_found, grid.px_per_mm, tolerance_mm
+        grid.reference, dr.shift_limit_mm, dr.dropout_found, grid.px_per_mm, tolerance_mm, dr.scratch_found
     )
     files[f"{stem}_detectable_print.png"] = png_bytes(detectable, compression=1)
     pages[f"{stem}_detectable_print.png"] = page_picture(Image.fromarray(detectable))

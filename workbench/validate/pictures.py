@@ -260,14 +260,20 @@ def tile_heatmap(design_rgb, sc, title: str) -> bytes:
 
 
 def detectable_print(
-    reference: np.ndarray, limit_mm: np.ndarray, dropout: np.ndarray, px_per_mm: float, tolerance_mm: float
+    reference: np.ndarray,
+    limit_mm: np.ndarray,
+    dropout: np.ndarray,
+    px_per_mm: float,
+    tolerance_mm: float,
+    scratch: np.ndarray | None = None,
 ) -> np.ndarray:
     """What the photo can find over the print: two panels with a scale; (rows', cols', 3) uint8 RGB.
 
     Above, the smallest slide of the film found at each pixel ('viridis': the tolerance dark
     blue to three times it yellow; the print in grey where none is found), with its scale.
-    Below, in green, where ink that is gone is found. (One above the other: the page of the
-    QA report is portrait.) Halved when the grid exceeds a megapixel (a picture to
+    Below, in green, where ink that is gone is found, and in pale green where only a
+    scratch (a thin line of it) is. (One above the other: the page of the QA report is
+    portrait.) Halved when the grid exceeds a megapixel (a picture to
     look at, not a measurement: the numbers are in ``detection.npz``).
 
     Parameters
@@ -276,8 +282,8 @@ def detectable_print(
         The print on the grid.
     limit_mm : (rows, cols) float32
         Smallest slide found, mm on the surface, NaN where none is.
-    dropout : (rows, cols) bool
-        Where ink that is gone is found.
+    dropout, scratch : (rows, cols) bool
+        Where ink that is gone is found, and a scratch.
     px_per_mm : float
         Grid resolution: a tick every 10 mm along the top and left edges.
     tolerance_mm : float
@@ -297,6 +303,9 @@ def detectable_print(
     vmax = 3.0 * tolerance_mm
     left[on] = lut[np.clip((lim[on] - tolerance_mm) / (vmax - tolerance_mm) * 255, 0, 255).astype(np.uint8)]
     right = np.repeat(grey[..., None], 3, axis=2)
+    if scratch is not None:
+        thin = scratch[::step, ::step] & ~drop
+        right[thin] = (0.5 * right[thin] + 0.5 * np.array([170, 230, 170])).astype(np.uint8)
     right[drop] = (0.4 * right[drop] + 0.6 * np.array([30, 170, 60])).astype(np.uint8)
     rows, cols = lim.shape
     for img in (left, right):
@@ -316,7 +325,7 @@ def detectable_print(
     right = np.concatenate([right, np.full((rows, bar_w, 3), 255, np.uint8)], axis=1)
     panels = []
     for text, img in (("smallest slide of the film found", np.concatenate([left, bar], axis=1)),
-                      ("ink gone found (green)", right)):  # fmt: skip
+                      ("ink gone found (green; a scratch only: pale green)", right)):  # fmt: skip
         head = np.full((max(24, int(30 * scale)), img.shape[1], 3), 255, np.uint8)
         cv2.putText(head, text, (6, head.shape[0] - 8), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
         panels += [head, img]

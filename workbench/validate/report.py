@@ -33,6 +33,8 @@ def detection_line(dn: dict) -> str:
         )
     if lim.get("dropout_found_share_of_inked") is not None:
         line += f", ink gone over {100 * lim['dropout_found_share_of_inked']:.0f} % of the inked print it sees"
+    if lim.get("scratch_found_share") is not None:
+        line += f", a scratch over {100 * lim['scratch_found_share']:.0f} % of what it sees"
     return line + f" (z = {lim.get('significance_z', 0):g})"
 
 

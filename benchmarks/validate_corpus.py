@@ -337,8 +337,8 @@ def stated_limit(truth: list[dict], vdir: Path, report: dict, index: int = 0) ->
 
     None when validate wrote no maps (an earlier validate, or a photo it could not score).
     The rule is validate's own (:func:`workbench.validate.detection.above_limit`): missing ink
-    over at least 75 % of its footprint, a slide over at least 25 %, and the area found there
-    at least ``min_area_mm2``.
+    over at least 75 % of its footprint, a slide over at least half of it, what is found there
+    larger than the verdict's area, and the defect at least ``min_area_mm2``.
     """
     from workbench.validate import detection
 
@@ -357,7 +357,9 @@ def stated_limit(truth: list[dict], vdir: Path, report: dict, index: int = 0) ->
     for t in truth:
         fp = footprint(t, limit.shape, ppm)
         slide = float(np.hypot(*t["shift_mm"])) if "shift_mm" in t else 0.0
-        above, share = detection.above_limit(t["kind"], fp, limit, drop, slide, scratch)
+        above, share = detection.above_limit(
+            t["kind"], fp, limit, drop, slide, scratch, t["area_mm2"], float(report.get("max_defect_mm2", 4.0))
+        )
         above = above and t["area_mm2"] >= min_area
         out.append({"above": bool(above), "share_found": round(share, 3)})
     return out

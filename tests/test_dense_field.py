@@ -159,15 +159,19 @@ def test_the_stated_limit_is_a_slide_in_any_direction():
     # the better of the pixel's full vector and the window's slide; nothing where neither measures
     assert lim[0, 0] == pytest.approx(0.23) and lim[0, 1] == pytest.approx(0.26)
     assert np.isnan(lim[0, 2]) and lim[0, 3] == pytest.approx(0.29)
-    # a bubble is above the limit where a quarter of its footprint finds its slide, ink gone where 3 quarters do
+    # a bubble is above the limit where half its footprint finds its slide, ink gone where three
+    # quarters do, and what is found exceeds the verdict's area
     fp = np.zeros((10, 10), bool)
     fp[2:8, 2:8] = True
     um = np.full((10, 10), detection.NONE_UM, np.uint16)
     um[2:5, 2:8] = 300
     drop = np.zeros((10, 10), np.uint8)
     drop[2:6, 2:8] = 1  # two thirds of it
-    assert detection.above_limit("bubble", fp, um, drop, 0.5)[0]
-    assert not detection.above_limit("bubble", fp, um, drop, 0.25)[0]
-    assert not detection.above_limit("dropout", fp, um, drop)[0]
+    area = {"area_mm2": 10.0, "max_defect_mm2": 4.0}
+    assert detection.above_limit("bubble", fp, um, drop, 0.5, **area)[0]
+    assert not detection.above_limit("bubble", fp, um, drop, 0.25, **area)[0]
+    assert not detection.above_limit("dropout", fp, um, drop, **area)[0]
     drop[6:8, 2:8] = 1
-    assert detection.above_limit("scratch", fp, um, drop)[0]
+    assert detection.above_limit("scratch", fp, um, drop, **area)[0]
+    # all of a 3 mm² dropout found is still under a verdict of 4 mm²
+    assert not detection.above_limit("dropout", fp, um, drop, area_mm2=3.0, max_defect_mm2=4.0)[0]

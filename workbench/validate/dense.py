@@ -52,6 +52,9 @@ MIN_TWO_WAY = 4.0  # the same for the smaller eigenvalue: the full vector
 # by more than this many of its standard uncertainties: one-sided 0.13 % per pixel, so a perfect
 # photo's chance exceedances are single pixels, which the defects' opening removes
 SIGNIFICANCE_Z = 3.0
+# the stated limit is what is found with 95 % probability: a defect exactly at the significance
+# threshold is found half the time, one 1.645 standard uncertainties beyond it 95 % of the time
+DETECT_Z = 1.645
 # the least noise assumed, grey levels: 8-bit quantisation of the photo and of the print
 # (0.29 each) and their resampling through the warp
 NOISE_FLOOR = 0.5
@@ -1297,7 +1300,7 @@ def analyse(
     wide_sigma = np.nan_to_num(wide_sigma, nan=np.inf).astype(np.float32)
     limit_mm = detection.shift_limit(
         tolerance_mm,
-        SIGNIFICANCE_Z,
+        SIGNIFICANCE_Z + DETECT_Z,
         weak_e * mm_per_px,
         wide_sigma,
         measurable & (p2 >= MIN_TWO_WAY),
@@ -1345,7 +1348,7 @@ def analyse(
         position = np.maximum(0.5, np.where(fp > 0, 0.5 / fp, 0.5)).astype(np.float32)
     colour_limit = COLOUR_TOL + position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
     # ink that is gone is found where the step from the ink to the bare film is beyond the limit
-    dropout_found = inked & (_residual(film_pred, pred) > colour_limit)
+    dropout_found = inked & (_residual(film_pred, pred) > colour_limit + DETECT_Z * colour_noise)
     # light, not ink: a crease's own shading changes faster than the exposure fit's window
     # follows, and scales every channel alike; so the colour test allows each pixel a gain of
     # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
@@ -2040,7 +2043,9 @@ def find_defects(
     k3 = np.ones((3, 3), np.uint8)
     # an opening drops isolated pixels (noise, JPEG), a closing joins a region's parts
     sb = cv2.morphologyEx(shift_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
-    cb = cv2.morphologyEx(colour_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
+    # (not ink that is gone: a scratch on a coarse grid is two pixels wide, and the opening would
+    # take it; its specks are what MIN_DEFECT_MM2 drops)
+    cb = cv2.morphologyEx(colour_bad.astype(np.uint8), cv2.MORPH_OPEN, k3) | (colour_bad & missing).astype(np.uint8)
     both = cv2.morphologyEx(sb | cb, cv2.MORPH_CLOSE, k3)
     # ink gone in pieces a short gap apart is one defect: a scratch across a checker loses its
     # ink on the dark squares, and over the light ones the step to the film is too small to see

@@ -26,11 +26,12 @@ import hashlib
 import numpy as np
 
 NONE_UM = 65535  # shift_limit_um where no slide is found (uint16's largest)
-# a true defect is above the stated limit when its footprint is found over at least this
-# share (its area then comes out within 25 %) for missing ink, and for a slid film over
-# the share of its pixels find_defects asks of a shift region's evidence
+# a true defect is above the stated limit when the maps find it over at least this share of
+# its footprint (missing ink: then its area comes out within 25 %; a slid film: half of it
+# textured, the rest between its textured parts, which sizing closes) and what they find
+# exceeds the verdict's area (a smaller part of it seen passes by the rule)
 DROPOUT_SHARE = 0.75
-SHIFT_SHARE = 0.25
+SHIFT_SHARE = 0.5
 
 
 def expected_flow_sigma(noise: float, l1: np.ndarray, l2: np.ndarray, n_eff, floor_px):
@@ -171,6 +172,8 @@ def above_limit(
     dropout: np.ndarray,
     slide_mm: float = 0.0,
     scratch: np.ndarray | None = None,
+    area_mm2: float = 0.0,
+    max_defect_mm2: float = 0.0,
 ):
     """Whether the photo states it finds a true defect of this kind over this footprint.
 
@@ -183,6 +186,8 @@ def above_limit(
         The defect's pixels on the grid.
     limit_um, dropout, scratch : (H, W)
         A photo's stored maps (``photoK_shift_limit_um``, ``photoK_dropout``, ``photoK_scratch``).
+    area_mm2, max_defect_mm2 : float
+        The defect's area and the verdict's: the share of it found must exceed the latter.
 
     Returns
     -------
@@ -192,10 +197,12 @@ def above_limit(
     """
     if kind == "bubble":
         share = footprint_share(limit_um < slide_mm * 1000.0, footprint)
-        return share >= SHIFT_SHARE, share
-    found = scratch if kind == "scratch" and scratch is not None else dropout
-    share = footprint_share(found.astype(bool), footprint)
-    return share >= DROPOUT_SHARE, share
+        need = SHIFT_SHARE
+    else:
+        found = scratch if kind == "scratch" and scratch is not None else dropout
+        share = footprint_share(found.astype(bool), footprint)
+        need = DROPOUT_SHARE
+    return share >= need and share * area_mm2 > max_defect_mm2, share
 
 
 def add_to_report(report: dict, entries: list[dict], out) -> dict:

@@ -340,6 +340,26 @@ def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) ->
     (h, w) bool
         True within ``radius_px`` of a step.
     """
+    h, w = depth.shape
+    r = max(int(np.ceil(radius_px)), 1)
+    out = np.zeros((h, w), bool)
+    # a step needs the part on one side: only the part's bounding box, with a margin of the band
+    # and of the 3 x 3 window, can hold one (a 12 Mpx photo's part fills a quarter of it).
+    # The result is the same: the margin's pixels hold no part, so the windows there see what
+    # they see in the whole image, and the band reaches no farther than the margin
+    rows = np.flatnonzero(np.isfinite(depth).any(axis=1))
+    if not len(rows):
+        return out
+    cols = np.flatnonzero(np.isfinite(depth[rows[0] : rows[-1] + 1]).any(axis=0))
+    m = r + 2
+    y0, y1 = max(rows[0] - m, 0), min(rows[-1] + 1 + m, h)
+    x0, x1 = max(cols[0] - m, 0), min(cols[-1] + 1 + m, w)
+    out[y0:y1, x0:x1] = _depth_steps(depth[y0:y1, x0:x1], r, fx)
+    return out
+
+
+def _depth_steps(depth: np.ndarray, r: int, fx: float | None) -> np.ndarray:
+    """:func:`depth_steps` within a crop whose border rows and columns hold no part; (h, w) bool."""
     d = np.where(np.isfinite(depth), depth, 1e30).astype(np.float32)
     k = np.ones((3, 3), np.uint8)
     near, far = cv2.erode(d, k), cv2.dilate(d, k)
@@ -353,7 +373,6 @@ def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) ->
         # the 3 x 3 window spans two pixels each way
         limit = np.minimum(DEPTH_STEP, 2.0 * 2.0 * tan_max / fx) * near
     step = (far - near > limit).astype(np.uint8)
-    r = max(int(np.ceil(radius_px)), 1)
     return cv2.dilate(step, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
 
 

@@ -1274,26 +1274,27 @@ def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
 
     Parameters
     ----------
-    photo, pred : (H, W, 3) float32
-        The photo on the print and the model (grey levels).
-    light : (H, W, 3) float32
+    photo, pred : (..., 3) float32
+        The photo on the print and the model (grey levels): images (H, W, 3), or the
+        pixels of interest (n, 3).
+    light : (..., 3) float32
         The colour of light added, as the photo shows it (the film's white, largest channel 1).
 
     Returns
     -------
-    k : (H, W) float32
+    k : (...) float32
         The gain.
-    s : (H, W) float32
+    s : (...) float32
         The light added (grey levels of its largest channel).
-    residual : (H, W) float32
+    residual : (...) float32
         Largest channel residual of the fit (grey levels).
     """
     # normal equations of the two unknowns: [p·p p·u; p·u u·u] [k s]' = [p·y u·y]'
-    pp = (pred * pred).sum(axis=2)
-    pu = (pred * light).sum(axis=2)
-    uu = np.maximum((light * light).sum(axis=2), 1e-6)
-    py = (pred * photo).sum(axis=2)
-    uy = (light * photo).sum(axis=2)
+    pp = (pred * pred).sum(axis=-1)
+    pu = (pred * light).sum(axis=-1)
+    uu = np.maximum((light * light).sum(axis=-1), 1e-6)
+    py = (pred * photo).sum(axis=-1)
+    uy = (light * photo).sum(axis=-1)
     det = pp * uu - pu * pu
     with np.errstate(divide="ignore", invalid="ignore"):
         k = np.where(det > 1e-3 * pp * uu, (py * uu - uy * pu) / det, py / np.maximum(pp, 1e-6))
@@ -1352,11 +1353,36 @@ def texture_lost(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray, g
     """
     if g0 is None:
         return np.zeros(fitted.shape, bool)
-    low = np.where(determined, gain / g0 < LOST_GAIN, True).all(axis=2)
+    low = np.where(determined, gain / g0 < LOST_GAIN, True)
+    low = low[..., 0] & low[..., 1] & low[..., 2]  # (numpy's all() along a short last axis is slow)
     return fitted & determined.any(axis=2) & low
 
 
-def reflected_directions(X: np.ndarray, camera_center: np.ndarray) -> np.ndarray:
+def _gradient_at(X: np.ndarray, ii: np.ndarray, jj: np.ndarray, axis: int) -> np.ndarray:
+    """``np.gradient(X, axis=axis)[ii, jj]`` computed at those pixels only (unit spacing, first-order edges).
+
+    Parameters
+    ----------
+    X : (H, W, C) float
+    ii, jj : (n,) int
+        The pixels.
+    axis : int
+        0 (down the rows) or 1 (along a row).
+
+    Returns
+    -------
+    (n, C) float
+        The same numbers as numpy's: a central difference halved inside, a one-sided one at the edges.
+    """
+    k = jj if axis == 1 else ii
+    size = X.shape[axis]
+    lo, hi = np.maximum(k - 1, 0), np.minimum(k + 1, size - 1)
+    d = X[ii, hi] - X[ii, lo] if axis == 1 else X[hi, jj] - X[lo, jj]
+    d[(k > 0) & (k < size - 1)] /= 2.0
+    return d
+
+
+def reflected_directions(X: np.ndarray, camera_center: np.ndarray, ii=None, jj=None) -> np.ndarray:
     """Per grid pixel, the direction the camera's ray leaves the surface in after a mirror reflection.
 
     Parameters
@@ -1365,19 +1391,24 @@ def reflected_directions(X: np.ndarray, camera_center: np.ndarray) -> np.ndarray
         Surface point under each grid pixel, mm (NaN off the part).
     camera_center : (3,) float
         The camera centre, mm.
+    ii, jj : (n,) int, optional
+        Only these pixels (the same numbers as the whole grid's there).
 
     Returns
     -------
-    (H, W, 3) float32
+    (H, W, 3) float32, or (n, 3) at ``ii, jj``
         Unit vectors (NaN off the part): a lamp in that direction shows its highlight there.
     """
+    if ii is None:
+        ii, jj = (a.ravel() for a in np.indices(X.shape[:2]))
+        return reflected_directions(X, camera_center, ii, jj).reshape(X.shape)
     # the surface normal from the grid's own tangents: ∂X/∂x × ∂X/∂y, turned towards the camera
     with np.errstate(invalid="ignore"):
-        n = np.cross(np.gradient(X, axis=1), np.gradient(X, axis=0))
-        n /= np.linalg.norm(n, axis=2, keepdims=True)
-        v = np.asarray(camera_center, np.float64)[None, None, :] - X
-        v /= np.linalg.norm(v, axis=2, keepdims=True)
-        nv = (n * v).sum(axis=2, keepdims=True)
+        n = np.cross(_gradient_at(X, ii, jj, 1), _gradient_at(X, ii, jj, 0))
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        v = np.asarray(camera_center, np.float64)[None, :] - X[ii, jj]
+        v /= np.linalg.norm(v, axis=-1, keepdims=True)
+        nv = (n * v).sum(axis=-1, keepdims=True)
         n = np.where(nv < 0, -n, n)
         # mirror of the view direction about the normal: r = 2 (n·v) n - v
         r = 2.0 * np.abs(nv) * n - v
@@ -1412,24 +1443,29 @@ def mirrors_highlights(
     out = np.zeros(candidates.shape, bool)
     if not candidates.any() or not highlights.any():
         return out
-    r = reflected_directions(X, camera_center)
-    sure = r[highlights & np.isfinite(r).all(axis=2)]
+    # (the reflected rays at the highlights' and the regions' pixels only: the whole grid's
+    # took a third of a second)
+    sure = reflected_directions(X, camera_center, *np.nonzero(highlights))
+    sure = sure[np.isfinite(sure).all(axis=1)]
     # (a few thousand directions are plenty: neighbouring highlight pixels reflect alike)
     sure = sure[:: max(1, len(sure) // 4096)]
     if not len(sure):
         return out
     cos_max = np.cos(np.radians(MIRROR_DEG))
-    n, lab = cv2.connectedComponents(candidates.astype(np.uint8), connectivity=8)
+    n, lab, boxes, _ = cv2.connectedComponentsWithStats(candidates.astype(np.uint8), connectivity=8)
     for k in range(1, n):
-        region = lab == k
-        d = r[region]
+        x0, y0, w, h = boxes[k, :4]
+        box = (slice(y0, y0 + h), slice(x0, x0 + w))
+        region = lab[box] == k
+        ii, jj = np.nonzero(region)
+        d = reflected_directions(X, camera_center, ii + y0, jj + x0)
         d = d[np.isfinite(d).all(axis=1)].astype(np.float64)
         if not len(d):
             continue
         m = d.mean(axis=0)
         m /= max(np.linalg.norm(m), 1e-12)
         if float((sure @ m).max()) >= cos_max:
-            out |= region
+            out[box] |= region
     return out
 
 
@@ -1484,7 +1520,10 @@ def light_or_ink(
     n, lab, st, _ = cv2.connectedComponentsWithStats(bad, connectivity=8)
     if n <= 1:
         return highlight, missing
-    _, s, fit_res = additive_light(photo, pred, light)
+    # the fit of light added, at the regions' pixels only (the rest of the image is not asked)
+    at = bad > 0
+    s, fit_res = np.zeros(bad.shape, np.float32), np.zeros(bad.shape, np.float32)
+    _, s[at], fit_res[at] = additive_light(photo[at], pred[at], light[at])
     for r in range(1, n):
         x0, y0, w, h, _ = st[r]
         ys, xs = slice(y0, y0 + h), slice(x0, x0 + w)
@@ -1629,23 +1668,32 @@ def find_defects(
     sb = cv2.morphologyEx(shift_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
     cb = cv2.morphologyEx(colour_bad.astype(np.uint8), cv2.MORPH_OPEN, k3)
     both = cv2.morphologyEx(sb | cb, cv2.MORPH_CLOSE, k3)
-    n, lab = cv2.connectedComponents(both, connectivity=8)
+    n, lab, boxes, _ = cv2.connectedComponentsWithStats(both, connectivity=8)
     px_mm2 = 1.0 / grid.px_per_mm**2
+    if extent is not None:
+        # where a shift region may grow: the measured pixels' extent (-inf elsewhere), once
+        grow = np.where(measured, extent, -np.inf).astype(extent.dtype, copy=False)
     # each region's kind and pixels; a shift region grown to where the flow reaches half its
     # shift, and shift regions that grow into one another merged (one bubble, one defect)
     regions = []
     for k in range(1, n):
-        region = lab == k
-        s_px, c_px = region & (sb > 0), region & (cb > 0)
-        if evidence is not None and (s_px & evidence).sum() < 0.25 * s_px.sum():
-            s_px = s_px & evidence  # the rest is the flow's guess along an edge
-        ns, nc = int(s_px.sum()), int(c_px.sum())
+        # the region's own pixels from its bounding box (a photo with the film off has some 60
+        # regions: full-size comparisons for each took a second)
+        x0, y0, w, h = boxes[k, :4]
+        box = (slice(y0, y0 + h), slice(x0, x0 + w))
+        in_box = lab[box] == k
+        region, s_px, c_px = np.zeros(lab.shape, bool), np.zeros(lab.shape, bool), np.zeros(lab.shape, bool)
+        region[box] = in_box
+        s_px[box], c_px[box] = in_box & (sb[box] > 0), in_box & (cb[box] > 0)
+        if evidence is not None and (s_px[box] & evidence[box]).sum() < 0.25 * s_px[box].sum():
+            s_px[box] &= evidence[box]  # the rest is the flow's guess along an edge
+        ns, nc = int(s_px[box].sum()), int(c_px[box].sum())
         if (ns + nc) == 0:
             continue
         # a bubble's flow edges leave a little colour residual (under 1 % of its area in
         # tests); ink that is gone leaves a lot, and drags the flow around it too
         if nc >= 0.2 * ns:
-            kind = "missing" if (region & missing).sum() > 0.5 * nc else "colour"
+            kind = "missing" if (in_box & missing[box]).sum() > 0.5 * nc else "colour"
         else:
             kind = "shift"
             if extent is not None:
@@ -1653,10 +1701,13 @@ def find_defects(
                 # region's shift to 0 over the flow's window, and crosses half of it at the
                 # region's edge whatever the tolerance (the tolerance's threshold would size a
                 # large slide too large and a slide just above the tolerance too small)
-                level = 0.5 * float(np.median(extent[s_px]))
-                _, lab_h = cv2.connectedComponents(((extent >= level) & measured).astype(np.uint8), connectivity=8)
-                hit = np.unique(lab_h[s_px])
-                s_px = np.isin(lab_h, hit[hit > 0]) | s_px
+                level = 0.5 * float(np.median(extent[box][s_px[box]]))
+                n_h, lab_h = cv2.connectedComponents((grow >= level).view(np.uint8), connectivity=8)
+                hit = np.unique(lab_h[box][s_px[box]])
+                # (a table of the components hit: np.isin sorts the whole label image)
+                taken = np.zeros(n_h, bool)
+                taken[hit[hit > 0]] = True
+                s_px = taken[lab_h] | s_px
         regions.append([kind, region, s_px, c_px, ns, nc])
     merged: list = []
     for r in sorted(regions, key=lambda r: -int(r[2].sum())):

@@ -168,8 +168,9 @@ def validate_in_pool(jobs: int, work: list[tuple], design: Design, profile, prof
     Processes, not threads: most of the work holds the GIL between numpy calls. The results
     come back in the order of ``work``, so the outputs do not depend on the scheduling.
     Where :func:`fork_is_safe`, the workers are forked once this process has what every photo
-    needs (the print grid, which the part's summary needs here too, and matplotlib for the heat
-    maps), and ``cache`` then holds the grid; elsewhere they are spawned and load the design.
+    needs (the print grid, which the part's summary needs here too), and ``cache`` then holds
+    the grid; elsewhere they are spawned and load the design. (A photo's pictures are drawn
+    with OpenCV: no worker imports matplotlib.)
     """
     if not fork_is_safe():
         context, initargs = get_context("spawn"), (str(design.dir), str(profile_path))
@@ -179,9 +180,6 @@ def validate_in_pool(jobs: int, work: list[tuple], design: Design, profile, prof
     cache["grid"] = dense.print_grid(
         design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
     )
-    from workbench.figures import _figure
-
-    _figure()
     # OpenCV's thread pool stopped before the fork (the workers inherit one thread): a forked
     # worker that reconfigured it hung, waiting on a condition variable of pool threads that
     # exist only here

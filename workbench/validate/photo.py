@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import io
 import time
 from pathlib import Path
 
@@ -299,14 +298,14 @@ def validate_photo(
     overlay[valid] = (0.5 * view_rgb[valid] + 0.5 * warped[valid]).astype(np.uint8)
     files[f"{stem}_warped_{name}.png"] = png_bytes(warped)
     files[f"{stem}_overlay_{name}.png"] = png_bytes(overlay)
-    files[f"{stem}_heatmap_{name}.png"] = pictures.tile_heatmap(
-        view_rgb, sc, f"{path.name} in view {name}: {entry['verdict']}"
+    files[f"{stem}_heatmap_{name}.png"] = png_bytes(
+        pictures.tile_heatmap(view_rgb, sc, f"{path.name} in view {name}: {entry['verdict']}"), compression=1
     )
     # light compression for the pictures: level 3 costs a few tenths of a second per photo
     files[f"{stem}_defects_print.png"] = png_bytes(
         pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm), compression=1
     )
-    dense_png = pictures.dense_heatmap(
+    dense_map = pictures.dense_heatmap(
         grid.reference,
         dr.shift_mm,
         dr.labels,
@@ -318,10 +317,10 @@ def validate_photo(
     centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
     radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
     circled = pictures.photo_circled(photo, centres, radii)
-    files[f"{stem}_dense_print.png"] = dense_png
+    files[f"{stem}_dense_print.png"] = png_bytes(dense_map, compression=1)
     files[f"{stem}_defects_{name}.png"] = png_bytes(in_view, compression=1)
     files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
-    shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
+    shown = (Image.fromarray(dense_map), Image.fromarray(circled), Image.fromarray(in_view))
     pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
     if de_map is not None:
         shown_de = pictures.colour_difference(grid.reference, de_map, grid.px_per_mm, 2 * max_delta_e)

@@ -656,14 +656,15 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
 
 def estimate_blur(ref_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray) -> float:
     """Gaussian sigma (grid px) that makes the print look most like the warped photo."""
-    m = mask.astype(bool)
-    if m.sum() < 100:
+    at = np.flatnonzero(mask)  # (the masked pixels once: a boolean index finds them again each time)
+    if len(at) < 100:
         return 0.0
-    w = warped_gray[m] - warped_gray[m].mean()
+    w = warped_gray.ravel()[at]
+    w = w - w.mean()
     best, best_s = -2.0, 0.0
     for s in (0.0, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 3.0):
-        g = cv2.GaussianBlur(ref_gray, (0, 0), s) if s else ref_gray
-        d = g[m] - g[m].mean()
+        g = (cv2.GaussianBlur(ref_gray, (0, 0), s) if s else ref_gray).ravel()[at]
+        d = g - g.mean()
         ncc = float((d * w).sum() / np.sqrt((d * d).sum() * (w * w).sum() + 1e-12))
         if ncc > best:
             best, best_s = ncc, s
@@ -1076,7 +1077,7 @@ def analyse(
     normal &= ~unresolved
     shift = np.full((H, W, 2), np.nan, np.float32)
     shift[full] = m[full]
-    mn = (m * e1).sum(axis=2, keepdims=True) * e1  # the component across the edge
+    mn = _csum(m * e1)[..., None] * e1  # the component across the edge
     shift[normal] = mn[normal]
     state[scored & ~full & ~normal] = COLOUR_ONLY
     state[unresolved] = UNRESOLVED
@@ -1097,10 +1098,10 @@ def analyse(
     # how much of the ink is gone, per pixel: the photo's step from the design's colour towards
     # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
     step = film_pred - pred
-    step2 = (step * step).sum(axis=2)
+    step2 = _csum(step * step)
     inked = colour_scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
     with np.errstate(invalid="ignore", divide="ignore"):
-        alpha = np.where(inked, ((pho - pred) * step).sum(axis=2) / step2, 0.0)
+        alpha = np.where(inked, _csum((pho - pred) * step) / step2, 0.0)
     alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
     # beyond what blur and the flow's residual error explain: at an edge a fraction of a pixel
     # of either changes the colour by a share of the edge's contrast, so the tolerance grows
@@ -1119,7 +1120,7 @@ def analyse(
     # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
     # over a grey ink is twice its brightness, over a colour another hue)
     with np.errstate(invalid="ignore", divide="ignore"):
-        k_px = (pho * pred).sum(axis=2) / np.maximum((pred * pred).sum(axis=2), 1.0)
+        k_px = _csum(pho * pred) / np.maximum(_csum(pred * pred), 1.0)
     k_px = np.clip(np.nan_to_num(k_px, nan=1.0), 1.0 / SHADING, SHADING)[..., None]
     res_raw = res
     res = _residual(pho, k_px * pred)
@@ -1290,11 +1291,11 @@ def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
         Largest channel residual of the fit (grey levels).
     """
     # normal equations of the two unknowns: [p·p p·u; p·u u·u] [k s]' = [p·y u·y]'
-    pp = (pred * pred).sum(axis=-1)
-    pu = (pred * light).sum(axis=-1)
-    uu = np.maximum((light * light).sum(axis=-1), 1e-6)
-    py = (pred * photo).sum(axis=-1)
-    uy = (light * photo).sum(axis=-1)
+    pp = _csum(pred * pred)
+    pu = _csum(pred * light)
+    uu = np.maximum(_csum(light * light), 1e-6)
+    py = _csum(pred * photo)
+    uy = _csum(light * photo)
     det = pp * uu - pu * pu
     with np.errstate(divide="ignore", invalid="ignore"):
         k = np.where(det > 1e-3 * pp * uu, (py * uu - uy * pu) / det, py / np.maximum(pp, 1e-6))
@@ -1408,7 +1409,7 @@ def reflected_directions(X: np.ndarray, camera_center: np.ndarray, ii=None, jj=N
         n /= np.linalg.norm(n, axis=-1, keepdims=True)
         v = np.asarray(camera_center, np.float64)[None, :] - X[ii, jj]
         v /= np.linalg.norm(v, axis=-1, keepdims=True)
-        nv = (n * v).sum(axis=-1, keepdims=True)
+        nv = _csum(n * v)[..., None]
         n = np.where(nv < 0, -n, n)
         # mirror of the view direction about the normal: r = 2 (n·v) n - v
         r = 2.0 * np.abs(nv) * n - v
@@ -1594,6 +1595,15 @@ def _cmax(a: np.ndarray) -> np.ndarray:
 def _cmin(a: np.ndarray) -> np.ndarray:
     """Smallest of the three channels."""
     return np.minimum(np.minimum(a[..., 0], a[..., 1]), a[..., 2])
+
+
+def _csum(a: np.ndarray) -> np.ndarray:
+    """Sum over the last (short) axis, channel by channel: the same numbers as ``a.sum(axis=-1)`` (which adds
+    them in this order too) at a fifth of its time."""
+    out = a[..., 0] + a[..., 1]
+    for c in range(2, a.shape[-1]):
+        out += a[..., c]
+    return out
 
 
 def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:

@@ -880,7 +880,8 @@ def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     Same shape as ``img``.
     """
     k = blur_levels(sigma)
-    present = np.unique(k)
+    # (the levels present by a count: np.unique sorts every pixel)
+    present = np.flatnonzero(np.bincount(k.ravel().view(np.uint8), minlength=len(BLUR_LEVELS)))
     out = None
     for i in present:
         s = float(BLUR_LEVELS[i])
@@ -889,7 +890,7 @@ def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
             out = b.copy() if len(present) > 1 else b
         else:
             m = k == i
-            out[m] = b[m]
+            np.copyto(out, b, where=m[..., None] if img.ndim == 3 else m)
     return out
 
 
@@ -1609,8 +1610,9 @@ def _csum(a: np.ndarray) -> np.ndarray:
 def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
     """Largest channel residual, grey levels; a channel clipped in the photo where the model is bright too
     says nothing (yellow ink's red channel reaches 255 on a well exposed photo)."""
-    r = np.abs(photo - pred)
-    r[(photo >= SATURATED) & (pred >= SATURATED - 15)] = 0.0
+    r = photo - pred
+    np.abs(r, out=r)
+    np.copyto(r, 0.0, where=(photo >= SATURATED) & (pred >= SATURATED - 15))
     return _cmax(r)
 
 

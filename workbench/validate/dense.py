@@ -1661,6 +1661,21 @@ def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
     return _cmax(r)
 
 
+def _full(shape, mask) -> np.ndarray:
+    """A mask as a whole image: ``mask`` itself, or a ``(box, pixels)`` pair made whole (a new array)."""
+    if isinstance(mask, np.ndarray):
+        return mask
+    box, pixels = mask
+    out = np.zeros(shape, bool)
+    out[box] = pixels
+    return out
+
+
+def _count(mask) -> int:
+    """Pixels of a mask, whole or ``(box, pixels)``."""
+    return np.count_nonzero(mask if isinstance(mask, np.ndarray) else mask[1])
+
+
 def _filled(region: np.ndarray) -> np.ndarray:
     """The region with its holes filled (a bubble's plain squares are inside it, not around it)."""
     cs, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
@@ -1732,21 +1747,20 @@ def find_defects(
         grow = np.where(measured, extent, -np.inf).astype(extent.dtype, copy=False)
     # each region's kind and pixels; a shift region grown to where the flow reaches half its
     # shift, and shift regions that grow into one another merged (one bubble, one defect)
-    regions = []
-    for k in range(1, n):
+    def one(k: int):
         # the region's own pixels from its bounding box (a photo with the film off has some 60
-        # regions: full-size comparisons for each took a second)
+        # regions: full-size comparisons for each took a second); region and colour pixels stay
+        # in the box (full-size masks of every region took a quarter gigabyte)
         x0, y0, w, h = boxes[k, :4]
         box = (slice(y0, y0 + h), slice(x0, x0 + w))
         in_box = lab[box] == k
-        region, s_px, c_px = np.zeros(lab.shape, bool), np.zeros(lab.shape, bool), np.zeros(lab.shape, bool)
-        region[box] = in_box
-        s_px[box], c_px[box] = in_box & (sb[box] > 0), in_box & (cb[box] > 0)
-        if evidence is not None and (s_px[box] & evidence[box]).sum() < 0.25 * s_px[box].sum():
-            s_px[box] &= evidence[box]  # the rest is the flow's guess along an edge
-        ns, nc = int(s_px[box].sum()), int(c_px[box].sum())
+        s_in, c_in = in_box & (sb[box] > 0), in_box & (cb[box] > 0)
+        if evidence is not None and (s_in & evidence[box]).sum() < 0.25 * s_in.sum():
+            s_in &= evidence[box]  # the rest is the flow's guess along an edge
+        ns, nc = int(s_in.sum()), int(c_in.sum())
         if (ns + nc) == 0:
-            continue
+            return None
+        s_px = (box, s_in)
         # a bubble's flow edges leave a little colour residual (under 1 % of its area in
         # tests); ink that is gone leaves a lot, and drags the flow around it too
         if nc >= 0.2 * ns:
@@ -1758,10 +1772,11 @@ def find_defects(
                 # region's shift to 0 over the flow's window, and crosses half of it at the
                 # region's edge whatever the tolerance (the tolerance's threshold would size a
                 # large slide too large and a slide just above the tolerance too small)
-                level = 0.5 * float(np.median(extent[box][s_px[box]]))
+                level = 0.5 * float(np.median(extent[box][s_in]))
                 n_h, lab_h = cv2.connectedComponents((grow >= level).view(np.uint8), connectivity=8)
-                hit = np.unique(lab_h[box][s_px[box]])
+                hit = np.unique(lab_h[box][s_in])
                 hit = hit[hit > 0]
+                s_px = _full(lab.shape, s_px)
                 if len(hit) <= 4:
                     # (typically one component: comparisons are ten times faster than a table's gather,
                     # and np.isin sorts the whole label image)
@@ -1771,17 +1786,25 @@ def find_defects(
                     taken = np.zeros(n_h, bool)
                     taken[hit] = True
                     s_px |= taken[lab_h]
-        regions.append([kind, region, s_px, c_px, ns, nc])
+        return [kind, (box, in_box), s_px, (box, c_in), ns, nc]
+
+    if n > 8:
+        # (the regions one by one on two threads: most of a region's time is its components,
+        # which release the GIL)
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            regions = [r for r in pool.map(one, range(1, n)) if r is not None]
+    else:
+        regions = [r for r in map(one, range(1, n)) if r is not None]
     merged: list = []
-    for r in sorted(regions, key=lambda r: -np.count_nonzero(r[2])):
+    for r in sorted(regions, key=lambda r: -_count(r[2])):
         if r[0] == "shift":
-            into = next((m for m in merged if m[0] == "shift" and (m[2] & r[2]).any()), None)
+            into = next((m for m in merged if m[0] == "shift" and (m[2] & _full(lab.shape, r[2])).any()), None)
             if into is not None:
-                into[1] |= r[1]
-                into[2] |= r[2]
+                into[1] |= _full(lab.shape, r[1])
+                into[2] |= _full(lab.shape, r[2])
                 into[4] += r[4]
                 continue
-        merged.append(r)
+        merged.append([r[0], _full(lab.shape, r[1]), _full(lab.shape, r[2]), _full(lab.shape, r[3]), r[4], r[5]])
     found = []
     for kind, region, s_px, c_px, ns, nc in merged:
         if kind != "shift":

@@ -1093,6 +1093,8 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     state[highlight] = HIGHLIGHT
     state[shadow] = SHADOWED
     scored = state == FULL
+    # the colour test needs nothing of the flow's uncertainty: beside it
+    colour_test = later.submit(colour_residuals, pho, pred, gain, offset, res, weight, scored, fp)
     # what the flow can know there: the photo's noise and what the model does not explain,
     # through the texture the photo resolves (the model is the print blurred like the photo,
     # in the photo's own contrast), and where the flow back disagrees, half that disagreement
@@ -1133,44 +1135,8 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     sigma_mm[full] = (weak * mm_per_px)[full]
     sigma_mm[normal] = (strong * mm_per_px)[normal]
     colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
+    alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad = colour_test.result()
     colour = np.where(colour_scored, res, np.nan).astype(np.float32)
-    # ink missing: the photo matches the bare film's colour, the design does not
-    film = np.asarray(FILM_RGB, np.float32)
-    film_pred = gain * film + offset
-    # how much of the ink is gone, per pixel: the photo's step from the design's colour towards
-    # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
-    step = film_pred - pred
-    step2 = _csum(step * step)
-    inked = colour_scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        alpha = np.where(inked, _csum((pho - pred) * step) / step2, 0.0)
-    alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
-    # beyond what blur and the flow's residual error explain: at an edge a fraction of a pixel
-    # of either changes the colour by a share of the edge's contrast, so the tolerance grows
-    # with the model's gradient (half a pixel's worth of it); and beyond the photo's noise at
-    # SIGNIFICANCE_Z (the largest of three channels' noise is about 1.5 σ)
-    gx = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 1, 0, ksize=3) / 8))
-    gy = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 0, 1, ksize=3) / 8))
-    colour_noise = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
-    # (half a pixel: of the grid, or of the photo where it samples the print coarser, as
-    # where it sees the surface at a slant: it places the print no better than that)
-    with np.errstate(divide="ignore"):
-        position = np.maximum(0.5, np.where(fp > 0, 0.5 / fp, 0.5)).astype(np.float32)
-    colour_limit = COLOUR_TOL + position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
-    # light, not ink: a crease's own shading changes faster than the exposure fit's window
-    # follows, and scales every channel alike; so the colour test allows each pixel a gain of
-    # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
-    # over a grey ink is twice its brightness, over a colour another hue)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k_px = _csum(pho * pred) / np.maximum(_csum(pred * pred), 1.0)
-    k_px = np.clip(np.nan_to_num(k_px, nan=1.0), 1.0 / SHADING, SHADING)[..., None]
-    res_raw = res
-    res = _residual(pho, k_px * pred)
-    colour = np.where(colour_scored, res, np.nan).astype(np.float32)
-    # (a step towards the bare film's colour is ink gone whatever gain might mimic it: film
-    # white over a light ink is a gain of 1.2)
-    gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
-    colour_bad = (colour_scored & (res > colour_limit)) | gone
     # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
     # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
     # the sharp edge of the ink's own rim
@@ -1306,6 +1272,77 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         resolution,
         detection,
     )
+
+
+def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp):
+    """The colour test of :func:`analyse` before highlights are told from ink: residuals, limits, ink gone.
+
+    Parameters
+    ----------
+    pho, pred : (H, W, 3) float32
+        The photo on the print and the model (the print moved, blurred like the photo, in its exposure).
+    gain, offset : (H, W, 3) float32
+        The exposure fit.
+    res : (H, W) float32
+        The model's largest channel residual.
+    weight : (H, W) float32
+        The exposure fit's weights (its inliers).
+    scored : (H, W) bool
+        Where colour is judged.
+    fp : (H, W) float32
+        Photo pixels per grid pixel.
+
+    Returns
+    -------
+    alpha : (H, W) float32
+        Share of the ink gone per pixel.
+    colour_limit : (H, W) float32
+        The colour test's limit per pixel, grey levels.
+    colour_noise : float
+        The residual's noise, grey levels.
+    res_raw, res : (H, W) float32
+        The residual without and with each pixel's own gain (within SHADING).
+    gone, colour_bad : (H, W) bool
+        Pixels stepped towards the bare film beyond the limit, and pixels beyond it.
+    """
+    colour_scored = scored
+    # ink missing: the photo matches the bare film's colour, the design does not
+    film = np.asarray(FILM_RGB, np.float32)
+    film_pred = gain * film + offset
+    # how much of the ink is gone, per pixel: the photo's step from the design's colour towards
+    # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
+    step = film_pred - pred
+    step2 = _csum(step * step)
+    inked = colour_scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        alpha = np.where(inked, _csum((pho - pred) * step) / step2, 0.0)
+    alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
+    # beyond what blur and the flow's residual error explain: at an edge a fraction of a pixel
+    # of either changes the colour by a share of the edge's contrast, so the tolerance grows
+    # with the model's gradient (half a pixel's worth of it); and beyond the photo's noise at
+    # SIGNIFICANCE_Z (the largest of three channels' noise is about 1.5 σ)
+    gx = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 1, 0, ksize=3) / 8))
+    gy = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 0, 1, ksize=3) / 8))
+    colour_noise = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
+    # (half a pixel: of the grid, or of the photo where it samples the print coarser, as
+    # where it sees the surface at a slant: it places the print no better than that)
+    with np.errstate(divide="ignore"):
+        position = np.maximum(0.5, np.where(fp > 0, 0.5 / fp, 0.5)).astype(np.float32)
+    colour_limit = COLOUR_TOL + position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
+    # light, not ink: a crease's own shading changes faster than the exposure fit's window
+    # follows, and scales every channel alike; so the colour test allows each pixel a gain of
+    # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
+    # over a grey ink is twice its brightness, over a colour another hue)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k_px = _csum(pho * pred) / np.maximum(_csum(pred * pred), 1.0)
+    k_px = np.clip(np.nan_to_num(k_px, nan=1.0), 1.0 / SHADING, SHADING)[..., None]
+    res_raw = res
+    res = _residual(pho, k_px * pred)
+    # (a step towards the bare film's colour is ink gone whatever gain might mimic it: film
+    # white over a light ink is a gain of 1.2)
+    gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
+    colour_bad = (colour_scored & (res > colour_limit)) | gone
+    return alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad
 
 
 def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):

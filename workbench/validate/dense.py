@@ -648,23 +648,26 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
     q = 4 if sigma >= 16 else 1
     small = (max(W // q, 1), max(H // q, 1))
 
-    def blur(a):
-        a = cv2.resize(a, small, interpolation=cv2.INTER_AREA) if q > 1 else a
-        return cv2.GaussianBlur(a, (0, 0), sigma / q)
+    # (the sums' reductions and the fields' enlargements take the three channels at once, which
+    # OpenCV's resizing computes channel by channel alike; its Gaussian blur does not: one channel
+    # at a time)
+    def down(a):
+        return cv2.resize(a, small, interpolation=cv2.INTER_AREA) if q > 1 else a
 
-    def back(a):
+    def blur(a):
+        return cv2.GaussianBlur(np.ascontiguousarray(a), (0, 0), sigma / q)
+
+    def back(channels):
+        a = np.stack(channels, axis=-1)
         return cv2.resize(a, (W, H), interpolation=cv2.INTER_LINEAR) if q > 1 else a
 
     w = weight.astype(np.float32)
-    gain = np.empty_like(model)
-    offset = np.empty_like(model)
-    contrast = np.empty_like(model)
-    sw = blur(w) + 1e-6
+    sw = blur(down(w)) + 1e-6
+    wm = w[..., None] * model
+    sums = [down(a) for a in (wm, w[..., None] * photo, wm * model, wm * photo)]
+    gains, offsets, contrasts = [], [], []
     for c in range(3):
-        x, y = model[..., c], photo[..., c]
-        wx, wy = w * x, w * y
-        sx, sy = blur(wx), blur(wy)
-        sxx, sxy = blur(wx * x), blur(wx * y)
+        sx, sy, sxx, sxy = (blur(a[..., c]) for a in sums)
         mx, my = sx / sw, sy / sw
         vxx = sxx / sw - mx * mx
         cxy = sxy / sw - mx * my
@@ -675,10 +678,10 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
         g0 = (float(sxy.sum()) / n - gx * gy) / max(gvar, 1e-6)
         ridge = 25.0  # grey levels²: below this much contrast in the window the global gain wins
         g = (cxy + ridge * g0) / (np.maximum(vxx, 0) + ridge)
-        gain[..., c] = back(g)
-        offset[..., c] = back(my - g * mx)
-        contrast[..., c] = back(np.sqrt(np.maximum(vxx, 0)))
-    return gain, offset, contrast
+        gains.append(g)
+        offsets.append(my - g * mx)
+        contrasts.append(np.sqrt(np.maximum(vxx, 0)))
+    return back(gains), back(offsets), back(contrasts)
 
 
 def estimate_blur(ref_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray) -> float:

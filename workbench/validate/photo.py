@@ -10,6 +10,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
+import numba
 import numpy as np
 from PIL import Image
 
@@ -164,7 +165,11 @@ def validate_photo(
     # the encoders release the GIL): the print grid while the photo is read, posed and seated, the
     # view's surface while its z-buffer is drawn, the tiles beside the dense analysis, the pictures'
     # encoding beside their drawing (two of them: the encoding takes longer than the drawing)
-    side = ThreadPoolExecutor(max_workers=2, thread_name_prefix="validate-photo")
+    # (numba's thread count is each thread's own: the side threads take the caller's, one in a worker)
+    side = ThreadPoolExecutor(
+        max_workers=2, thread_name_prefix="validate-photo", initializer=numba.set_num_threads,
+        initargs=(numba.get_num_threads(),),
+    )  # fmt: skip
     try:
         return _validate_photo(
             path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,

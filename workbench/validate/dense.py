@@ -1793,6 +1793,7 @@ def find_defects(
     if extent is not None:
         # where a shift region may grow: the measured pixels' extent (-inf elsewhere), once
         grow = np.where(measured, extent, -np.inf).astype(extent.dtype, copy=False)
+
     # each region's kind and pixels; a shift region grown to where the flow reaches half its
     # shift, and shift regions that grow into one another merged (one bubble, one defect)
     def one(k: int):

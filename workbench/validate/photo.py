@@ -357,14 +357,14 @@ def _validate_photo(
     stem = stem or safe_name(path.stem)
     entry["pictures"] = stem  # the name the warped photo, overlay and heat map start with
 
-    def encoded(img: np.ndarray, compression: int = 1):
+    def encoded(img: np.ndarray):
         # (light compression for the pictures: level 3 costs a few tenths of a second per photo)
-        return side.submit(png_bytes, img, compression=compression)
+        return side.submit(png_bytes, img, compression=1)
 
-    files[f"{stem}_warped_{name}.png"] = encoded(warped, 3)
+    files[f"{stem}_warped_{name}.png"] = encoded(warped)
     overlay = view_rgb.copy()
     overlay[valid] = (0.5 * view_rgb[valid] + 0.5 * warped[valid]).astype(np.uint8)
-    files[f"{stem}_overlay_{name}.png"] = encoded(overlay, 3)
+    files[f"{stem}_overlay_{name}.png"] = encoded(overlay)
     files[f"{stem}_heatmap_{name}.png"] = encoded(
         pictures.tile_heatmap(view_rgb, sc, f"{path.name} in view {name}: {entry['verdict']}")
     )

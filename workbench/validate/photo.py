@@ -272,7 +272,7 @@ def _validate_photo(
         )
         return entry, files, None, {}
     entry["view"] = name
-    surface, view_rgb, printed_rgb = cache[vi] = _done(cache[vi])
+    surface, view_rgb, printed_rgb = cache[vi] = _done(cache.pop(vi))
     clock.append(time.perf_counter())  # checks and the view
     warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
     p = design.info["print"]
@@ -282,7 +282,7 @@ def _validate_photo(
         _timed, score, view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]), tolerance_mm,
         printed_rgb,
     )  # fmt: skip
-    grid = cache["grid"] = _done(cache["grid"])
+    grid = cache["grid"] = _done(cache.pop("grid"))
     on_print, state, scale, footprint = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
     dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center)
@@ -409,7 +409,8 @@ def _validate_photo(
 
 
 def _done(value):
-    """A cached value, waited for when a side thread is still making it."""
+    """A cached value, waited for when a side thread is still making it (the caller pops it from the
+    cache first: a job that failed is then made again by the next photo, as before)."""
     return value.result() if isinstance(value, Future) else value
 
 
@@ -434,7 +435,7 @@ def _print_grid(design: Design) -> dense.PrintGrid:
 def print_grid_of(cache: dict) -> dense.PrintGrid | None:
     """The print grid the photos of one command made (None when none did)."""
     if "grid" in cache:
-        cache["grid"] = _done(cache["grid"])
+        cache["grid"] = _done(cache.pop("grid"))
     return cache.get("grid")
 
 

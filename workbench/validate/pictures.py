@@ -135,7 +135,7 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
         x0, y0 = 40 + (i // half) * col_w, 8 + (i % half) * line
         cv2.rectangle(legend, (x0, y0 + 4), (x0 + 26, y0 + 15), tuple(int(c) for c in colour), cv2.FILLED)
         _text(legend, text, (x0 + 34, y0 + 15), 0.45)
-    return png_bytes(_titled(np.concatenate([img, legend], axis=0), title), compression=1)
+    return png_bytes(_titled(np.concatenate([img, legend], axis=0), title), compression=1, fast=True)
 
 
 def dense_heatmap(

@@ -110,14 +110,15 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
     from workbench.export import png_bytes
 
     img = coverage_image(state).copy()
+    u = _unit(img.shape[1])
     for k, d in enumerate(defects):
         # a white disc ringed in red with the defect's number, at its centre
         x, y = (int(round(v * px_per_mm)) for v in d["centre_mm"])
-        cv2.circle(img, (x, y), 11, (255, 255, 255), cv2.FILLED, cv2.LINE_AA)
-        cv2.circle(img, (x, y), 11, (220, 30, 30), 2, cv2.LINE_AA)
-        (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.45, 1)
-        _text(img, str(k + 1), (x - tw // 2, y + th // 2), 0.45, (0, 0, 0), 1)
-    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)")
+        cv2.circle(img, (x, y), int(11 * u), (255, 255, 255), cv2.FILLED, cv2.LINE_AA)
+        cv2.circle(img, (x, y), int(11 * u), (220, 30, 30), max(2, int(2 * u)), cv2.LINE_AA)
+        (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.45 * u, _weight(u))
+        _text(img, str(k + 1), (x - tw // 2, y + th // 2), 0.45 * u, (0, 0, 0), _weight(u))
+    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
     on = state != dense.OFF_PART
     n_on = max(int(on.sum()), 1)
     entries = []
@@ -127,15 +128,18 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
         share = float((state == k).sum()) / n_on
         if share > 0:
             entries.append((STATE_COLOURS[k], f"{name}: {100 * share:.1f} %"))
-    # the legend below the map, in two columns filled one after the other
-    line, half = 22, (len(entries) + 1) // 2
-    legend = np.full((line * max(half, 1) + 16, img.shape[1], 3), 255, np.uint8)
+    # the legend below the map, in two columns filled one after the other where its lines fit
     col_w = img.shape[1] // 2
+    widest = max((cv2.getTextSize(t, _FONT, 0.45 * u, _weight(u))[0][0] for _, t in entries), default=0)
+    line = int(22 * u)
+    half = (len(entries) + 1) // 2 if widest + int(80 * u) <= col_w else len(entries)
+    legend = np.full((line * max(half, 1) + int(16 * u), img.shape[1], 3), 255, np.uint8)
     for i, (colour, text) in enumerate(entries):
-        x0, y0 = 40 + (i // half) * col_w, 8 + (i % half) * line
-        cv2.rectangle(legend, (x0, y0 + 4), (x0 + 26, y0 + 15), tuple(int(c) for c in colour), cv2.FILLED)
-        _text(legend, text, (x0 + 34, y0 + 15), 0.45)
-    return png_bytes(_titled(np.concatenate([img, legend], axis=0), title), compression=1, fast=True)
+        x0, y0 = int(40 * u) + (i // half) * col_w, int(8 * u) + (i % half) * line
+        box = ((x0, y0 + int(4 * u)), (x0 + int(26 * u), y0 + int(15 * u)))
+        cv2.rectangle(legend, *box, tuple(int(c) for c in colour), cv2.FILLED)
+        _text(legend, text, (x0 + int(34 * u), y0 + int(15 * u)), 0.45 * u, thickness=_weight(u))
+    return png_bytes(_titled(np.concatenate([img, legend], axis=0), title, u), compression=1, fast=True)
 
 
 def dense_heatmap(
@@ -170,17 +174,18 @@ def dense_heatmap(
     img = np.repeat(grey[..., None], 3, axis=2)
     on = np.isfinite(shift_mm)
     img[on] = lut[np.clip(shift_mm[on] / vmax * 255, 0, 255).astype(np.uint8)]
+    u = _unit(img.shape[1])
     for k, c in enumerate(outlines(labels)):
         if len(c):
-            cv2.polylines(img, [c.reshape(-1, 1, 2)], True, CYAN, 2, cv2.LINE_AA)
+            cv2.polylines(img, [c.reshape(-1, 1, 2)], True, CYAN, max(2, int(1.5 * u)), cv2.LINE_AA)
             # beside the outline's top right, kept inside the picture
-            (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.6, 2)
+            (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.6 * u, 2 * _weight(u))
             x = min(int(c[:, 0].max()) + 3, img.shape[1] - tw - 2)
             y = max(int(c[:, 1].min()), th + 2)
-            _text(img, str(k + 1), (x, y), 0.6, CYAN, 2, outline=True)
-    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)")
-    bar = _colour_bar(img.shape[0], vmax, "misregistration on the surface (mm)", lut)
-    return _titled(np.concatenate([img, bar], axis=1), title)
+            _text(img, str(k + 1), (x, y), 0.6 * u, CYAN, 2 * _weight(u), outline=True)
+    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
+    bar = _colour_bar(img.shape[0], vmax, "misregistration on the surface (mm)", lut, u)
+    return _titled(np.concatenate([img, bar], axis=1), title, u)
 
 
 def colour_difference(reference: np.ndarray, de_map: np.ndarray, px_per_mm: float, vmax: float) -> np.ndarray:
@@ -242,6 +247,7 @@ def tile_heatmap(design_rgb, sc, title: str) -> np.ndarray:
     from workbench.validate.score import TILE
 
     lut = _inferno()
+    u = _unit(design_rgb.shape[1])
     grey = cv2.cvtColor(design_rgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
     # the view at 0.6 over white: the tiles and arrows stand out
     img = np.repeat((0.6 * grey + 0.4 * 255).astype(np.uint8)[..., None], 3, axis=2)
@@ -257,8 +263,8 @@ def tile_heatmap(design_rgb, sc, title: str) -> np.ndarray:
         length = max(ARROW_SCALE * float(np.hypot(dx, dy)), 1.0)
         start = (int(round(x)), int(round(y)))
         cv2.arrowedLine(img, start, tip, CYAN, 2, cv2.LINE_AA, tipLength=min(8.0 / length, 0.5))
-    bar = _colour_bar(img.shape[0], vmax, "misregistration on the surface (mm)", lut)
-    return _titled(np.concatenate([img, bar], axis=1), f"{title} (arrows: {ARROW_SCALE:g} x the shift)")
+    bar = _colour_bar(img.shape[0], vmax, "misregistration on the surface (mm)", lut, u)
+    return _titled(np.concatenate([img, bar], axis=1), f"{title} (arrows: {ARROW_SCALE:g} x the shift)", u)
 
 
 CYAN = (0, 255, 255)  # RGB
@@ -276,6 +282,17 @@ def _inferno() -> np.ndarray:
     return np.ascontiguousarray(bgr[:, 0, ::-1])
 
 
+def _unit(width: int) -> float:
+    """The type's and the margins' size for a picture ``width`` pixels wide: the QA report shows every
+    picture at a third of a page, so the type grows with the picture (1 up to 800 px)."""
+    return max(1.0, width / 800.0)
+
+
+def _weight(u: float) -> int:
+    """Stroke width of text at size ``u``."""
+    return max(1, int(round(u)))
+
+
 def _text(img, text: str, org, scale: float, colour=(0, 0, 0), thickness: int = 1, outline: bool = False) -> None:
     """Text at ``org`` (its baseline's left end); ``outline``: a dark rim first, readable over any colour."""
     if outline:
@@ -283,57 +300,58 @@ def _text(img, text: str, org, scale: float, colour=(0, 0, 0), thickness: int = 
     cv2.putText(img, text, org, _FONT, scale, colour, thickness, cv2.LINE_AA)
 
 
-def _vertical_text(text: str, scale: float, height: int) -> np.ndarray:
+def _vertical_text(text: str, scale: float, height: int, thickness: int = 1) -> np.ndarray:
     """A white strip with ``text`` written upwards, centred on ``height`` rows; (height, w, 3) uint8."""
-    (tw, th), base = cv2.getTextSize(text, _FONT, scale, 1)
+    (tw, th), base = cv2.getTextSize(text, _FONT, scale, thickness)
     strip = np.full((th + base + 8, max(tw + 8, height), 3), 255, np.uint8)
-    _text(strip, text, ((strip.shape[1] - tw) // 2, th + 4), scale)
+    _text(strip, text, ((strip.shape[1] - tw) // 2, th + 4), scale, thickness=thickness)
     strip = np.rot90(strip)  # reads from the bottom up
     return np.ascontiguousarray(strip[(strip.shape[0] - height) // 2 :][:height])
 
 
-def _colour_bar(height: int, vmax: float, label: str, lut: np.ndarray) -> np.ndarray:
+def _colour_bar(height: int, vmax: float, label: str, lut: np.ndarray, u: float = 1.0) -> np.ndarray:
     """A vertical scale from 0 (bottom) to ``vmax`` (top) with five labelled ticks and its caption; (height, w, 3)."""
     top, bottom = max(height // 10, 12), height - max(height // 10, 12)
-    bar = np.full((height, 90, 3), 255, np.uint8)
+    x0, x1 = int(10 * u), int(34 * u)
+    bar = np.full((height, int(90 * u), 3), 255, np.uint8)
     ramp = np.linspace(255, 0, bottom - top).astype(np.uint8)
-    bar[top:bottom, 10:34] = lut[ramp][:, None, :]
-    cv2.rectangle(bar, (10, top), (33, bottom - 1), (0, 0, 0), 1)
+    bar[top:bottom, x0:x1] = lut[ramp][:, None, :]
+    cv2.rectangle(bar, (x0, top), (x1 - 1, bottom - 1), (0, 0, 0), 1)
     for k in range(5):
         y = int(round(bottom - 1 - k * (bottom - 1 - top) / 4))
-        bar[y, 34:40] = 0
-        _text(bar, f"{k * vmax / 4:.2f}", (43, y + 5), 0.45)
-    return np.concatenate([bar, _vertical_text(label, 0.5, height)], axis=1)
+        bar[y : y + _weight(u), x1 : x1 + int(6 * u)] = 0
+        _text(bar, f"{k * vmax / 4:.2f}", (x1 + int(9 * u), y + int(5 * u)), 0.45 * u, thickness=_weight(u))
+    return np.concatenate([bar, _vertical_text(label, 0.5 * u, height, _weight(u))], axis=1)
 
 
-def _with_axes(img: np.ndarray, px_per_mm: float, xlabel: str, ylabel: str) -> np.ndarray:
+def _with_axes(img: np.ndarray, px_per_mm: float, xlabel: str, ylabel: str, u: float = 1.0) -> np.ndarray:
     """The image with a tick every 10 mm along its left and bottom edges, labelled, and the axes' captions."""
     rows, cols = img.shape[:2]
-    left, below = 34, 44
+    left, below, t = int(34 * u), int(44 * u), _weight(u)
     out = np.full((rows + below, cols + left, 3), 255, np.uint8)
     out[:rows, left:] = img
     for k in range(0, int(cols / px_per_mm) + 1, 10):
         x = left + int(round(k * px_per_mm))
-        out[rows : rows + 6, x : x + 2] = 0
-        (tw, _), _ = cv2.getTextSize(str(k), _FONT, 0.45, 1)
-        _text(out, str(k), (x - tw // 2, rows + 20), 0.45)
+        out[rows : rows + int(6 * u), x : x + 2 * t] = 0
+        (tw, th), _ = cv2.getTextSize(str(k), _FONT, 0.45 * u, t)
+        _text(out, str(k), (x - tw // 2, rows + int(8 * u) + th), 0.45 * u, thickness=t)
     for k in range(0, int(rows / px_per_mm) + 1, 10):
         y = int(round(k * px_per_mm))
-        out[y : y + 2, left - 6 : left] = 0
-        (tw, _), _ = cv2.getTextSize(str(k), _FONT, 0.45, 1)
-        _text(out, str(k), (left - 8 - tw, min(max(y + 5, 12), rows - 1)), 0.45)
-    (tw, _), _ = cv2.getTextSize(xlabel, _FONT, 0.5, 1)
-    _text(out, xlabel, (left + (cols - tw) // 2, rows + 38), 0.5)
-    return np.concatenate([_vertical_text(ylabel, 0.5, out.shape[0]), out], axis=1)
+        out[y : y + 2 * t, left - int(6 * u) : left] = 0
+        (tw, th), _ = cv2.getTextSize(str(k), _FONT, 0.45 * u, t)
+        _text(out, str(k), (left - int(8 * u) - tw, min(max(y + th // 2, th + 1), rows - 1)), 0.45 * u, thickness=t)
+    (tw, _), _ = cv2.getTextSize(xlabel, _FONT, 0.5 * u, t)
+    _text(out, xlabel, (left + (cols - tw) // 2, rows + int(38 * u)), 0.5 * u, thickness=t)
+    return np.concatenate([_vertical_text(ylabel, 0.5 * u, out.shape[0], t), out], axis=1)
 
 
-def _titled(img: np.ndarray, title: str) -> np.ndarray:
+def _titled(img: np.ndarray, title: str, u: float = 1.0) -> np.ndarray:
     """The image under a white band with the title, centred (smaller type when it is wider than the image)."""
-    scale = 0.55
-    (tw, th), _ = cv2.getTextSize(title, _FONT, scale, 1)
+    scale, t = 0.55 * u, _weight(u)
+    (tw, th), _ = cv2.getTextSize(title, _FONT, scale, t)
     if tw > img.shape[1] - 10:
         scale *= (img.shape[1] - 10) / tw
-        (tw, th), _ = cv2.getTextSize(title, _FONT, scale, 1)
-    band = np.full((th + 18, img.shape[1], 3), 255, np.uint8)
-    _text(band, title, ((img.shape[1] - tw) // 2, th + 8), scale)
+        (tw, th), _ = cv2.getTextSize(title, _FONT, scale, t)
+    band = np.full((th + int(18 * u), img.shape[1], 3), 255, np.uint8)
+    _text(band, title, ((img.shape[1] - tw) // 2, th + int(8 * u)), scale, thickness=t)
     return np.concatenate([band, img], axis=0)

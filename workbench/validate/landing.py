@@ -48,30 +48,32 @@ def photo_landing(dr: DenseResult, grid: PrintGrid) -> dict:
     rows, cols = dr.texture.shape
     with np.errstate(invalid="ignore", divide="ignore"):
         sigma = dr.sigma_mm / grid.surface_per_print  # surface mm to print mm
-    ok = (dr.texture == 2) & np.isfinite(sigma) & (sigma <= MAX_SIGMA_MM) & np.isfinite(dr.flow_px).all(axis=2)
+    finite = np.isfinite(dr.flow_px[..., 0]) & np.isfinite(dr.flow_px[..., 1])
+    ok = (dr.texture == 2) & np.isfinite(sigma) & (sigma <= MAX_SIGMA_MM) & finite
     br, bc = rows // b, cols // b
-    ok = ok[: br * b, : bc * b]
-
-    def blocks(a):
-        return a[: br * b, : bc * b].reshape(br, b, bc, b, *a.shape[2:]).swapaxes(1, 2).reshape(br * bc, b * b, -1)
-
-    jj, ii = np.meshgrid(np.arange(cols), np.arange(rows))
-    y = np.stack([jj + 0.5, ii + 0.5], axis=-1) / grid.px_per_mm
-    m = dr.flow_px.astype(np.float64) / grid.px_per_mm
-    w = blocks(ok.astype(np.float64)[..., None])[..., 0]
-    n = w.sum(axis=1)
+    # pixels per block (row-major over blocks; within one, row-major over its b x b pixels)
+    n = ok[: br * b, : bc * b].reshape(br, b, bc, b).sum(axis=(1, 3), dtype=np.int64).ravel().astype(np.float64)
     keep = n >= MIN_BLOCK_SHARE * b * b
-    with np.errstate(invalid="ignore", divide="ignore"):
-        q = (blocks(y) * w[..., None]).sum(axis=1) / n[:, None]
-        d = (blocks(m) * w[..., None]).sum(axis=1) / n[:, None]
-    s = blocks(np.where(ok[..., None], sigma[: br * b, : bc * b, None], np.nan))[..., 0]
     idx = np.nonzero(keep)[0]
+    # the kept blocks' pixels only (most of a photo's blocks, but not the whole grid's copies):
+    # each block's sums over its pixels in the same order as over the whole grid's blocks
+    bi, bj = np.divmod(idx, bc)
+    k = np.arange(b * b)
+    ii = bi[:, None] * b + k[None, :] // b
+    jj = bj[:, None] * b + k[None, :] % b
+    w = ok[ii, jj].astype(np.float64)
+    y = np.stack([jj + 0.5, ii + 0.5], axis=-1) / grid.px_per_mm
+    m = dr.flow_px[ii, jj].astype(np.float64) / grid.px_per_mm
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = (y * w[..., None]).sum(axis=1) / n[idx, None]
+        d = (m * w[..., None]).sum(axis=1) / n[idx, None]
+    s = np.where(ok[ii, jj], sigma[ii, jj], np.nan)
     return {
         "block": idx.astype(np.int32),
-        "q_mm": q[idx],
-        "d_mm": d[idx],
+        "q_mm": q,
+        "d_mm": d,
         # (the block's pixels share their flow windows: the median pixel's uncertainty, not divided by n)
-        "sigma_mm": np.nanmedian(s[idx], axis=1) if len(idx) else np.zeros(0),
+        "sigma_mm": np.nanmedian(s, axis=1) if len(idx) else np.zeros(0),
         "blocks": np.array([bc, br], np.int32),
     }
 

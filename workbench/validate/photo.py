@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import functools
+import gc
 import hashlib
-import io
+import sys
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
+import numba
 import numpy as np
 from PIL import Image
 
@@ -89,6 +93,44 @@ def stats(values: np.ndarray) -> dict:
     return {"median": float(np.median(values)), "p95": float(np.percentile(values, 95)), "max": float(values.max())}
 
 
+def one_photo_at_a_time(fn):
+    """``fn`` with BLAS on one thread, the cyclic garbage collector paused and the GIL passed on sooner.
+
+    A photo's linear algebra is small (a 6-column least squares per tile and per step, 3 x 3
+    products): on two cores OpenBLAS's second thread, spinning beside OpenCV's and numba's,
+    made each tile's least squares 15 to 30 times slower (measured on the shared machine: the
+    tiles' stage 2 to 3 times). The collector finds no garbage in a photo's work (none, on the
+    demo's photos) but scanned numba's compiler objects again and again as the first photo
+    loaded its kernels (0.3 s); what a photo leaves (those objects, the command's caches) is
+    then moved out of its way (``gc.freeze``) rather than scanned by the next collection.
+    The photo's threads take turns on the GIL every 0.5 ms rather than 5: a thread back from a
+    numpy or OpenCV call waits for the turn while another runs Python (the tiles' small arrays
+    beside the dense analysis; 300 numpy additions of a million floats took 270 ms beside a
+    Python loop at 5 ms, 180 to 230 ms at 0.5 ms, 70 ms alone). BLAS, the collector and the
+    turns come back as they were; the figures are the same either way.
+    """
+
+    @functools.wraps(fn)
+    def one_photo(*args, **kwargs):
+        from threadpoolctl import threadpool_limits
+
+        collecting = gc.isenabled()
+        gc.disable()
+        turn = sys.getswitchinterval()
+        sys.setswitchinterval(min(turn, 0.0005))
+        try:
+            with threadpool_limits(limits=1, user_api="blas"):
+                return fn(*args, **kwargs)
+        finally:
+            sys.setswitchinterval(turn)
+            gc.freeze()
+            if collecting:
+                gc.enable()
+
+    return one_photo
+
+
+@one_photo_at_a_time
 def validate_photo(
     path: Path,
     design: Design,
@@ -126,7 +168,34 @@ def validate_photo(
         rather than by the report, which waits for every photo.
     """
     entry: dict = {"photo": str(path), "verdict": "INVALID", "reason": None}  # made relative by run()
+    # side threads for what does not need the step before it (two cores: numpy, OpenCV, numba and
+    # the encoders release the GIL): the print grid while the photo is read, posed and seated, the
+    # view's surface while its z-buffer is drawn, the tiles beside the dense analysis, the pictures'
+    # encoding beside their drawing (two of them: the encoding takes longer than the drawing)
+    # (numba's thread count is each thread's own: the side threads take the caller's, one in a worker)
+    side = ThreadPoolExecutor(
+        max_workers=2, thread_name_prefix="validate-photo", initializer=numba.set_num_threads,
+        initargs=(numba.get_num_threads(),),
+    )  # fmt: skip
+    try:
+        return _validate_photo(
+            path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,
+            max_delta_e, output_profile, entry, side,
+        )  # fmt: skip
+    finally:
+        # (a job still running, the print grid of a photo that is not scored, finishes on its
+        # own: the cache keeps its future for the next photo and the command)
+        side.shutdown(wait=False)
+
+
+def _validate_photo(
+    path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,
+    max_delta_e, output_profile, entry, side,
+):  # fmt: skip
+    """:func:`validate_photo`, with ``side`` the executor of the work that can go beside the photo's own."""
     files: dict = {}
+    if "grid" not in cache and not isinstance(profile, str):
+        cache["grid"] = side.submit(_print_grid, design)
     try:
         if path.is_dir():
             raise WorkbenchError(f"{path}: is a directory, not a photo")
@@ -183,6 +252,15 @@ def validate_photo(
         if entry["seating"]["applied"]:
             pose.camera = seated_camera(pose.camera, seat.R, seat.t)
     clock.append(time.perf_counter())  # seating
+    views = design.info["views"]
+    if view_name is None:
+        dists = [np.linalg.norm(np.asarray(_centre(v)) - pose.camera.center) for v in views]
+        vi = int(np.argmin(dists))
+    else:
+        vi = [v["name"] for v in views].index(view_name)
+    name = views[vi]["name"]
+    if vi not in cache:
+        cache[vi] = side.submit(_view, design, vi)
     # one z-buffer of the part in the photo: for this check and for both warps
     face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
     hidden = markers_under_the_part(pose, design, face_buffer)
@@ -192,39 +270,22 @@ def validate_photo(
             f"should hide it ({len(hidden)} such markers)"
         )
         return entry, files, None, {}
-    views = design.info["views"]
-    if view_name is None:
-        dists = [np.linalg.norm(np.asarray(_centre(v)) - pose.camera.center) for v in views]
-        vi = int(np.argmin(dists))
-    else:
-        vi = [v["name"] for v in views].index(view_name)
-    name = views[vi]["name"]
     entry["view"] = name
-    if vi not in cache:
-        cam = design.view_camera(name)
-        p = design.info["print"]
-        cache[vi] = (
-            view_surface(cam, design.V, design.F, design.flat, p["height_mm"], design.owner, vi, p["dpi"] / 25.4),
-            design.view_image(vi),
-        )
-        cache[vi] += (printed_view(cache[vi][0], design.rgb, p["dpi"] / 25.4, cache[vi][1]),)
-    surface, view_rgb = cache[vi][:2]
+    surface, view_rgb, printed_rgb = cache[vi] = _done(cache.pop(vi))
     clock.append(time.perf_counter())  # checks and the view
     warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
     p = design.info["print"]
     clock.append(time.perf_counter())  # warps
-    sc = score(
-        view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]), tolerance_mm, cache[vi][2]
-    )
-    if "grid" not in cache:
-        cache["grid"] = dense.print_grid(
-            design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
-        )
-    grid = cache["grid"]
-    clock.append(time.perf_counter())  # tiles
+    # the tiles (the view) beside the print warp and the dense analysis (the print)
+    tiles = side.submit(
+        _timed, score, view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]), tolerance_mm,
+        printed_rgb,
+    )  # fmt: skip
+    grid = cache["grid"] = _done(cache.pop("grid"))
     on_print, state, scale, footprint = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
     dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center)
+    sc, tiles_s = tiles.result()
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
     entry.update(
         {
@@ -301,18 +362,23 @@ def validate_photo(
     clock.append(time.perf_counter())  # summary
     stem = stem or safe_name(path.stem)
     entry["pictures"] = stem  # the name the warped photo, overlay and heat map start with
+
+    def encoded(img: np.ndarray):
+        # (light compression, one PNG filter: level 3 and libpng's search for the best filter of
+        # each row cost a few tenths of a second per photo)
+        return side.submit(png_bytes, img, compression=1, fast=True)
+
+    files[f"{stem}_warped_{name}.png"] = encoded(warped)
     overlay = view_rgb.copy()
     overlay[valid] = (0.5 * view_rgb[valid] + 0.5 * warped[valid]).astype(np.uint8)
-    files[f"{stem}_warped_{name}.png"] = png_bytes(warped)
-    files[f"{stem}_overlay_{name}.png"] = png_bytes(overlay)
-    files[f"{stem}_heatmap_{name}.png"] = pictures.tile_heatmap(
-        view_rgb, sc, f"{path.name} in view {name}: {entry['verdict']}"
+    files[f"{stem}_overlay_{name}.png"] = encoded(overlay)
+    files[f"{stem}_heatmap_{name}.png"] = encoded(
+        pictures.tile_heatmap(view_rgb, sc, f"{path.name} in view {name}: {entry['verdict']}")
     )
-    # light compression for the pictures: level 3 costs a few tenths of a second per photo
-    files[f"{stem}_defects_print.png"] = png_bytes(
-        pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm), compression=1
+    files[f"{stem}_defects_print.png"] = encoded(
+        pictures.defects_on_print(dr.warped, dr.labels, dr.defects, grid.px_per_mm)
     )
-    dense_png = pictures.dense_heatmap(
+    dense_map = pictures.dense_heatmap(
         grid.reference,
         dr.shift_mm,
         dr.labels,
@@ -324,28 +390,74 @@ def validate_photo(
     centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
     radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
     circled = pictures.photo_circled(photo, centres, radii)
-    files[f"{stem}_dense_print.png"] = dense_png
-    files[f"{stem}_defects_{name}.png"] = png_bytes(in_view, compression=1)
-    files[f"{stem}_defects_photo.png"] = png_bytes(circled, compression=1)
-    shown = (Image.open(io.BytesIO(dense_png)), Image.fromarray(circled), Image.fromarray(in_view))
-    pages = {k: page_picture(img) for k, img in zip(page_names(stem, name), shown, strict=True)}
+    files[f"{stem}_dense_print.png"] = encoded(dense_map)
+    files[f"{stem}_defects_{name}.png"] = encoded(in_view)
+    files[f"{stem}_defects_photo.png"] = encoded(circled)
+    shown = (dense_map, circled, in_view)
+    pages = {k: side.submit(_page, img) for k, img in zip(page_names(stem, name), shown, strict=True)}
     detectable = pictures.detectable_print(
         grid.reference, dr.shift_limit_mm, dr.dropout_found, grid.px_per_mm, tolerance_mm, dr.scratch_found
     )
-    files[f"{stem}_detectable_print.png"] = png_bytes(detectable, compression=1)
-    pages[f"{stem}_detectable_print.png"] = page_picture(Image.fromarray(detectable))
+    files[f"{stem}_detectable_print.png"] = encoded(detectable)
+    pages[f"{stem}_detectable_print.png"] = side.submit(_page, detectable)
     if de_map is not None:
         shown_de = pictures.colour_difference(grid.reference, de_map, grid.px_per_mm, 2 * max_delta_e)
-        files[f"{stem}_colour_print.png"] = png_bytes(shown_de, compression=1)
-        pages[f"{stem}_colour_print.png"] = page_picture(Image.fromarray(shown_de))
+        files[f"{stem}_colour_print.png"] = encoded(shown_de)
+        pages[f"{stem}_colour_print.png"] = side.submit(_page, shown_de)
+    files.update({k: v.result() for k, v in files.items()})
+    pages.update({k: v.result() for k, v in pages.items()})
     clock.append(time.perf_counter())  # pictures
+    # each stage's seconds on the photo's own thread; the tiles ran beside the print warp and the
+    # dense analysis (their own seconds: the stages then add up to more than the photo's)
     stages = (
-        *("pose", "seating", "checks and view", "view warp", "tiles", "print warp"),
+        *("pose", "seating", "checks and view", "view warp", "print warp"),
         *("dense analysis", "colour", "figures and verdict", "pictures"),
     )
-    entry["timings_s"] = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
+    timings = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
+    timings = {**dict(list(timings.items())[:4]), "tiles": round(tiles_s, 3), **dict(list(timings.items())[4:])}
+    entry["timings_s"] = timings
     # a photo at fault says nothing of the part's print: neither its coverage nor its defects count
     return entry, files, None if entry["photo_quality"]["problems"] else dr.state, pages
+
+
+def _done(value):
+    """A cached value, waited for when a side thread is still making it (the caller pops it from the
+    cache first: a job that failed is then made again by the next photo, as before)."""
+    return value.result() if isinstance(value, Future) else value
+
+
+def _timed(fn, *args):
+    """``fn(*args)`` and its seconds."""
+    t0 = time.perf_counter()
+    out = fn(*args)
+    return out, time.perf_counter() - t0
+
+
+def _page(rgb: np.ndarray) -> bytes:
+    """A picture as a photo's page of the QA report embeds it (:func:`page_picture`)."""
+    return page_picture(Image.fromarray(rgb))
+
+
+def _print_grid(design: Design) -> dense.PrintGrid:
+    """The print's analysis grid of ``design`` (:func:`workbench.validate.dense.print_grid`)."""
+    p = design.info["print"]
+    return dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
+
+
+def print_grid_of(cache: dict) -> dense.PrintGrid | None:
+    """The print grid the photos of one command made (None when none did)."""
+    if "grid" in cache:
+        cache["grid"] = _done(cache.pop("grid"))
+    return cache.get("grid")
+
+
+def _view(design: Design, vi: int) -> tuple:
+    """A designed view's surface (:func:`view_surface`), its image and its image as the print carries it."""
+    cam = design.view_camera(design.info["views"][vi]["name"])
+    p = design.info["print"]
+    surface = view_surface(cam, design.V, design.F, design.flat, p["height_mm"], design.owner, vi, p["dpi"] / 25.4)
+    image = design.view_image(vi)
+    return surface, image, printed_view(surface, design.rgb, p["dpi"] / 25.4, image)
 
 
 def dense_summary(dr, grid, design: Design, sc, surface) -> dict:

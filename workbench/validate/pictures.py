@@ -102,49 +102,53 @@ def photo_circled(photo: np.ndarray, centres_px: np.ndarray, radii_px: np.ndarra
 
 
 def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: list) -> bytes:
-    """The print's coverage map with a legend (share of the part per state) and numbered defects, PNG."""
-    from matplotlib.patches import Patch
+    """The print's coverage map with a legend (share of the part per state) and numbered defects, PNG.
 
-    from workbench.figures import _figure, figure_png
+    Drawn with OpenCV at the grid's own resolution, as the photos' pictures (matplotlib's import
+    and figure took 0.6 to 0.8 s of the command).
+    """
+    from workbench.export import png_bytes
 
-    plt = _figure()
-    rows, cols = state.shape
-    w_mm, h_mm = cols / px_per_mm, rows / px_per_mm
-    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm * 0.8 + 2.2), dpi=110)
-    fig.subplots_adjust(bottom=0.3, top=0.93)
-    ax.imshow(coverage_image(state), extent=(0, w_mm, h_mm, 0), interpolation="nearest")
+    img = coverage_image(state).copy()
+    u = _unit(img.shape[1])
+    for k, d in enumerate(defects):
+        # a white disc ringed in red with the defect's number, at its centre
+        x, y = (int(round(v * px_per_mm)) for v in d["centre_mm"])
+        cv2.circle(img, (x, y), int(11 * u), (255, 255, 255), cv2.FILLED, cv2.LINE_AA)
+        cv2.circle(img, (x, y), int(11 * u), (220, 30, 30), max(2, int(2 * u)), cv2.LINE_AA)
+        (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.45 * u, _weight(u))
+        _text(img, str(k + 1), (x - tw // 2, y + th // 2), 0.45 * u, (0, 0, 0), _weight(u))
+    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
     on = state != dense.OFF_PART
     n_on = max(int(on.sum()), 1)
-    handles = []
+    entries = []
     for k, name in enumerate(dense.STATE_NAMES):
         if k == dense.OFF_PART:
             continue
         share = float((state == k).sum()) / n_on
         if share > 0:
-            handles.append(Patch(color=STATE_COLOURS[k] / 255, label=f"{name}: {100 * share:.1f} %"))
-    for k, d in enumerate(defects):
-        x, y = d["centre_mm"]
-        ax.annotate(
-            str(k + 1),
-            (x, y),
-            color="black",
-            fontsize=8,
-            fontweight="bold",
-            ha="center",
-            va="center",
-            bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "red", "lw": 1.2},
-        )
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
-    ax.set_xlabel("print x (mm)")
-    ax.set_ylabel("print y (mm)")
-    ax.set_title(title, fontsize=9)
-    return figure_png(fig)
+            entries.append((STATE_COLOURS[k], f"{name}: {100 * share:.1f} %"))
+    # the legend below the map, in two columns filled one after the other where its lines fit
+    col_w = img.shape[1] // 2
+    widest = max((cv2.getTextSize(t, _FONT, 0.45 * u, _weight(u))[0][0] for _, t in entries), default=0)
+    line = int(22 * u)
+    half = (len(entries) + 1) // 2 if widest + int(80 * u) <= col_w else len(entries)
+    legend = np.full((line * max(half, 1) + int(16 * u), img.shape[1], 3), 255, np.uint8)
+    for i, (colour, text) in enumerate(entries):
+        x0, y0 = int(40 * u) + (i // half) * col_w, int(8 * u) + (i % half) * line
+        box = ((x0, y0 + int(4 * u)), (x0 + int(26 * u), y0 + int(15 * u)))
+        cv2.rectangle(legend, *box, tuple(int(c) for c in colour), cv2.FILLED)
+        _text(legend, text, (x0 + int(34 * u), y0 + int(15 * u)), 0.45 * u, thickness=_weight(u))
+    return png_bytes(_titled(np.concatenate([img, legend], axis=0), title, u), compression=1, fast=True)
 
 
 def dense_heatmap(
     reference: np.ndarray, shift_mm: np.ndarray, labels: np.ndarray, px_per_mm: float, vmax: float, title: str
-) -> bytes:
-    """The dense misregistration over the print (mm on the surface), defects outlined, with a colour bar; PNG.
+) -> np.ndarray:
+    """The dense misregistration over the print (mm on the surface), defects outlined, with a scale; RGB image.
+
+    Drawn with OpenCV at the grid's own resolution (one picture pixel a grid pixel), as
+    :func:`colour_difference`: matplotlib's import and figure took 0.6 to 0.8 s of every photo.
 
     Parameters
     ----------
@@ -158,29 +162,30 @@ def dense_heatmap(
         Grid resolution.
     vmax : float
         Top of the colour scale, mm (the tolerance, typically: yellow is at the limit).
-    """
-    from workbench.figures import _figure, figure_png
+    title : str
 
-    plt = _figure()
-    rows, cols = shift_mm.shape
-    w_mm, h_mm = cols / px_per_mm, rows / px_per_mm
-    fig, ax = plt.subplots(figsize=(9, 9 * h_mm / w_mm + 0.8), dpi=110)
-    grey = cv2.cvtColor(cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
-    ext = (0, w_mm, h_mm, 0)
-    ax.imshow(grey, extent=ext, alpha=0.5, interpolation="bilinear")
-    im = ax.imshow(
-        np.ma.masked_invalid(shift_mm), extent=ext, cmap="inferno", vmin=0, vmax=vmax, interpolation="nearest"
-    )
+    Returns
+    -------
+    (H, W, 3) uint8
+        The map with its print x and y axes in mm, the scale at its right and the title above.
+    """
+    lut = _inferno()
+    grey = cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY) // 2 + 128
+    img = np.repeat(grey[..., None], 3, axis=2)
+    on = np.isfinite(shift_mm)
+    img[on] = lut[np.clip(shift_mm[on] / vmax * 255, 0, 255).astype(np.uint8)]
+    u = _unit(img.shape[1])
     for k, c in enumerate(outlines(labels)):
         if len(c):
-            xy = (c + 0.5) / px_per_mm
-            ax.plot(np.r_[xy[:, 0], xy[0, 0]], np.r_[xy[:, 1], xy[0, 1]], color="cyan", lw=1.2)
-            ax.annotate(str(k + 1), (xy[:, 0].max(), xy[:, 1].min()), color="cyan", fontsize=9, fontweight="bold")
-    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04).set_label("misregistration on the surface (mm)")
-    ax.set_xlabel("print x (mm)")
-    ax.set_ylabel("print y (mm)")
-    ax.set_title(title, fontsize=9)
-    return figure_png(fig)
+            cv2.polylines(img, [c.reshape(-1, 1, 2)], True, CYAN, max(2, int(1.5 * u)), cv2.LINE_AA)
+            # beside the outline's top right, kept inside the picture
+            (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.6 * u, 2 * _weight(u))
+            x = min(int(c[:, 0].max()) + 3, img.shape[1] - tw - 2)
+            y = max(int(c[:, 1].min()), th + 2)
+            _text(img, str(k + 1), (x, y), 0.6 * u, CYAN, 2 * _weight(u), outline=True)
+    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
+    bar = _colour_bar(img.shape[0], vmax, "misregistration on the surface (mm)", lut, u)
+    return _titled(np.concatenate([img, bar], axis=1), title, u)
 
 
 def colour_difference(reference: np.ndarray, de_map: np.ndarray, px_per_mm: float, vmax: float) -> np.ndarray:
@@ -200,9 +205,7 @@ def colour_difference(reference: np.ndarray, de_map: np.ndarray, px_per_mm: floa
 
     Drawn with OpenCV rather than matplotlib (a tenth of the time, on every photo).
     """
-    import matplotlib
-
-    lut = (matplotlib.colormaps["inferno"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+    lut = _inferno()
     filled = np.where(np.isfinite(de_map), de_map, -1.0).astype(np.float32)
     grown = cv2.dilate(filled, np.ones((3, 3), np.uint8))
     shown = np.where(filled >= 0, filled, grown)
@@ -228,35 +231,175 @@ def colour_difference(reference: np.ndarray, de_map: np.ndarray, px_per_mm: floa
     return np.concatenate([img, bar], axis=1)
 
 
-def tile_heatmap(design_rgb, sc, title: str) -> bytes:
-    """The view's image in grey with each tile coloured by its misregistration (mm), and a colour bar."""
-    from workbench.figures import _figure, figure_png
+def tile_heatmap(design_rgb, sc, title: str) -> np.ndarray:
+    """The view's image in grey with each tile coloured by its misregistration (mm) and its shift drawn, and a scale.
 
-    plt = _figure()
-    grey = cv2.cvtColor(cv2.cvtColor(design_rgb, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
-    H, W = grey.shape[:2]
-    fig, ax = plt.subplots(figsize=(8, 8 * H / W + 0.6), dpi=100)
-    ax.imshow(grey, alpha=0.6)
+    Each registered tile is a square of the tiles' step at its centre, coloured on 'inferno' from 0
+    to its largest misregistration (at least 0.1 mm); its arrow, from the tile's centre, is
+    :data:`ARROW_SCALE` times the shift of its content in the view (x right, y down). Drawn with
+    OpenCV at the view's own resolution, as :func:`dense_heatmap`.
+
+    Returns
+    -------
+    (H, W, 3) uint8
+        RGB: the view, the scale at its right, the title above.
+    """
+    from workbench.validate.score import TILE
+
+    lut = _inferno()
+    u = _unit(design_rgb.shape[1])
+    grey = cv2.cvtColor(design_rgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    # the view at 0.6 over white: the tiles and arrows stand out
+    img = np.repeat((0.6 * grey + 0.4 * 255).astype(np.uint8)[..., None], 3, axis=2)
     vmax = max(float(sc.shift_mm.max()) if len(sc.shift_mm) else 0.1, 0.1)
-    sca = ax.scatter(
-        sc.centres[:, 0], sc.centres[:, 1], c=sc.shift_mm, cmap="inferno", vmin=0, vmax=vmax, s=60, marker="s"
-    )
-    if len(sc.centres):
-        ax.quiver(
-            sc.centres[:, 0],
-            sc.centres[:, 1],
-            sc.shift_px[:, 0],
-            -sc.shift_px[:, 1],
-            color="cyan",
-            angles="xy",
-            scale_units="xy",
-            scale=0.05,
-            width=0.002,
-        )
-    fig.colorbar(sca, ax=ax, fraction=0.046, pad=0.04).set_label("misregistration on the surface (mm)")
-    ax.set_title(title, fontsize=9)
-    ax.set_axis_off()
-    return figure_png(fig)
+    h = TILE // 4
+    for (x, y), v in zip(sc.centres, sc.shift_mm, strict=True):
+        x0, y0 = int(round(x)) - h, int(round(y)) - h
+        colour = tuple(int(c) for c in lut[int(np.clip(v / vmax * 255, 0, 255))])
+        cv2.rectangle(img, (x0, y0), (x0 + 2 * h - 1, y0 + 2 * h - 1), colour, cv2.FILLED)
+        cv2.rectangle(img, (x0, y0), (x0 + 2 * h - 1, y0 + 2 * h - 1), (60, 60, 60), 1)
+    for (x, y), (dx, dy) in zip(sc.centres, sc.shift_px, strict=True):
+        tip = (int(round(x + ARROW_SCALE * dx)), int(round(y + ARROW_SCALE * dy)))
+        length = max(ARROW_SCALE * float(np.hypot(dx, dy)), 1.0)
+        start = (int(round(x)), int(round(y)))
+        cv2.arrowedLine(img, start, tip, CYAN, 2, cv2.LINE_AA, tipLength=min(8.0 / length, 0.5))
+    bar = _colour_bar(img.shape[0], vmax, "misregistration on the surface (mm)", lut, u)
+    return _titled(np.concatenate([img, bar], axis=1), f"{title} (arrows: {ARROW_SCALE:g} x the shift)", u)
+
+
+CYAN = (0, 255, 255)  # RGB
+ARROW_SCALE = 20.0  # a tile's arrow is this many times its shift
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+# matplotlib's colour maps as (256, 3) uint8 RGB tables, as matplotlib makes them for a picture
+# ((colormap(np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8): truncated), written out:
+# importing matplotlib for a table cost 0.2 to 0.4 s of a photo, and OpenCV's copies of them round
+# where matplotlib's truncate (a channel 1 off in most entries). tests/test_validate.py checks
+# them against matplotlib's
+_TABLES = {
+    "inferno": (
+        "00000300000400000601000701010901010b02010e02021003021204031404031605041806041b07051d08061f090621"
+        "0a07230b07260d08280e082a0f092d10092f120a32130a34140b36160b39170b3b190b3e1a0b401c0c431d0c451f0c47"
+        "200c4a220b4c240b4e260b50270b52290b542b0a562d0a582e0a5a300a5c32095d34095f3509603709613909623b0964"
+        "3c09653e0966400966410967430a68450a69460a69480b6a4a0b6a4b0c6b4d0c6b4f0d6c500d6c520e6c530e6d550f6d"
+        "570f6d58106d5a116d5b116e5d126e5f126e60136e62146e63146e65156e66156e68166e6a176e6b176e6d186e6e186e"
+        "70196e72196d731a6d751b6d761b6d781c6d7a1c6d7b1d6c7d1d6c7e1e6c801f6b811f6b83206b85206a86216a88216a"
+        "8922698b22698d23698e24689024689125679325679526669626669827659928649b28649c29639e2963a02a62a12b61"
+        "a32b61a42c60a62c5fa72d5fa92e5eab2e5dac2f5cae305baf315bb1315ab23259b43358b53357b73456b83556ba3655"
+        "bb3754bd3753be3852bf3951c13a50c23b4fc43c4ec53d4dc73e4cc83e4bc93f4acb4049cc4148cd4247cf4446d04544"
+        "d14643d24742d44841d54940d64a3fd74b3ed94d3dda4e3bdb4f3adc5039dd5238de5337df5436e05634e25733e35832"
+        "e45a31e55b30e65c2ee65e2de75f2ce8612be9622aea6428eb6527ec6726ed6825ed6a23ee6c22ef6d21f06f1ff0701e"
+        "f1721df2741cf2751af37719f37918f47a16f57c15f57e14f68012f68111f78310f7850ef8870df8880cf88a0bf98c09"
+        "f98e08f99008fa9107fa9306fa9506fa9706fb9906fb9b06fb9d06fb9e07fba007fba208fba40afba60bfba80dfbaa0e"
+        "fbac10fbae12fbb014fbb116fbb318fbb51afbb71cfbb91efabb21fabd23fabf25fac128f9c32af9c52cf9c72ff8c931"
+        "f8cb34f8cd37f7cf3af7d13cf6d33ff6d542f5d745f5d948f4db4bf4dc4ff3de52f3e056f3e259f2e45df2e660f1e864"
+        "f1e968f1eb6cf1ed70f1ee74f1f079f1f27df2f381f2f485f3f689f4f78df5f891f6fa95f7fb99f9fc9dfafda0fcfea4"
+    ),
+    "viridis": (
+        "44015444025544035745055845065a45085b46095c460b5e460c5f460e61470f62471163471265471466471567471669"
+        "47186a48196b481a6c481c6e481d6f481e70482071482172482273482374472575472676472777472878472a79472b7a"
+        "472c7b462d7c462f7c46307d46317e45327f45347f453580453681443781443982433a83433b83433c84423d84423e85"
+        "4240854141864142864043874044873f45873f47883e48883e49893d4a893d4b893d4c893c4d8a3c4e8a3b508a3b518a"
+        "3a528b3a538b39548b39558b38568b38578c37588c37598c365a8c365b8c355c8c355d8c345e8d345f8d33608d33618d"
+        "32628d32638d31648d31658d31668d30678d30688d2f698d2f6a8d2e6b8e2e6c8e2e6d8e2d6e8e2d6f8e2c708e2c718e"
+        "2c728e2b738e2b748e2a758e2a768e2a778e29788e29798e287a8e287a8e287b8e277c8e277d8e277e8e267f8e26808e"
+        "26818e25828e25838d24848d24858d24868d23878d23888d23898d22898d228a8d228b8d218c8d218d8c218e8c208f8c"
+        "20908c20918c1f928c1f938b1f948b1f958b1f968b1e978a1e988a1e998a1e998a1e9a891e9b891e9c891e9d881e9e88"
+        "1e9f881ea0871fa1871fa2861fa38620a48520a58521a68521a78422a78423a88323a98224aa8225ab8126ac8127ad80"
+        "28ae7f29af7f2ab07e2bb17d2cb17d2eb27c2fb37b30b47a32b57a33b67935b77836b87738b97639b9763bba753dbb74"
+        "3ebc7340bd7242be7144be7045bf6f47c06e49c16d4bc26c4dc26b4fc36951c46853c56755c66657c66559c7645bc862"
+        "5ec96160c96062ca5f64cb5d67cc5c69cc5b6bcd596dce5870ce5672cf5574d05477d05279d1517cd24f7ed24e81d34c"
+        "83d34b86d44988d5478bd5468dd64490d64392d74195d73f97d83e9ad83c9dd93a9fd938a2da37a5da35a7db33aadb32"
+        "addc30afdc2eb2dd2cb5dd2bb7dd29bade27bdde26bfdf24c2df22c5df21c7e01fcae01ecde01dcfe11cd2e11bd4e11a"
+        "d7e219dae218dce218dfe318e1e318e4e318e7e419e9e419ece41aeee51bf1e51cf3e51ef6e61ff8e621fae622fde724"
+    ),
+}
+
+
+def colour_table(name: str) -> np.ndarray:
+    """matplotlib's colour map ``name`` ('inferno' or 'viridis') as a (256, 3) uint8 RGB table."""
+    return np.frombuffer(bytes.fromhex(_TABLES[name]), np.uint8).reshape(256, 3)
+
+
+def _inferno() -> np.ndarray:
+    """matplotlib's 'inferno' as a (256, 3) uint8 RGB table (:func:`colour_table`)."""
+    return colour_table("inferno")
+
+
+def _unit(width: int) -> float:
+    """The type's and the margins' size for a picture ``width`` pixels wide: the QA report shows every
+    picture at a third of a page, so the type grows with the picture (1 up to 800 px)."""
+    return max(1.0, width / 800.0)
+
+
+def _weight(u: float) -> int:
+    """Stroke width of text at size ``u``."""
+    return max(1, int(round(u)))
+
+
+def _text(img, text: str, org, scale: float, colour=(0, 0, 0), thickness: int = 1, outline: bool = False) -> None:
+    """Text at ``org`` (its baseline's left end); ``outline``: a dark rim first, readable over any colour."""
+    if outline:
+        cv2.putText(img, text, org, _FONT, scale, (0, 0, 0), thickness + 2, cv2.LINE_AA)
+    cv2.putText(img, text, org, _FONT, scale, colour, thickness, cv2.LINE_AA)
+
+
+def _vertical_text(text: str, scale: float, height: int, thickness: int = 1) -> np.ndarray:
+    """A white strip with ``text`` written upwards, centred on ``height`` rows; (height, w, 3) uint8."""
+    (tw, th), base = cv2.getTextSize(text, _FONT, scale, thickness)
+    strip = np.full((th + base + 8, max(tw + 8, height), 3), 255, np.uint8)
+    _text(strip, text, ((strip.shape[1] - tw) // 2, th + 4), scale, thickness=thickness)
+    strip = np.rot90(strip)  # reads from the bottom up
+    return np.ascontiguousarray(strip[(strip.shape[0] - height) // 2 :][:height])
+
+
+def _colour_bar(height: int, vmax: float, label: str, lut: np.ndarray, u: float = 1.0) -> np.ndarray:
+    """A vertical scale from 0 (bottom) to ``vmax`` (top) with five labelled ticks and its caption; (height, w, 3)."""
+    top, bottom = max(height // 10, 12), height - max(height // 10, 12)
+    x0, x1 = int(10 * u), int(34 * u)
+    bar = np.full((height, int(90 * u), 3), 255, np.uint8)
+    ramp = np.linspace(255, 0, bottom - top).astype(np.uint8)
+    bar[top:bottom, x0:x1] = lut[ramp][:, None, :]
+    cv2.rectangle(bar, (x0, top), (x1 - 1, bottom - 1), (0, 0, 0), 1)
+    for k in range(5):
+        y = int(round(bottom - 1 - k * (bottom - 1 - top) / 4))
+        bar[y : y + _weight(u), x1 : x1 + int(6 * u)] = 0
+        _text(bar, f"{k * vmax / 4:.2f}", (x1 + int(9 * u), y + int(5 * u)), 0.45 * u, thickness=_weight(u))
+    return np.concatenate([bar, _vertical_text(label, 0.5 * u, height, _weight(u))], axis=1)
+
+
+def _with_axes(img: np.ndarray, px_per_mm: float, xlabel: str, ylabel: str, u: float = 1.0) -> np.ndarray:
+    """The image with a tick every 10 mm along its left and bottom edges, labelled, and the axes' captions."""
+    rows, cols = img.shape[:2]
+    left, below, t = int(34 * u), int(44 * u), _weight(u)
+    out = np.full((rows + below, cols + left, 3), 255, np.uint8)
+    out[:rows, left:] = img
+    for k in range(0, int(cols / px_per_mm) + 1, 10):
+        x = left + int(round(k * px_per_mm))
+        out[rows : rows + int(6 * u), x : x + 2 * t] = 0
+        (tw, th), _ = cv2.getTextSize(str(k), _FONT, 0.45 * u, t)
+        _text(out, str(k), (x - tw // 2, rows + int(8 * u) + th), 0.45 * u, thickness=t)
+    for k in range(0, int(rows / px_per_mm) + 1, 10):
+        y = int(round(k * px_per_mm))
+        out[y : y + 2 * t, left - int(6 * u) : left] = 0
+        (tw, th), _ = cv2.getTextSize(str(k), _FONT, 0.45 * u, t)
+        _text(out, str(k), (left - int(8 * u) - tw, min(max(y + th // 2, th + 1), rows - 1)), 0.45 * u, thickness=t)
+    (tw, _), _ = cv2.getTextSize(xlabel, _FONT, 0.5 * u, t)
+    _text(out, xlabel, (left + (cols - tw) // 2, rows + int(38 * u)), 0.5 * u, thickness=t)
+    return np.concatenate([_vertical_text(ylabel, 0.5 * u, out.shape[0], t), out], axis=1)
+
+
+def _titled(img: np.ndarray, title: str, u: float = 1.0) -> np.ndarray:
+    """The image under a white band with the title, centred (smaller type when it is wider than the image)."""
+    scale, t = 0.55 * u, _weight(u)
+    (tw, th), _ = cv2.getTextSize(title, _FONT, scale, t)
+    if tw > img.shape[1] - 10:
+        scale *= (img.shape[1] - 10) / tw
+        (tw, th), _ = cv2.getTextSize(title, _FONT, scale, t)
+    band = np.full((th + int(18 * u), img.shape[1], 3), 255, np.uint8)
+    _text(band, title, ((img.shape[1] - tw) // 2, th + int(8 * u)), scale, thickness=t)
+    return np.concatenate([band, img], axis=0)
 
 
 def detectable_print(
@@ -289,14 +432,12 @@ def detectable_print(
     tolerance_mm : float
         The bottom of the scale.
     """
-    import matplotlib
-
     step = 2 if reference.shape[0] * reference.shape[1] > 1_000_000 else 1
     ref = reference[::step, ::step]
     lim = limit_mm[::step, ::step]
     drop = dropout[::step, ::step]
     ppm = px_per_mm / step
-    lut = (matplotlib.colormaps["viridis"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+    lut = colour_table("viridis")
     grey = cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY) // 2 + 96
     left = np.repeat(grey[..., None], 3, axis=2)
     on = np.isfinite(lim)

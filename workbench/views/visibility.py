@@ -9,7 +9,7 @@ import numba
 import numpy as np
 
 from workbench.camera import Camera
-from workbench.raster import _JIT, depth_buffer
+from workbench.raster import _JIT, PARALLEL, depth_buffer
 
 # A point counts as unoccluded when it is no farther than the nearest surface seen
 # around it by this share of its depth plus two pixel footprints: the depth buffer
@@ -53,6 +53,13 @@ def _unoccluded_many(depth, width, height, fx, xy, z, out):
         out[k] = unoccluded(depth, width, height, fx, xy[k, 0], xy[k, 1], z[k])
 
 
+def unoccluded_many(depth, width: int, height: int, fx: float, xy: np.ndarray, z: np.ndarray, out: np.ndarray) -> None:
+    """:func:`unoccluded` for points (n, 2) at depths (n,), into ``out`` (n,) bool; one parallel loop at a time."""
+    xy, z = np.ascontiguousarray(xy), np.ascontiguousarray(z)
+    with PARALLEL:
+        _unoccluded_many(depth, width, height, fx, xy, z, out)
+
+
 @dataclass
 class ViewVisibility:
     """What one camera sees of the mesh.
@@ -85,9 +92,7 @@ def points_unoccluded(vis: ViewVisibility, X: np.ndarray) -> np.ndarray:
     xy, z = vis.camera.project(X)
     out = np.zeros(len(X), dtype=np.bool_)
     cam = vis.camera
-    _unoccluded_many(
-        vis.depth, cam.width, cam.height, cam.K[0, 0], np.ascontiguousarray(xy), np.ascontiguousarray(z), out
-    )
+    unoccluded_many(vis.depth, cam.width, cam.height, cam.K[0, 0], xy, z, out)
     return out
 
 

@@ -217,3 +217,16 @@ def test_the_first_page_gives_a_long_reason_in_full(tmp_path):
     (tmp_path / "r.pdf").write_bytes(qa_report(report, {}))
     first = pypdf.PdfReader(tmp_path / "r.pdf").pages[0].extract_text()
     assert len(reason) > 110 and " ".join(first.split()).count(" ".join(f"why: {reason}".split())) == 1, first
+
+
+@pytest.mark.parametrize("name", ["inferno", "viridis"])
+def test_the_pictures_colour_tables_are_matplotlibs(name):
+    # validate's pictures are drawn with OpenCV from written-out tables (no matplotlib import in a
+    # photo); they must be matplotlib's own, as its pictures used them (a colour picture's pixels
+    # the same), not OpenCV's copies, which round where matplotlib truncates
+    import matplotlib
+
+    from workbench.validate.pictures import colour_table
+
+    expected = (matplotlib.colormaps[name](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+    assert np.array_equal(colour_table(name), expected)

@@ -613,6 +613,8 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
                 f"{pct(s['escapes'], s['photos'])} | {s['below_stated_limit']} | "
                 f"{s['invalid'] + s['invalid_above']} ({s['invalid_above']}) |"
             )
+    lines += ["", "## The detection limit validate states, per photo size", ""]
+    lines += stated_limits(photos)
     lines += ["", "## Why photos get the wrong verdict", ""]
     lines += ["| reason (figures as #) | perfect photos | defect photos |", "|---|---:|---:|"]
     for reason, (n_perfect, n_defect) in wrong_verdict_reasons(photos).items():
@@ -650,6 +652,33 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
             f"{found} | {truth} | {err} | {limit} | {reason} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def stated_limits(photos: list[Photo]) -> list[str]:
+    """Markdown rows: per renderer and photo size, the medians of what validate states it can find."""
+    keys = (
+        ("dense.detection_limit.min_area_mm2", "smallest defect mm²", "{:.2f}"),
+        ("dense.detection_limit.min_shift_mm_median", "smallest slide found mm (median over the print)", "{:.3f}"),
+        ("dense.detection_limit.shift_found_share", "share where a slide is found", "{:.0%}"),
+        ("dense.detection_limit.dropout_found_share_of_inked", "share of the inked print: ink gone found", "{:.0%}"),
+        ("dense.detection_limit.scratch_found_share", "share where a scratch is found", "{:.0%}"),
+    )
+    rows = [
+        "| renderer | photo size | photos | " + " | ".join(k[1] for k in keys) + " |",
+        "|---|---|---:|" + "---:|" * len(keys),
+    ]
+    for r in sorted({p.renderer for p in photos}):
+        for size in SIZES:
+            got = [p.result.get("detection_limit") or {} for p in photos if p.renderer == r and p.size == size]
+            got = [g for g in got if g]
+            if not got:
+                continue
+            cells = []
+            for key, _, fmt in keys:
+                vals = [g[key] for g in got if isinstance(g.get(key), int | float)]
+                cells.append(fmt.format(float(np.median(vals))) if vals else "-")
+            rows.append(f"| {r} | {size} | {len(got)} | " + " | ".join(cells) + " |")
+    return rows
 
 
 def wrong_verdict_reasons(photos: list[Photo]) -> dict:

@@ -124,7 +124,7 @@ def defect_centre(design: Path, view: str, defect: str) -> tuple[float, float] |
     gradient energy over its footprint is highest. A dropout or a scratch uncovers the white
     film: it goes where the ink is darkest over its footprint. Both keep clear of the region's
     border (the footprint plus 3 mm) and of the outline, and go where the view sees the
-    surface within 50° of head-on over the footprint plus 1 mm (near a fold or the silhouette
+    surface within 60° of head-on over the footprint plus 1 mm (near a fold or the silhouette
     a photo a few degrees off the view sees the surface at a grazing angle or not at all: what
     such a photo cannot see is no test of validate). None when nowhere fits.
     """
@@ -162,7 +162,7 @@ def defect_centre(design: Path, view: str, defect: str) -> tuple[float, float] |
     return (j + 0.5) / ppm, (i + 0.5) / ppm
 
 
-def facing_view(design: Path, view: str, shape: tuple, max_deg: float = 50.0) -> np.ndarray:
+def facing_view(design: Path, view: str, shape: tuple, max_deg: float = 60.0) -> np.ndarray:
     """Print pixels whose surface the view sees within ``max_deg`` of head-on; (rows, cols) bool at the print's size."""
     from workbench.design_dir import Design
     from workbench.validate.dense import print_grid

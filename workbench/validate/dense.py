@@ -569,7 +569,9 @@ def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     return l1, l2, e1.astype(np.float32)
 
 
-def tensor_weighted_flow(gray: np.ndarray, flow: np.ndarray, sigma: float) -> np.ndarray:
+def tensor_weighted_flow(
+    gray: np.ndarray, flow: np.ndarray, sigma: float, weight: np.ndarray | None = None
+) -> np.ndarray:
     """The slide each window's texture supports: its pixels' flows combined through their gradients.
 
     A pixel's gradient g says of the flow only its component along g (the aperture problem);
@@ -586,6 +588,8 @@ def tensor_weighted_flow(gray: np.ndarray, flow: np.ndarray, sigma: float) -> np
         Grid px.
     sigma : float
         The window, Gaussian sigma, grid px.
+    weight : (H, W) bool, optional
+        The pixels the windows take (all by default).
 
     Returns
     -------
@@ -593,6 +597,8 @@ def tensor_weighted_flow(gray: np.ndarray, flow: np.ndarray, sigma: float) -> np
     """
     gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
+    if weight is not None:
+        gx, gy = gx * weight, gy * weight
     xx, xy, yy = gx * gx, gx * gy, gy * gy
     mx, my = flow[..., 0], flow[..., 1]
     H, W = gray.shape
@@ -1340,7 +1346,13 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # the colour test (with the scratch test and where ink that is gone would be found) needs
     # nothing of the flow's uncertainty: beside it; and after it a window's slide (below)
     colour_test = later.submit(colour_residuals, pho, pred, gain, offset, res, weight, scored, fp, grid.px_per_mm)
-    slide = later.submit(tensor_weighted_flow, rgb_, m, 4 * win)
+    # (the slide's windows leave out the light known by then and the flow's reach around it,
+    # below; the light known now is most often all of it: the slide for it is computed beside
+    # the rest, and again below only where telling light from ink adds to it)
+    r_lit = max(1, int(round(4 * win)))
+    lit_disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_lit + 1,) * 2)
+    lit_now = cv2.dilate((state == HIGHLIGHT).astype(np.uint8), lit_disc).astype(bool)
+    slide = later.submit(tensor_weighted_flow, rgb_, m, 4 * win, ~lit_now)
     # what the flow can know there: the photo's noise and what the model does not explain,
     # through the texture the photo resolves (the model is the print blurred like the photo,
     # in the photo's own contrast), and where the flow back disagrees, half that disagreement
@@ -1399,7 +1411,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
     ct = colour_test.result()
     alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad = ct[:7]
-    inked, dropout_found, thin, thin_found = ct[7:]
+    inked, dropout_found, thin, thin_found, thin_excess = ct[7:]
     colour = np.where(colour_scored, res, np.nan).astype(np.float32)
     # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
     # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
@@ -1435,7 +1447,12 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         # variation, a scratch shows the film; only one over uniform ink is left to the lamp)
         told = thin_told(thin, pho, pred)
         glossed |= told == 1
-        glossed |= mirrors_highlights(colour_bad & ~glossed & (told != 2), sat | glossed, grid.X, camera_center)
+        sure = sat | glossed
+        # the stated limit, honestly: where the surface mirrors the lamp of the photo's sure
+        # highlights, ink that is gone is not told from light (a line over uniform ink neither)
+        # (needed only for the result: beside the rest, applied below)
+        cone = later.submit(lamp_cone, sure, grid.X, camera_center, rg, grid.px_per_mm)
+        glossed |= mirrors_highlights(colour_bad & ~glossed & (told != 2), sure, grid.X, camera_center)
         colour_bad &= ~glossed
         gone &= ~glossed
     state[glossed] = HIGHLIGHT
@@ -1455,8 +1472,13 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # own vector there is its guess (it drifted 13 px over a photograph's soft background); a
     # window whose edges turn knows the whole slide. Usable where its uncertainty is, as a
     # pixel's (no gate on the texture's grey levels: a photograph's soft edges measure well)
-    m_wide = slide.result()
-    wide_ok = scored & ~unresolved & (wide_sigma <= usable)
+    # (light, not ink, moves an edge for the flow too: DIS follows a glint along a ridge as if
+    # the print had slid under it, 0.5 mm on a glossy photo's perfect part; the windows leave
+    # out what light covers and the reach of the flow's patches around it)
+    lit = cv2.dilate((state == HIGHLIGHT).astype(np.uint8), lit_disc).astype(bool)
+    # (the slide computed beside the rest where the light is the same: the same numbers)
+    m_wide = slide.result() if np.array_equal(lit, lit_now) else tensor_weighted_flow(rgb_, m, 4 * win, ~lit)
+    wide_ok = scored & ~unresolved & ~lit & (wide_sigma <= usable)
     wide_mm = np.hypot(m_wide[..., 0], m_wide[..., 1]) * mm_per_px
     z_wide = np.where(wide_ok, (wide_mm - tolerance_mm) / wide_sigma, np.nan)
     # the honest measures (the full vector, the component across an edge, a window's slide)
@@ -1469,7 +1491,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         (wide_ok & (z_wide > SIGNIFICANCE_Z)).astype(np.uint8),
         cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * e + 1, 2 * e + 1)),
     ).astype(bool)
-    own_evidence = (full | normal) & (z_shift > SIGNIFICANCE_Z)
+    own_evidence = (full | normal) & ~lit & (z_shift > SIGNIFICANCE_Z)
     evidence = own_evidence | wide_evidence
     shift_bad = evidence
     z_region = np.fmax(z_shift, z_wide)
@@ -1477,6 +1499,11 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
     # (ink that is gone by the raw residual: the shading allowance would explain most of it)
     z_colour = (np.where(missing, res_raw, res) - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
+    # (a scratch by its own test: how far it exceeds what a thin line must, whose limit holds
+    # SIGNIFICANCE_Z of the noise as the colour's does)
+    z_colour = np.where(
+        thin & missing, np.fmax(z_colour, thin_excess / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z), z_colour
+    )
     labels, defects = find_defects(
         shift_bad,
         colour_bad,
@@ -1539,6 +1566,11 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # and closing in find_defects work on 3 x 3 grid pixels) to be found
     px_mm = (1.0 / median_res) if median_res else None
     limit_mm = shift_limit.result()
+    limit_mm[lit] = np.nan  # (the flow near light is not the print's: see lit above)
+    if camera_center is not None:
+        in_cone, flat_in_cone = cone.result()
+        dropout_found &= ~in_cone
+        thin_found &= ~flat_in_cone
     ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
     limit = {
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),
@@ -1642,6 +1674,8 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
         Where ink that is gone would be found (the detection limit's map).
     thin, thin_found : (H, W) bool
         A scratch's ink gone, and where a scratch would be found (:func:`thin_ink_loss`).
+    thin_excess : (H, W) float32
+        By how many grey levels a scratch's line exceeds what it must (:func:`thin_ink_loss`).
     """
     colour_scored = scored
     # ink missing: the photo matches the bare film's colour, the design does not
@@ -1684,12 +1718,17 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
     # a scratch: ink gone along a line thinner than any shading, highlight or exposure error,
     # judged against its own surroundings, with no tolerance for what is broad
     thin_limit = position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
-    thin, thin_found, thin_alpha = thin_ink_loss(pho, pred, film_pred, colour_scored, px_per_mm, thin_limit)
+    thin, thin_found, thin_alpha, thin_excess = thin_ink_loss(
+        pho, pred, film_pred, colour_scored, px_per_mm, thin_limit
+    )
     gone |= thin
     # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
     alpha = np.maximum(alpha, thin_alpha)
     colour_bad = (colour_scored & (res > colour_limit)) | gone
-    return alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad, inked, dropout_found, thin, thin_found
+    return (
+        alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad, inked, dropout_found, thin, thin_found,
+        thin_excess,
+    )  # fmt: skip
 
 
 def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
@@ -1898,6 +1937,72 @@ def mirrors_highlights(
     return out
 
 
+def mirror_cone(highlights: np.ndarray, X: np.ndarray, camera_center: np.ndarray, step: int = 4) -> np.ndarray:
+    """Where the surface mirrors the camera's rays within MIRROR_DEG of those of the photo's highlights.
+
+    There a region of the colour residual is taken for light (:func:`mirrors_highlights`),
+    so ink that is gone there is not found: the stated limit leaves it out. Judged on every
+    ``step``-th pixel (neighbours reflect alike) and spread to the rest.
+
+    Parameters
+    ----------
+    highlights : (H, W) bool
+        The photo's sure highlights.
+    X : (H, W, 3) float
+        Surface point under each grid pixel, mm.
+    camera_center : (3,) float
+        mm.
+    step : int
+
+    Returns
+    -------
+    (H, W) bool
+    """
+    from scipy.spatial import cKDTree
+
+    H, W = highlights.shape
+    out = np.zeros((H, W), bool)
+    if not highlights.any():
+        return out
+    r = reflected_directions(X[::step, ::step], camera_center)
+    hs = highlights[::step, ::step] & np.isfinite(r).all(axis=2)
+    # (the fallback's rays at the highlights only: the same numbers as the whole grid's there)
+    sure = r[hs] if hs.any() else reflected_directions(X, camera_center, *np.nonzero(highlights))
+    sure = sure[np.isfinite(sure).all(axis=1)]
+    if not len(sure):
+        return out
+    ok = np.isfinite(r).all(axis=2)
+    # (unit vectors: the chord between two directions θ apart is 2 sin(θ / 2))
+    d, _ = cKDTree(sure[:: max(1, len(sure) // 4096)]).query(
+        r[ok], distance_upper_bound=2.0 * np.sin(np.radians(MIRROR_DEG) / 2.0)
+    )
+    small = np.zeros(ok.shape, np.uint8)
+    small[ok] = np.isfinite(d)
+    return cv2.resize(small, (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
+
+
+def lamp_cone(highlights, X, camera_center, gray, px_per_mm) -> tuple[np.ndarray, np.ndarray]:
+    """The stated limit's lamp: :func:`mirror_cone`, and where it holds uniform ink (:func:`uniform_ink`).
+
+    Apart so that it can run beside :func:`analyse`'s rest (only its result needs it).
+
+    Returns
+    -------
+    cone, flat : (H, W) bool
+        Within the lamp's mirror cone; and there over uniform ink.
+    """
+    cone = mirror_cone(highlights, X, camera_center)
+    return cone, cone & uniform_ink(gray, px_per_mm)
+
+
+def uniform_ink(gray: np.ndarray, px_per_mm: float) -> np.ndarray:
+    """Where the design's grey levels vary by less than LOST_MIN_CONTRAST over a scratch's window (SCRATCH_MM)."""
+    s = 0.5 * SCRATCH_MM * px_per_mm
+    m = cv2.GaussianBlur(gray, (0, 0), s)
+    v = cv2.GaussianBlur(gray * gray, (0, 0), s) - m * m
+    return np.sqrt(np.maximum(v, 0.0)) < LOST_MIN_CONTRAST
+
+
 def light_or_ink(
     colour_bad: np.ndarray,
     gone: np.ndarray,
@@ -2055,8 +2160,9 @@ def thin_ink_loss(
     change t over areas much broader than a scratch; a white top-hat of t (t less its
     opening by a disc of SCRATCH_MM) keeps what is thinner than about half the disc. A pixel
     has lost its ink where that reaches half the step to the film and exceeds ``limit`` (the
-    noise, and half a pixel's placement at the design's edges): over pale ink too, where a
-    broad step of that size is shading or light. (The colour test's fixed tolerance is for
+    noise, and half a pixel's placement at the design's edges) and t itself exceeds
+    ``limit`` (beside ink the photo shows darker than the model, the opening sinks): over
+    pale ink too, where a broad step of that size is shading or light. (The colour test's fixed tolerance is for
     what is broad; a thin line of film over a light grey square is what a scratch across a
     checker shows.)
 
@@ -2074,11 +2180,13 @@ def thin_ink_loss(
     found : (H, W) bool
         Ink gone along a thin line.
     findable : (H, W) bool
-        Where a scratch is found (the step to the film at least twice ``limit``): the detection
-        limit's scratch map.
+        Where a scratch is found (the step to the film at least twice ``limit`` and twice
+        LOST_MIN_CONTRAST): the detection limit's scratch map.
     alpha : (H, W) float32
         Where findable, the share of the step to the film the line takes against its
         surroundings (0 to 1); 0 elsewhere.
+    excess : (H, W) float32
+        By how many grey levels the line exceeds what it must (NaN where not findable).
     """
     step = film - pred
     size = _length(step)
@@ -2088,10 +2196,23 @@ def thin_ink_loss(
     r = max(1, int(round(0.5 * SCRATCH_MM * px_per_mm)))
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     hat = cv2.morphologyEx(t, cv2.MORPH_TOPHAT, disc)
-    findable = scored & (size >= 2.0 * limit)
+    # (a step to the film under LOST_MIN_CONTRAST twice over is pale ink a line of film barely
+    # changes: a perfect render's antialiased edges reach half of it, measured 6 grey levels)
+    findable = scored & (size >= 2.0 * np.maximum(limit, LOST_MIN_CONTRAST))
     with np.errstate(invalid="ignore", divide="ignore"):
         alpha = np.where(findable, np.clip(hat / np.maximum(size, 1e-3), 0.0, 1.0), 0.0).astype(np.float32)
-    return findable & (hat > np.maximum(0.5 * size, limit)), findable, alpha
+    # (and the line itself beyond the limit: beside ink the photo shows darker than the model,
+    # the opening sinks and a pale gap that matches the model stands 20 grey levels above it)
+    excess = np.where(findable, np.minimum(hat - np.maximum(0.5 * size, limit), t - limit), np.nan)
+    excess = excess.astype(np.float32)
+    # a line, not speckles: a component at least SCRATCH_MM long (a path tracer's noise in a
+    # glossy highlight sparkles in single pixels, which the bridging of ink gone would join)
+    found = findable & (excess > 0)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(found.astype(np.uint8), connectivity=8)
+    span = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    keep = span >= SCRATCH_MM * px_per_mm
+    keep[0] = False
+    return keep[lab], findable, alpha, excess
 
 
 def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarray:

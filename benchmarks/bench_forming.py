@@ -93,23 +93,36 @@ def misregistration(sheet: Path) -> list[float]:
     return out
 
 
-def truth_residual(design: Path, law: str, shift=(0.0, 0.0), within: Path | None = None) -> float:
-    """p95 of |where the film lands - where the design wants it|, print mm: over the film, or
-    ``within`` the blocks a sheet's validations measured."""
+def truth_residual(design: Path, law: str, shift=None, within: Path | None = None) -> float:
+    """p95 of |where the film lands - where the design wants it|, print mm: over the films as printed,
+    or ``within`` the blocks a sheet's validations measured. ``shift``: each film's random placement
+    ((2,) for one film, (films, 2) for several)."""
     from workbench import forming as fm
+    from workbench.calibration_forming import film_grids
     from workbench.design_dir import Design
 
     des = Design(design)
-    W, H = des.base_size_mm()
-    g = np.stack(np.meshgrid(np.arange(0.5, W, 1.0), np.arange(0.5, H, 1.0)), axis=-1).reshape(-1, 2)
-    if within is not None:
-        o = des.frame_offset_mm()
-        q = [np.load(v / "landing.npz")["fused_q_mm"] for v in within.iterdir() if (v / "landing.npz").is_file()]
-        g = np.concatenate(q) - o
-    true = fm.parse_law(law, (W, H))(g) + np.asarray(shift)
-    comp = des.compensation()
-    want = comp(g) if comp is not None else np.zeros_like(g)
-    return float(np.percentile(np.linalg.norm(true - want, axis=1), 95))
+    frames = des.film_frames()
+    shifts = np.zeros((len(frames), 2)) if shift is None else np.asarray(shift, dtype=np.float64).reshape(-1, 2)
+    if within is None:
+        pts = [g.points for g in film_grids(design)]
+    else:
+        pts = [[] for _ in frames]
+        for v in within.iterdir():
+            if (v / "landing.npz").is_file():
+                z = np.load(v / "landing.npz")
+                film = z["fused_film"] if "fused_film" in z.files else np.zeros(len(z["fused_q_mm"]), int)
+                for k, fr in enumerate(frames):
+                    pts[k].append(z["fused_q_mm"][film == k] - fr.origin_mm)
+        pts = [np.concatenate(x) if x else np.zeros((0, 2)) for x in pts]
+    comps = des.compensations()
+    err = []
+    for k, fr in enumerate(frames):
+        g = pts[k]
+        true = fm.parse_law(law, fr.size_mm)(g) + shifts[k]
+        want = comps[k](g) if comps is not None else np.zeros_like(g)
+        err.append(np.linalg.norm(true - want, axis=1))
+    return float(np.percentile(np.concatenate(err), 95))
 
 
 def run_loop(
@@ -124,6 +137,7 @@ def run_loop(
     calibration_film=False,
     log=print,
     min_fov=MIN_FOV_DEG,
+    placement=None,
 ) -> dict:
     """The loop; returns per round (0: uncompensated) the check sheet's figures and the times."""
     work.mkdir(parents=True, exist_ok=True)
@@ -149,13 +163,15 @@ def run_loop(
             seed += 1
             folders.append(f)
         prof = work / f"profile{rnd}.json"
-        t_cal = wb("calibrate", "forming", *folders, "-o", prof)
-        p = json.loads(prof.read_text())["films"][0]
+        t_cal = wb("calibrate", "forming", *folders, "-o", prof, *(["--placement", placement] if placement else []))
+        films = json.loads(prof.read_text())["films"]
+        p = films[0]
         t_des = wb("design", job, "--forming-profile", prof, "--out", work / f"d{rnd}")
         design = work / f"d{rnd}"
         check = work / f"r{rnd}-check"
         form_sheet(design, check, law, 1000 + rnd, scale, 0.0, renderer, min_fov)
-        shifts = np.array([t.get("random_shift_mm", [0.0, 0.0]) for t in truths])
+        # (sheets, films, 2): each sheet's random placement of each film
+        shifts = np.array([np.reshape(t.get("random_shift_mm", [0.0, 0.0] * len(films)), (-1, 2)) for t in truths])
         r = {
             "calibrate_s": t_cal,
             "design_s": t_des,
@@ -165,14 +181,26 @@ def run_loop(
             "measured_share_on_part": p["measured_share_on_part"],
             "cv_rms_mm": p["cv_rms_mm"],
             "repeatability_mm": p["repeatability_mm"],
-            # what the sheets' random placements did: their spread per axis, and their mean (which the
-            # profile keeps: its standard error is random_mm / sqrt(sheets))
-            "random_spread_mm": float(np.sqrt(shifts.var(axis=0, ddof=1).mean())) if len(shifts) > 1 else None,
-            "random_mean_mm": shifts.mean(axis=0).tolist(),
+            "placement": {
+                k: p["placement"].get(k)
+                for k in ("shift_mm", "rotation_deg", "standard_error_mm", "systematic", "applied")
+            },  # fmt: skip
+            # what the sheets' random placements did: their spread per axis, and their mean (the profile
+            # compensates it only when the sheets show it beyond their spread)
+            "random_spread_mm": float(np.sqrt(shifts[:, 0].var(axis=0, ddof=1).mean())) if len(shifts) > 1 else None,
+            "random_mean_mm": shifts[:, 0].mean(axis=0).tolist(),
             "misregistration_p95_mm": misregistration(check),
             "truth_p95_mm": truth_residual(design, law),
             "truth_seen_p95_mm": truth_residual(design, law, within=check),
         }
+        if len(films) > 1:
+            r["films"] = {
+                f["name"]: {
+                    k: f[k]
+                    for k in ("points", "measured_share", "measured_share_on_part", "cv_rms_mm", "repeatability_mm")
+                }
+                for f in films
+            }
         out["rounds"].append(r)
         log(f"round {rnd}: " + json.dumps(r))
     out["work"] = str(work)
@@ -200,11 +228,12 @@ def main() -> None:
         default=MIN_FOV_DEG,
         help=f"a narrower designed view is widened to this about its own axis (default {MIN_FOV_DEG:g}; 0: never)",
     )
+    ap.add_argument("--placement", choices=("auto", "always", "never"), help="calibrate forming --placement")
     a = ap.parse_args()
     work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="bench-forming-"))
     res = run_loop(
         work, a.job, a.law, a.scale, a.random_mm, a.sheets, a.rounds, a.renderer, a.calibration_film,
-        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg,
+        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg, placement=a.placement,
     )  # fmt: skip
     print(f"files in {res['work']}")
 

@@ -129,6 +129,8 @@ class SplineField:
         return BSpline.design_matrix(x, self.tx, 3), BSpline.design_matrix(y, self.ty, 3)
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
+        if not len(np.asarray(p).reshape(-1, 2)):
+            return np.zeros((0, 2))
         Bx, By = self.basis(p)
         Bx, By = Bx.toarray(), By.toarray()
         # d_c(p) = Σ_ij Bx_i(x) By_j(y) c_ijc

@@ -675,6 +675,7 @@ def calibrate_film(sheets: list[Sheet], k: int, size_mm, grid: FilmGrid, placeme
         "d_p95_mm": float(np.percentile(dmag, 95)),
         "d_max_mm": float(dmag.max()),
         "grid": g,
+        "on_part": grid.on_part,
         "measured": measured,
         "points_mm": allp[keep],
         "warnings": warnings,
@@ -700,39 +701,47 @@ def calibrate_forming(sheets: list[Sheet], placement: str = "auto") -> dict:
 
 
 def profile_picture(result: dict, title: str) -> bytes:
-    """Each film's deformation over its print: |d| in colour, arrows (magnified), measured blocks and
-    extrapolated film; one panel per film."""
+    """Each film's deformation over its print: |d| in colour, arrows (magnified), the film not measured
+    (shaded) and where the profile extrapolates (dark), the part's outline; one panel per film."""
     from workbench.figures import _figure, figure_png
 
     plt = _figure()
     films = result["films"]
     n = len(films)
-    W0, H0 = films[0]["size_mm"]
+    cols = min(n, 2)
+    rows = (n + cols - 1) // cols
     aspect = max(f["size_mm"][1] / f["size_mm"][0] for f in films)
-    fig, axes = plt.subplots(1, n, figsize=(9 if n == 1 else 5.5 * n, (6.5 if n == 1 else 4.2) * aspect + 1.4),
-                             dpi=110, layout="constrained", squeeze=False)  # fmt: skip
-    for ax, res in zip(axes[0], films, strict=True):
+    width = 9.0 if n == 1 else 6.0 * cols
+    fig, axes = plt.subplots(rows, cols, figsize=(width, rows * (width / cols) * 0.75 * aspect + 1.2), dpi=110,
+                             layout="constrained", squeeze=False)  # fmt: skip
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    for ax, res in zip(axes.ravel(), films, strict=False):
         W, H = res["size_mm"]
         xs = np.linspace(0, W, 241)
         ys = np.linspace(0, H, max(2, int(241 * H / W)))
         g = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
         d = res["field"](g).reshape(len(ys), len(xs), 2)
         mag = np.linalg.norm(d, axis=2)
-        im = ax.imshow(mag, extent=(0, W, H, 0), cmap="viridis", origin="upper")
-        fig.colorbar(im, ax=ax, label="|d| (mm): how far the film lands from where the design puts it", shrink=0.8)
+        # (the colours and arrows of the film on the part: beyond it the field only extrapolates)
+        part = res["on_part"](g).reshape(len(ys), len(xs)) if "on_part" in res else np.ones(mag.shape, bool)
+        top = float(mag[part].max()) if part.any() else float(mag.max())
+        im = ax.imshow(mag, extent=(0, W, H, 0), cmap="viridis", origin="upper", vmin=0.0, vmax=top or None)
+        fig.colorbar(im, ax=ax, label="|d| (mm)", shrink=0.8)
         step = max(1, len(xs) // 24)
         sub = g.reshape(len(ys), len(xs), 2)[::step, ::step].reshape(-1, 2)
         dv = d[::step, ::step].reshape(-1, 2)
-        top = float(np.abs(dv).max()) or 1.0
-        k = 0.8 * W / 24 / top
-        ax.quiver(
-            sub[:, 0], sub[:, 1], dv[:, 0] * k, dv[:, 1] * k, angles="xy", scale_units="xy", scale=1, color="white"
-        )
-        # the film nothing measured (grey), and where the profile extrapolates (darker)
+        on = part[::step, ::step].reshape(-1)
+        k = 0.8 * W / 24 / (top or 1.0)
+        ax.quiver(sub[on, 0], sub[on, 1], dv[on, 0] * k, dv[on, 1] * k, angles="xy", scale_units="xy", scale=1,
+                  color="white")  # fmt: skip
+        # the film nothing measured (grey), where the profile extrapolates (darker), and beyond the
+        # film's outline on the part (white: compensation never looks there)
         dist, _ = cKDTree(res["points_mm"]).query(g)
         dist = dist.reshape(len(ys), len(xs))
         shade = np.zeros((len(ys), len(xs), 4))
         shade[..., 3] = np.where(dist > EXTRAPOLATION_MM, 0.6, np.where(dist > 1.0, 0.3, 0.0))
+        shade[~part] = [1.0, 1.0, 1.0, 0.85]
         ax.imshow(shade, extent=(0, W, H, 0), origin="upper")
         ax.set_xlim(0, W)
         ax.set_ylim(H, 0)
@@ -741,13 +750,16 @@ def profile_picture(result: dict, title: str) -> bytes:
         pl = res["placement"]
         ax.set_title(
             (f"{res['name']}: " if n > 1 else "")
-            + f"arrows x {k:.1f}; shaded: not measured ({100 * (1 - res['measured_share']):.1f} % of the film, "
-            f"{100 * (1 - res['measured_share_on_part']):.1f} % of what lands on the part), dark: more than "
-            f"{EXTRAPOLATION_MM:g} mm from a measurement\nmean placement ({pl['shift_mm'][0]:.3f}, "
-            f"{pl['shift_mm'][1]:.3f}) mm, {pl['rotation_deg']:.4f}°: "
+            + f"arrows x {k:.1f}; measured {100 * res['measured_share_on_part']:.1f} % of the film on the part "
+            f"({100 * res['measured_share']:.1f} % of the film)\nmean placement ({pl['shift_mm'][0]:.3f}, "
+            f"{pl['shift_mm'][1]:.3f}) mm, {pl['rotation_deg']:.4f}°, "
             + ("compensated" if pl["compensated"] else "not compensated")
-            + " (the field shown is without it)",
-            fontsize=7 if n > 1 else 8,
+            + " (not in the field shown)",
+            fontsize=8,
         )
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(
+        title + f"\nshaded: the film not measured; dark: more than {EXTRAPOLATION_MM:g} mm from a measurement; "
+        "white: beyond the film's outline on the part",
+        fontsize=9,
+    )
     return figure_png(fig)

@@ -491,6 +491,14 @@ def test_each_film_gets_its_own_field_and_its_compensation_is_exact(films_design
     assert np.abs(d1.formed_flat(laws) - d1.flat).max() < 0.02
     # the composed map is the design's own, film by film
     assert np.abs(d1.nominal_print_mm() - d0.nominal_print_mm()).max() < 1e-6
+    # a second round's sheet: its landing composed with each film's profile is the law again (a
+    # photo may see one film only)
+    from workbench.calibration_forming import read_sheet
+
+    sheet = read_sheet(fake_validation(tmp_path / "v3", out, films=[0], law="shift:0,0"))
+    assert (sheet.film == 0).all() and len(sheet.p) > 1000
+    lw = fm.parse_law(LAW, d1.film_frames()[0].size_mm)
+    assert np.percentile(np.linalg.norm(sheet.d - lw(sheet.p), axis=1), 95) < 0.02
     # render forms each film by the law across its own print, and a random placement per film
     photo = tmp_path / "p.png"
     r = wb("render", out, "--view", "logo", "--forming", LAW, "--forming-random-mm", "0.1", "--seed", "3",

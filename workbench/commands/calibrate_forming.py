@@ -29,11 +29,12 @@ def add_parser(s) -> None:
     f.add_argument("--process", default="thermoforming", help="how the sheets were formed (default thermoforming)")
     f.add_argument(
         "--placement",
-        choices=("auto", "always", "never"),
-        default="auto",
-        help="the sheets' mean film placement (shift and turn) in the print: auto (default) when the sheets show it "
-        "beyond their own random placement (F test, 95 %%); always; never (the forming station's registration "
-        "corrects it). Each sheet's own placement is never part of the profile",
+        choices=("always", "never", "auto"),
+        default="always",
+        help="the sheets' mean film placement (shift and turn) in the print: always (default: unbiased, it adds "
+        "its standard error to every part); never (the forming station's registration corrects it); auto (when "
+        "the sheets show it beyond their own random placement, F test at 95 %%). Each sheet's own placement is "
+        "never part of the profile",
     )
     f.add_argument("-q", "--quiet", action="store_true")
     f.set_defaults(run=run_forming)
@@ -141,7 +142,14 @@ def run_forming(args) -> int:
             f"the part ({100 * r['measured_share']:.1f} % of the film as printed); mean placement "
             f"({pl['shift_mm'][0]:.3f}, {pl['shift_mm'][1]:.3f}) mm, {pl['rotation_deg']:.4f}°"
             + (f" ± {se:.3f} mm" if se is not None else "")
-            + (", compensated" if pl["compensated"] else ", not compensated (within the sheets' random placement)")
+            + (
+                ""
+                if pl.get("systematic") is None
+                else ", beyond the sheets' random placement"
+                if pl["systematic"]["shift"]
+                else ", within the sheets' random placement"
+            )
+            + (", compensated" if pl["compensated"] else ", not compensated")
             + "; repeatability "
             + (
                 f"{rep:.4f} mm per axis ({r['deformation_repeatability_mm']:.4f} mm without the placements)"

@@ -147,7 +147,9 @@ def test_defects_go_where_they_show(fast):
     for p in FAST:
         if p.defect is None or p.id not in fast:
             continue
-        t = fast[p.id].result["truth"]
+        r = fast[p.id].result
+        assert "truth" in r, (p.id, r)  # placed, rendered and validated
+        t = r["truth"]
         assert [d["kind"] for d in t] == [vc.DEFECTS[p.defect][0]] and t[0]["spec"] == Defect.parse(p.spec).spec()
         design = fast["designs"][p.part]
         owner = cv2.imread(str(design / "owner.png"), cv2.IMREAD_UNCHANGED).astype(int) - 1

@@ -551,7 +551,9 @@ def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     return l1, l2, e1.astype(np.float32)
 
 
-def tensor_weighted_flow(gray: np.ndarray, flow: np.ndarray, sigma: float) -> np.ndarray:
+def tensor_weighted_flow(
+    gray: np.ndarray, flow: np.ndarray, sigma: float, weight: np.ndarray | None = None
+) -> np.ndarray:
     """The slide each window's texture supports: its pixels' flows combined through their gradients.
 
     A pixel's gradient g says of the flow only its component along g (the aperture problem);
@@ -568,6 +570,8 @@ def tensor_weighted_flow(gray: np.ndarray, flow: np.ndarray, sigma: float) -> np
         Grid px.
     sigma : float
         The window, Gaussian sigma, grid px.
+    weight : (H, W) bool, optional
+        The pixels the windows take (all by default).
 
     Returns
     -------
@@ -575,6 +579,8 @@ def tensor_weighted_flow(gray: np.ndarray, flow: np.ndarray, sigma: float) -> np
     """
     gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
+    if weight is not None:
+        gx, gy = gx * weight, gy * weight
     xx, xy, yy = gx * gx, gx * gy, gy * gy
     mx, my = flow[..., 0], flow[..., 1]
     H, W = gray.shape
@@ -1287,9 +1293,7 @@ def analyse(
     normal &= ~unresolved
     # the detection limit, stated for a sound part: the photo's noise through the texture it
     # resolves (the mismatch and the flow back, which a defect itself raises, left out)
-    weak_e, _ = detection.expected_flow_sigma(
-        noise, l1, l2, effective_samples(win, corr), floor
-    )
+    weak_e, _ = detection.expected_flow_sigma(noise, l1, l2, effective_samples(win, corr), floor)
     stated = scored.copy()  # (before light is told from ink: that depends on the defect)
     measurable = stated & ~unresolved
     # a window of about a millimetre's slide (below): its uncertainty is the photo's noise
@@ -1365,7 +1369,9 @@ def analyse(
     # a scratch: ink gone along a line thinner than any shading, highlight or exposure error,
     # judged against its own surroundings, with no tolerance for what is broad
     thin_limit = position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
-    thin, thin_found, thin_alpha = thin_ink_loss(pho, pred, film_pred, colour_scored, grid.px_per_mm, thin_limit)
+    thin, thin_found, thin_alpha, thin_excess = thin_ink_loss(
+        pho, pred, film_pred, colour_scored, grid.px_per_mm, thin_limit
+    )
     gone |= thin
     # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
     alpha = np.maximum(alpha, thin_alpha)
@@ -1399,9 +1405,15 @@ def analyse(
         # variation, a scratch shows the film; only one over uniform ink is left to the lamp)
         told = thin_told(thin, pho, pred)
         glossed |= told == 1
-        glossed |= mirrors_highlights(colour_bad & ~glossed & (told != 2), sat | glossed, grid.X, camera_center)
+        sure = sat | glossed
+        glossed |= mirrors_highlights(colour_bad & ~glossed & (told != 2), sure, grid.X, camera_center)
         colour_bad &= ~glossed
         gone &= ~glossed
+        # the stated limit, honestly: where the surface mirrors the lamp of the photo's sure
+        # highlights, ink that is gone is not told from light (a line over uniform ink neither)
+        cone = mirror_cone(sure, grid.X, camera_center)
+        dropout_found &= ~cone
+        thin_found &= ~(cone & uniform_ink(rg, grid.px_per_mm))
     state[glossed] = HIGHLIGHT
     colour_scored = colour_scored & ~glossed
     scored = scored & ~glossed
@@ -1419,8 +1431,15 @@ def analyse(
     # own vector there is its guess (it drifted 13 px over a photograph's soft background); a
     # window whose edges turn knows the whole slide. Usable where its uncertainty is, as a
     # pixel's (no gate on the texture's grey levels: a photograph's soft edges measure well)
-    m_wide = tensor_weighted_flow(rgb_, m, 4 * win)
-    wide_ok = scored & ~unresolved & (wide_sigma <= usable)
+    # (light, not ink, moves an edge for the flow too: DIS follows a glint along a ridge as if
+    # the print had slid under it, 0.5 mm on a glossy photo's perfect part; the windows leave
+    # out what light covers and the reach of the flow's patches around it)
+    r_lit = max(1, int(round(4 * win)))
+    lit = cv2.dilate(
+        (state == HIGHLIGHT).astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_lit + 1,) * 2)
+    ).astype(bool)
+    m_wide = tensor_weighted_flow(rgb_, m, 4 * win, ~lit)
+    wide_ok = scored & ~unresolved & ~lit & (wide_sigma <= usable)
     wide_mm = np.hypot(m_wide[..., 0], m_wide[..., 1]) * mm_per_px
     z_wide = np.where(wide_ok, (wide_mm - tolerance_mm) / wide_sigma, np.nan)
     # the honest measures (the full vector, the component across an edge, a window's slide)
@@ -1433,7 +1452,7 @@ def analyse(
         (wide_ok & (z_wide > SIGNIFICANCE_Z)).astype(np.uint8),
         cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * e + 1, 2 * e + 1)),
     ).astype(bool)
-    own_evidence = (full | normal) & (z_shift > SIGNIFICANCE_Z)
+    own_evidence = (full | normal) & ~lit & (z_shift > SIGNIFICANCE_Z)
     evidence = own_evidence | wide_evidence
     shift_bad = evidence
     z_region = np.fmax(z_shift, z_wide)
@@ -1441,6 +1460,11 @@ def analyse(
     m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
     # (ink that is gone by the raw residual: the shading allowance would explain most of it)
     z_colour = (np.where(missing, res_raw, res) - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
+    # (a scratch by its own test: how far it exceeds what a thin line must, whose limit holds
+    # SIGNIFICANCE_Z of the noise as the colour's does)
+    z_colour = np.where(
+        thin & missing, np.fmax(z_colour, thin_excess / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z), z_colour
+    )
     labels, defects = find_defects(
         shift_bad,
         colour_bad,
@@ -1502,6 +1526,7 @@ def analyse(
     # a defect must cover MIN_DEFECT_MM2 and span a few photo pixels each way (the opening
     # and closing in find_defects work on 3 x 3 grid pixels) to be found
     px_mm = (1.0 / median_res) if median_res else None
+    limit_mm[lit] = np.nan  # (the flow near light is not the print's: see lit above)
     ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
     limit = {
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),
@@ -1710,6 +1735,57 @@ def mirrors_highlights(
     return out
 
 
+def mirror_cone(highlights: np.ndarray, X: np.ndarray, camera_center: np.ndarray, step: int = 4) -> np.ndarray:
+    """Where the surface mirrors the camera's rays within MIRROR_DEG of those of the photo's highlights.
+
+    There a region of the colour residual is taken for light (:func:`mirrors_highlights`),
+    so ink that is gone there is not found: the stated limit leaves it out. Judged on every
+    ``step``-th pixel (neighbours reflect alike) and spread to the rest.
+
+    Parameters
+    ----------
+    highlights : (H, W) bool
+        The photo's sure highlights.
+    X : (H, W, 3) float
+        Surface point under each grid pixel, mm.
+    camera_center : (3,) float
+        mm.
+    step : int
+
+    Returns
+    -------
+    (H, W) bool
+    """
+    from scipy.spatial import cKDTree
+
+    H, W = highlights.shape
+    out = np.zeros((H, W), bool)
+    if not highlights.any():
+        return out
+    r = reflected_directions(X[::step, ::step], camera_center)
+    hs = highlights[::step, ::step] & np.isfinite(r).all(axis=2)
+    sure = r[hs] if hs.any() else reflected_directions(X, camera_center)[highlights]
+    sure = sure[np.isfinite(sure).all(axis=1)]
+    if not len(sure):
+        return out
+    ok = np.isfinite(r).all(axis=2)
+    # (unit vectors: the chord between two directions θ apart is 2 sin(θ / 2))
+    d, _ = cKDTree(sure[:: max(1, len(sure) // 4096)]).query(
+        r[ok], distance_upper_bound=2.0 * np.sin(np.radians(MIRROR_DEG) / 2.0)
+    )
+    small = np.zeros(ok.shape, np.uint8)
+    small[ok] = np.isfinite(d)
+    return cv2.resize(small, (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
+
+
+def uniform_ink(gray: np.ndarray, px_per_mm: float) -> np.ndarray:
+    """Where the design's grey levels vary by less than LOST_MIN_CONTRAST over a scratch's window (SCRATCH_MM)."""
+    s = 0.5 * SCRATCH_MM * px_per_mm
+    m = cv2.GaussianBlur(gray, (0, 0), s)
+    v = cv2.GaussianBlur(gray * gray, (0, 0), s) - m * m
+    return np.sqrt(np.maximum(v, 0.0)) < LOST_MIN_CONTRAST
+
+
 def light_or_ink(
     colour_bad: np.ndarray,
     gone: np.ndarray,
@@ -1864,8 +1940,9 @@ def thin_ink_loss(
     change t over areas much broader than a scratch; a white top-hat of t (t less its
     opening by a disc of SCRATCH_MM) keeps what is thinner than about half the disc. A pixel
     has lost its ink where that reaches half the step to the film and exceeds ``limit`` (the
-    noise, and half a pixel's placement at the design's edges): over pale ink too, where a
-    broad step of that size is shading or light. (The colour test's fixed tolerance is for
+    noise, and half a pixel's placement at the design's edges) and t itself exceeds
+    ``limit`` (beside ink the photo shows darker than the model, the opening sinks): over
+    pale ink too, where a broad step of that size is shading or light. (The colour test's fixed tolerance is for
     what is broad; a thin line of film over a light grey square is what a scratch across a
     checker shows.)
 
@@ -1883,11 +1960,13 @@ def thin_ink_loss(
     found : (H, W) bool
         Ink gone along a thin line.
     findable : (H, W) bool
-        Where a scratch is found (the step to the film at least twice ``limit``): the detection
-        limit's scratch map.
+        Where a scratch is found (the step to the film at least twice ``limit`` and twice
+        LOST_MIN_CONTRAST): the detection limit's scratch map.
     alpha : (H, W) float32
         Where findable, the share of the step to the film the line takes against its
         surroundings (0 to 1); 0 elsewhere.
+    excess : (H, W) float32
+        By how many grey levels the line exceeds what it must (NaN where not findable).
     """
     step = film - pred
     size = np.sqrt((step * step).sum(axis=2))
@@ -1897,10 +1976,23 @@ def thin_ink_loss(
     r = max(1, int(round(0.5 * SCRATCH_MM * px_per_mm)))
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     hat = cv2.morphologyEx(t, cv2.MORPH_TOPHAT, disc)
-    findable = scored & (size >= 2.0 * limit)
+    # (a step to the film under LOST_MIN_CONTRAST twice over is pale ink a line of film barely
+    # changes: a perfect render's antialiased edges reach half of it, measured 6 grey levels)
+    findable = scored & (size >= 2.0 * np.maximum(limit, LOST_MIN_CONTRAST))
     with np.errstate(invalid="ignore", divide="ignore"):
         alpha = np.where(findable, np.clip(hat / np.maximum(size, 1e-3), 0.0, 1.0), 0.0).astype(np.float32)
-    return findable & (hat > np.maximum(0.5 * size, limit)), findable, alpha
+    # (and the line itself beyond the limit: beside ink the photo shows darker than the model,
+    # the opening sinks and a pale gap that matches the model stands 20 grey levels above it)
+    excess = np.where(findable, np.minimum(hat - np.maximum(0.5 * size, limit), t - limit), np.nan)
+    excess = excess.astype(np.float32)
+    # a line, not speckles: a component at least SCRATCH_MM long (a path tracer's noise in a
+    # glossy highlight sparkles in single pixels, which the bridging of ink gone would join)
+    found = findable & (excess > 0)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(found.astype(np.uint8), connectivity=8)
+    span = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    keep = span >= SCRATCH_MM * px_per_mm
+    keep[0] = False
+    return keep[lab], findable, alpha, excess
 
 
 def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarray:

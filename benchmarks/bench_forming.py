@@ -30,6 +30,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
+SPP = 8  # Mitsuba's samples per pixel (--spp): the face mask's front view needs 24 for its pose (8: 2.3 px RMS)
+RESUME = False  # --resume: a step whose outputs are there is not run again (its time is then None)
+
+
+def done(*paths) -> bool:
+    return RESUME and all(Path(p).exists() for p in paths)
+
+
 def wb(*args, cwd=None) -> float:
     t0 = time.perf_counter()
     r = subprocess.run(
@@ -74,8 +82,11 @@ def form_sheet(
     out.mkdir(parents=True, exist_ok=True)
     for name, _ in views(design):
         photo = out / f"{name}.png"
+        if done(photo.with_suffix(".json"), out / name / "validation.json"):
+            truth = json.loads(photo.with_suffix(".json").read_text())["forming"]
+            continue
         cam = view_camera(design, name, scale, out / f"{name}-camera.json", min_fov)
-        extra = ["--renderer", "mitsuba", "--spp", "8"] if renderer == "mitsuba" else ["--noise", "1"]
+        extra = ["--renderer", "mitsuba", "--spp", str(SPP)] if renderer == "mitsuba" else ["--noise", "1"]
         wb("render", design, "--camera", cam, "--forming", law, "--seed", seed,
            *(["--forming-random-mm", random_mm] if random_mm else []), *extra, "-o", photo)  # fmt: skip
         wb("validate", design, photo, "--camera", photo.with_suffix(".json"), "--out", out / name, "--jobs", "1")
@@ -93,23 +104,36 @@ def misregistration(sheet: Path) -> list[float]:
     return out
 
 
-def truth_residual(design: Path, law: str, shift=(0.0, 0.0), within: Path | None = None) -> float:
-    """p95 of |where the film lands - where the design wants it|, print mm: over the film, or
-    ``within`` the blocks a sheet's validations measured."""
+def truth_residual(design: Path, law: str, shift=None, within: Path | None = None) -> float:
+    """p95 of |where the film lands - where the design wants it|, print mm: over the films as printed,
+    or ``within`` the blocks a sheet's validations measured. ``shift``: each film's random placement
+    ((2,) for one film, (films, 2) for several)."""
     from workbench import forming as fm
+    from workbench.calibration_forming import film_grids
     from workbench.design_dir import Design
 
     des = Design(design)
-    W, H = des.base_size_mm()
-    g = np.stack(np.meshgrid(np.arange(0.5, W, 1.0), np.arange(0.5, H, 1.0)), axis=-1).reshape(-1, 2)
-    if within is not None:
-        o = des.frame_offset_mm()
-        q = [np.load(v / "landing.npz")["fused_q_mm"] for v in within.iterdir() if (v / "landing.npz").is_file()]
-        g = np.concatenate(q) - o
-    true = fm.parse_law(law, (W, H))(g) + np.asarray(shift)
-    comp = des.compensation()
-    want = comp(g) if comp is not None else np.zeros_like(g)
-    return float(np.percentile(np.linalg.norm(true - want, axis=1), 95))
+    frames = des.film_frames()
+    shifts = np.zeros((len(frames), 2)) if shift is None else np.asarray(shift, dtype=np.float64).reshape(-1, 2)
+    if within is None:
+        pts = [g.points for g in film_grids(design)]
+    else:
+        pts = [[] for _ in frames]
+        for v in within.iterdir():
+            if (v / "landing.npz").is_file():
+                z = np.load(v / "landing.npz")
+                film = z["fused_film"] if "fused_film" in z.files else np.zeros(len(z["fused_q_mm"]), int)
+                for k, fr in enumerate(frames):
+                    pts[k].append(z["fused_q_mm"][film == k] - fr.origin_mm)
+        pts = [np.concatenate(x) if x else np.zeros((0, 2)) for x in pts]
+    comps = des.compensations()
+    err = []
+    for k, fr in enumerate(frames):
+        g = pts[k]
+        true = fm.parse_law(law, fr.size_mm)(g) + shifts[k]
+        want = comps[k](g) if comps is not None else np.zeros_like(g)
+        err.append(np.linalg.norm(true - want, axis=1))
+    return float(np.percentile(np.concatenate(err), 95))
 
 
 def run_loop(
@@ -124,24 +148,36 @@ def run_loop(
     calibration_film=False,
     log=print,
     min_fov=MIN_FOV_DEG,
+    placement=None,
+    seed0=1,
+    check0=True,
 ) -> dict:
-    """The loop; returns per round (0: uncompensated) the check sheet's figures and the times."""
+    """The loop; returns per round (0: uncompensated) the check sheet's figures and the times.
+
+    The calibration sheets take the seeds ``seed0``, ``seed0 + 1``, ... (their noise and random
+    placement); the check sheets 1000 + the round. ``check0``: form and measure the uncompensated
+    check sheet (round 0).
+    """
     work.mkdir(parents=True, exist_ok=True)
-    t_plain = wb("design", job, "--out", work / "d0")
-    design, seed = work / "d0", 1
+    t_plain = None if done(work / "d0" / "design.json") else wb("design", job, "--out", work / "d0")
+    design, seed = work / "d0", seed0
     out: dict = {"design_s": t_plain, "rounds": []}
-    log(f"design without a profile: {t_plain:.1f} s; law {law}, random {random_mm} mm, {sheets} sheets, {renderer}")
-    check = work / "r0-check"
-    form_sheet(design, check, law, 1000, scale, 0.0, renderer, min_fov)
-    r0 = {"misregistration_p95_mm": misregistration(check), "truth_p95_mm": truth_residual(design, law)}
-    r0["truth_seen_p95_mm"] = truth_residual(design, law, within=check)
+    log(f"design without a profile: {t_plain} s; law {law}, random {random_mm} mm, {sheets} sheets, {renderer}")
+    r0 = {"truth_p95_mm": truth_residual(design, law)}
+    if check0:
+        check = work / "r0-check"
+        form_sheet(design, check, law, 1000, scale, 0.0, renderer, min_fov)
+        r0.update(
+            misregistration_p95_mm=misregistration(check), truth_seen_p95_mm=truth_residual(design, law, within=check)
+        )
     out["rounds"].append(r0)
     log(f"round 0: {r0}")
     for rnd in range(1, rounds + 1):
         film = design
         if calibration_film:
-            wb("pdf", design, "--pattern", "forming", "-o", work / f"calib{rnd}.pdf")
             film = work / f"calib{rnd}-design"
+            if not done(film / "design.json"):
+                wb("pdf", design, "--pattern", "forming", "-o", work / f"calib{rnd}.pdf")
         folders, truths = [], []
         for k in range(sheets):
             f = work / f"r{rnd}-sheet{k}"
@@ -149,37 +185,175 @@ def run_loop(
             seed += 1
             folders.append(f)
         prof = work / f"profile{rnd}.json"
-        t_cal = wb("calibrate", "forming", *folders, "-o", prof)
-        p = json.loads(prof.read_text())["films"][0]
-        t_des = wb("design", job, "--forming-profile", prof, "--out", work / f"d{rnd}")
+        t_cal = None
+        if not done(prof):
+            t_cal = wb("calibrate", "forming", *folders, "-o", prof, *(["--placement", placement] if placement else []))
+        films = json.loads(prof.read_text())["films"]
+        p = films[0]
+        t_des = None
+        if not done(work / f"d{rnd}" / "design.json"):
+            t_des = wb("design", job, "--forming-profile", prof, "--out", work / f"d{rnd}")
         design = work / f"d{rnd}"
         check = work / f"r{rnd}-check"
         form_sheet(design, check, law, 1000 + rnd, scale, 0.0, renderer, min_fov)
-        shifts = np.array([t.get("random_shift_mm", [0.0, 0.0]) for t in truths])
+        # (sheets, films, 2): each sheet's random placement of each film
+        shifts = np.array([np.reshape(t.get("random_shift_mm", [0.0, 0.0] * len(films)), (-1, 2)) for t in truths])
         r = {
             "calibrate_s": t_cal,
             "design_s": t_des,
-            "design_ratio": t_des / t_plain,
+            "design_ratio": t_des / t_plain if t_des and t_plain else None,
             "points": p["points"],
             "measured_share": p["measured_share"],
             "measured_share_on_part": p["measured_share_on_part"],
             "cv_rms_mm": p["cv_rms_mm"],
             "repeatability_mm": p["repeatability_mm"],
-            # what the sheets' random placements did: their spread per axis, and their mean (which the
-            # profile keeps: its standard error is random_mm / sqrt(sheets))
-            "random_spread_mm": float(np.sqrt(shifts.var(axis=0, ddof=1).mean())) if len(shifts) > 1 else None,
-            "random_mean_mm": shifts.mean(axis=0).tolist(),
+            "placement": {
+                k: p["placement"].get(k)
+                for k in ("shift_mm", "rotation_deg", "standard_error_mm", "systematic", "applied")
+            },  # fmt: skip
+            # what the sheets' random placements did: their spread per axis, and their mean (the profile
+            # compensates it only when the sheets show it beyond their spread)
+            "random_spread_mm": float(np.sqrt(shifts[:, 0].var(axis=0, ddof=1).mean())) if len(shifts) > 1 else None,
+            "random_mean_mm": shifts[:, 0].mean(axis=0).tolist(),
             "misregistration_p95_mm": misregistration(check),
             "truth_p95_mm": truth_residual(design, law),
             "truth_seen_p95_mm": truth_residual(design, law, within=check),
         }
+        if len(films) > 1:
+            r["films"] = {
+                f["name"]: {
+                    k: f[k]
+                    for k in ("points", "measured_share", "measured_share_on_part", "cv_rms_mm", "repeatability_mm")
+                }
+                for f in films
+            }
         out["rounds"].append(r)
         log(f"round {rnd}: " + json.dumps(r))
     out["work"] = str(work)
     return out
 
 
+def profile_difference(a: Path, b: Path, design: Path, within: Path) -> np.ndarray:
+    """Mean over the blocks ``within`` measured of what profile ``a`` applies less what ``b`` does,
+    per film; (films, 2) mm: how far the one print is moved from the other there."""
+    from workbench import forming as fm
+    from workbench.design_dir import Design
+
+    pa, pb = fm.profile_fields(fm.read_profile(a)), fm.profile_fields(fm.read_profile(b))
+    frames = Design(design).film_frames()
+    out = np.zeros((len(frames), 2))
+    for v in within.iterdir():
+        if not (v / "landing.npz").is_file():
+            continue
+        z = np.load(v / "landing.npz")
+        film = z["fused_film"] if "fused_film" in z.files else np.zeros(len(z["fused_q_mm"]), int)
+        for k, fr in enumerate(frames):
+            g = z["fused_q_mm"][film == k] - fr.origin_mm
+            if len(g):
+                out[k] = (pa[k](g) - pb[k](g)).mean(axis=0)
+    return out
+
+
+def placement_draws(work: Path, draws: int, sheets=5, random_mm=0.1, log=print, **kw) -> dict:
+    """The random component through the whole loop: a noise-free reference (``sheets`` sheets without
+    a random placement) and ``draws`` independent draws (seeds 100 j + 1 ...) with it; per draw, the
+    reported repeatability against the draws' own spread and the nominal, the mean placement and the
+    profile's, and how far the compensated print moves from the reference's (mean over the check
+    sheet's measured blocks) in standard errors (random_mm / √sheets)."""
+    se = random_mm / np.sqrt(sheets)
+    ref = run_loop(work / "reference", sheets=sheets, rounds=1, random_mm=0.0, log=log, seed0=1, **kw)
+    rows = []
+    for j in range(1, draws + 1):
+        res = run_loop(work / f"draw{j}", sheets=sheets, rounds=1, random_mm=random_mm, log=log, seed0=100 * j + 1,
+                       check0=False, **kw)  # fmt: skip
+        r1 = res["rounds"][1]
+        diff = profile_difference(
+            work / f"draw{j}" / "profile1.json",
+            work / "reference" / "profile1.json",
+            work / f"draw{j}" / "d0",
+            work / f"draw{j}" / "r1-check",
+        )[0]
+        row = {
+            "draw": j,
+            "random_spread_mm": r1["random_spread_mm"],
+            "repeatability_mm": r1["repeatability_mm"],
+            "random_mean_mm": r1["random_mean_mm"],
+            "placement": r1["placement"],
+            "difference_mm": diff.tolist(),
+            "difference_se": (diff / se).tolist(),
+            # what the profile took in beyond the placements' own mean (which it cannot tell from a bias)
+            "beyond_mean_mm": (diff - np.asarray(r1["random_mean_mm"])).tolist(),
+            "misregistration_p95_mm": r1["misregistration_p95_mm"],
+        }
+        rows.append(row)
+        log(f"draw {j}: " + json.dumps(row))
+    d = np.array([r["difference_se"] for r in rows])  # (draws, 2): per axis, in SE
+    summary = {
+        "se_mm": se,
+        "reference_misregistration_p95_mm": ref["rounds"][1]["misregistration_p95_mm"],
+        "axes_within_one_se": int((np.abs(d) <= 1.0).sum()),
+        "draws_within_one_se": int((np.linalg.norm(d, axis=1) <= 1.0).sum()),
+        "draws": draws,
+        "rms_difference_se_per_axis": float(np.sqrt((d * d).mean())),
+        "beyond_mean_max_mm": float(np.abs([r["beyond_mean_mm"] for r in rows]).max()),
+        "repeatability_within_20pct_of_spread": int(
+            sum(abs(r["repeatability_mm"] / r["random_spread_mm"] - 1) <= 0.2 for r in rows)
+        ),
+        "repeatability_within_20pct_of_nominal": int(
+            sum(abs(r["repeatability_mm"] / random_mm - 1) <= 0.2 for r in rows)
+        ),
+    }
+    log("summary: " + json.dumps(summary))
+    return {"reference": ref, "draws": rows, "summary": summary}
+
+
+def synthetic_draws(design: Path, draws: int, sheets=5, random_mm=0.1, noise_mm=0.01, n=12000, law=None, seed=0):
+    """The placement rule's statistics without photos: ``draws`` sets of ``sheets`` synthetic sheets
+    (the law at ``n`` random film points, noise ``noise_mm`` per axis, a random placement each),
+    each against the same sheets without the placements. Returns per draw the compensated print's
+    shift from the noise-free one (mean over the film, mm), in standard errors, and whether the
+    mean placement was compensated."""
+    from workbench import forming as fm
+    from workbench.calibration_forming import Sheet, calibrate_forming, film_grids
+    from workbench.design_dir import Design
+
+    des = Design(design)
+    (fr,) = des.film_frames()
+    g = film_grids(design)[0].points
+    lw = fm.parse_law(law or "creep:2,1.5+wave:0.5,0.5,40", fr.size_mm)
+    rng = np.random.default_rng(seed)
+    se = random_mm / np.sqrt(sheets)
+    out = []
+    for _ in range(draws):
+        p = g[rng.choice(len(g), n, replace=False)] + rng.uniform(-0.5, 0.5, (n, 2))
+        noise = [rng.normal(0, noise_mm, (n, 2)) for _ in range(sheets)]
+        shifts = rng.normal(0, random_mm, (sheets, 2))
+
+        def sheets_of(sh, p=p, noise=noise):
+            return [
+                Sheet(f"s{k}", p, lw(p) + sh[k] + noise[k], np.full(n, noise_mm), des.info, design, {"file": f"s{k}"})
+                for k in range(sheets)
+            ]
+
+        b = calibrate_forming(sheets_of(np.zeros_like(shifts)))["films"][0]
+        row = {
+            "mean_placement_se": (shifts.mean(axis=0) / se).tolist(),
+            "random_spread_mm": float(np.sqrt(shifts.var(axis=0, ddof=1).mean())),
+        }
+        for mode in ("always", "auto"):
+            a = calibrate_forming(sheets_of(shifts), mode)["films"][0]
+            diff = (a["applied"](g) - b["applied"](g)).mean(axis=0)
+            row[mode] = {
+                "difference_se": (diff / se).tolist(),  # per axis
+                "compensated": bool(a["placement"]["compensated_parts"]["shift"]),
+                "repeatability_mm": a["repeatability_mm"],
+            }
+        out.append(row)
+    return out
+
+
 def main() -> None:
+    global RESUME, SPP
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--job", default=str(ROOT / "fixtures" / "default" / "job.toml"))
     ap.add_argument("--scale", type=float, default=2.0)
@@ -200,11 +374,42 @@ def main() -> None:
         default=MIN_FOV_DEG,
         help=f"a narrower designed view is widened to this about its own axis (default {MIN_FOV_DEG:g}; 0: never)",
     )
+    ap.add_argument("--placement", choices=("auto", "always", "never"), help="calibrate forming --placement")
+    ap.add_argument("--draws", type=int, help="the random component over this many independent draws (the loop)")
+    ap.add_argument("--synthetic-draws", type=int, help="the placement rule over this many draws without photos")
+    ap.add_argument("--resume", action="store_true", help="keep the steps whose outputs are in --work")
+    ap.add_argument("--spp", type=int, default=SPP, help=f"Mitsuba's samples per pixel (default {SPP})")
     a = ap.parse_args()
+    RESUME, SPP = a.resume, a.spp
     work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="bench-forming-"))
+    if a.synthetic_draws:
+        wb("design", a.job, "--out", work / "d0")
+        rows = synthetic_draws(work / "d0", a.synthetic_draws, a.sheets, a.random_mm or 0.1)
+        (work / "synthetic-draws.json").write_text(json.dumps(rows, indent=1))
+        m = np.array([r["mean_placement_se"] for r in rows])
+        for mode in ("always", "auto"):
+            d = np.array([r[mode]["difference_se"] for r in rows])  # (draws, 2) per axis, in SE
+            comp = np.array([r[mode]["compensated"] for r in rows])
+            rep = np.array([r[mode]["repeatability_mm"] / r["random_spread_mm"] for r in rows])
+            nominal = np.abs(np.array([r[mode]["repeatability_mm"] for r in rows]) / (a.random_mm or 0.1) - 1) <= 0.2
+            print(
+                f"--placement {mode}, {len(rows)} draws of {a.sheets} sheets: the compensated print's shift from the "
+                f"noise-free one within 1 SE per axis in {(np.abs(d) <= 1).mean():.1%} of axes, as a vector in "
+                f"{(np.linalg.norm(d, axis=1) <= 1).mean():.1%} of draws; RMS per axis {np.sqrt((d * d).mean()):.3f} "
+                f"SE; less the placements' own mean: at most {np.abs(d - m * comp[:, None]).max():.3f} SE; mean "
+                f"placement compensated in {comp.mean():.1%}; repeatability / realised spread {rep.min():.3f} to "
+                f"{rep.max():.3f}; / nominal within 20 % in {nominal.mean():.1%}"
+            )
+        return
+    if a.draws:
+        placement_draws(
+            work, a.draws, a.sheets, a.random_mm or 0.1, log=lambda m: print(m, flush=True), job=a.job,
+            scale=a.scale, law=a.law, renderer=a.renderer, min_fov=a.min_fov_deg, placement=a.placement,
+        )  # fmt: skip
+        return
     res = run_loop(
         work, a.job, a.law, a.scale, a.random_mm, a.sheets, a.rounds, a.renderer, a.calibration_film,
-        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg,
+        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg, placement=a.placement,
     )  # fmt: skip
     print(f"files in {res['work']}")
 

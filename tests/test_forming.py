@@ -204,17 +204,65 @@ def _sheets_on(design: Path, sheets):
     return [Sheet(f"sheet{k}", p, d, s, info, design, {"file": f"sheet{k}"}) for k, (p, d, s) in enumerate(sheets)]
 
 
-def test_repeatability_is_the_sheets_random_placement_and_stays_out_of_the_profile(design):
-    W = json.loads((design / "design.json").read_text())["print"]["width_mm"]
-    law, raw, shifts = synthetic_sheets(5, 0.1, seed=3)
-    res = calibrate_forming(_sheets_on(design, raw))
-    # the realised shifts' spread per axis (what the five sheets did)
+def test_each_sheets_placement_is_taken_out_and_reported_as_repeatability(design):
+    """Five sheets, each placed at random (0.1 mm per axis): the profile is the deformation alone."""
+    law, raw, shifts = synthetic_sheets(5, 0.1, seed=3, n=12000)
+    res = calibrate_forming(_sheets_on(design, raw))["films"][0]
+    # the sheets' spread about the profile: the realised placements' spread per axis
     realised = float(np.sqrt(shifts.var(axis=0, ddof=1).mean()))
     assert res["repeatability_mm"] == pytest.approx(realised, rel=0.05)
-    # the profile is the law plus the shifts' mean, no more
-    g = np.random.default_rng(4).uniform([5, 5], [W - 5, 75], (400, 2))
-    err = res["field"](g) - law(g) - shifts.mean(axis=0)
-    assert np.abs(err).max() < 0.01
+    assert res["deformation_repeatability_mm"] < 0.01  # the noise, 0.01 mm, smoothed
+    # each sheet's placement recovered, up to one offset common to all (the law's own rigid part)
+    pl = res["placement"]
+    got = np.array(pl["per_sheet"])[:, :2] - shifts
+    assert np.abs(got - got.mean(axis=0)).max() < 0.002
+    # the mean placement's standard error: the spread over √5
+    assert pl["standard_error_mm"] == pytest.approx(realised / np.sqrt(5), rel=0.05)
+    # the deformation carries no placement: it is the law, less its rigid part over the film (small here)
+    g = np.random.default_rng(4).uniform([5, 5], [115, 75], (400, 2))
+    assert np.abs(res["field"](g) - law(g)).max() < 0.03
+    # what compensation applies: the field plus the part of the placement the test found systematic
+    applied = np.array([*pl["applied"]["shift_mm"], pl["applied"]["rotation_deg"]])
+    on = pl["compensated_parts"]
+    assert (applied[:2] != 0).any() == on["shift"] and (applied[2] != 0) == on["rotation"]
+
+
+def test_the_mean_placement_is_compensated_and_tested_against_the_sheets_spread(design):
+    """By default the sheets' mean placement goes into the print (unbiased: the bias and the five random
+    placements' mean, which no profile tells apart); the F test says whether it is beyond their spread;
+    --placement auto compensates it only then, never not at all."""
+    law, raw, shifts = synthetic_sheets(5, 0.1, seed=5, n=12000)
+    g = np.random.default_rng(4).uniform([5, 5], [115, 75], (400, 2))
+    biased = [(p, d + np.array([0.3, -0.2]), s) for p, d, s in raw]
+    res = calibrate_forming(_sheets_on(design, biased))["films"][0]
+    assert res["placement"]["systematic"]["shift"] and res["placement"]["compensated_parts"]["shift"]
+    assert np.abs(res["applied"](g) - law(g) - [0.3, -0.2] - shifts.mean(axis=0)).max() < 0.03
+    res = calibrate_forming(_sheets_on(design, raw))["films"][0]
+    # the same sheets without the bias: F(2, 8) finds no systematic shift in this draw (of seed 5)
+    assert not res["placement"]["systematic"]["shift"] and res["placement"]["compensated_parts"]["shift"]
+    assert np.abs(res["applied"](g) - law(g) - shifts.mean(axis=0)).max() < 0.03
+    auto = calibrate_forming(_sheets_on(design, raw), "auto")["films"][0]
+    assert not auto["placement"]["compensated_parts"]["shift"]
+    assert np.abs(auto["applied"](g) - law(g)).max() < 0.03
+    auto = calibrate_forming(_sheets_on(design, biased), "auto")["films"][0]
+    assert np.abs(auto["applied"](g) - law(g) - [0.3, -0.2] - shifts.mean(axis=0)).max() < 0.03
+    never = calibrate_forming(_sheets_on(design, biased), "never")["films"][0]
+    assert np.abs(never["applied"](g) - never["field"](g)).max() < 1e-9
+
+
+def test_the_placement_test_finds_a_random_mean_systematic_in_one_draw_in_twenty():
+    """Under a random placement alone, the F test calls the mean systematic at its level (5 %)."""
+    from workbench.calibration_forming import placement_test
+
+    rng = np.random.default_rng(0)
+    for n in (2, 5):
+        hits = 0
+        for _ in range(4000):
+            t = rng.normal(0, 0.1, (n, 2))
+            m = t.mean(axis=0)
+            dev = np.column_stack([t - m, rng.normal(0, 1e-4, n)])
+            hits += placement_test(np.array([*m, 0.0]), dev)["systematic"]["shift"]
+        assert 0.04 < hits / 4000 < 0.06, (n, hits)
 
 
 def test_too_few_points_say_how_many_and_where(design):
@@ -228,18 +276,37 @@ def test_too_few_points_say_how_many_and_where(design):
 # --- the command line --------------------------------------------------------------------------
 
 
-def fake_validation(folder: Path, design: Path, n=None, seed=0, law=LAW):
-    """A validation folder whose landing is a known law (what validate writes, without photos):
-    on every 1 mm block of the print, or on ``n`` random points."""
+def fake_validation(folder: Path, design: Path, n=None, seed=0, law=LAW, films=None):
+    """A validation folder whose landing is a known law (what validate writes, without photos): on
+    every 1 mm block of each film's print, or on ``n`` random points; the law per film, its u, v
+    across that film's print (``films``: the films to measure, default all)."""
+    from workbench.design_dir import Design
+
     folder.mkdir(parents=True)
-    info = json.loads((design / "design.json").read_text())
-    size = (info["print"]["width_mm"], info["print"]["height_mm"])
-    if n is None:
-        q = np.stack(np.meshgrid(np.arange(0.5, size[0], 1.0), np.arange(0.5, size[1], 1.0)), -1).reshape(-1, 2)
-    else:
-        q = np.random.default_rng(seed).uniform([0, 0], size, (n, 2))
-    d = q - fm.invert(fm.parse_law(law, size), q)
-    data = npz_bytes({"fused_q_mm": q, "fused_d_mm": d, "fused_sigma_mm": np.full(len(q), 0.01)})
+    des = Design(design)
+    frames = des.film_frames()
+    rng = np.random.default_rng(seed)
+    Q, D, FILM = [], [], []
+    for k, fr in enumerate(frames):
+        if films is not None and k not in films:
+            continue
+        if n is None:
+            xs, ys = np.arange(0.5, fr.print_mm[0], 1.0), np.arange(0.5, fr.print_mm[1], 1.0)
+            q = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2) + fr.corner_mm
+        else:
+            q = rng.uniform(fr.corner_mm, fr.corner_mm + np.asarray(fr.print_mm), (n, 2))
+        if des.alpha is not None:  # on the film only
+            ij = np.floor(q * des.info["print"]["dpi"] / 25.4).astype(int)
+            q = q[des.alpha[ij[:, 1], ij[:, 0]] > 0]
+        x = q - fr.origin_mm
+        Q.append(q)
+        D.append(x - fm.invert(fm.parse_law(law, fr.size_mm), x))
+        FILM.append(np.full(len(q), k, np.int32))
+    arrays = {"fused_q_mm": np.concatenate(Q), "fused_d_mm": np.concatenate(D)}
+    arrays["fused_sigma_mm"] = np.full(len(arrays["fused_q_mm"]), 0.01)
+    if len(frames) > 1:
+        arrays["fused_film"] = np.concatenate(FILM)
+    data = npz_bytes(arrays)
     (folder / "landing.npz").write_bytes(data)
     rep = {
         "design": {
@@ -262,6 +329,8 @@ def test_calibrate_design_and_render_close_the_loop_on_exact_landings(design, tm
     doc = json.loads(prof.read_text())
     assert doc["process"] == {"name": "vacuum forming"} and doc["material"]["name"] == "PET-G film 0.3 mm"
     assert doc["films"][0]["repeatability_mm"] < 1e-3 and prof.with_suffix(".png").is_file()
+    # two identical sheets: any rigid part of the law over the film is systematic, and compensated
+    assert doc["films"][0]["placement"]["compensated"]
     assert doc["films"][0]["measured_share"] > 0.95
     out = tmp_path / "d1"
     r = wb("design", JOB, "--forming-profile", prof, "--out", out, "-q")
@@ -274,9 +343,10 @@ def test_calibrate_design_and_render_close_the_loop_on_exact_landings(design, tm
     from workbench.design_dir import Design
 
     d0, d1 = Design(design), Design(out)
-    law = fm.parse_law(LAW, d1.base_size_mm())
+    (frame,) = d1.film_frames()
+    law = fm.parse_law(LAW, frame.size_mm)
     x = d1.nominal_print_mm()
-    p = np.stack([d1.flat[:, 0], d1.info["print"]["height_mm"] - d1.flat[:, 1]], axis=1) - d1.frame_offset_mm()
+    p = np.stack([d1.flat[:, 0], d1.info["print"]["height_mm"] - d1.flat[:, 1]], axis=1) - frame.origin_mm
     nominal0 = np.stack([d0.flat[:, 0], d0.info["print"]["height_mm"] - d0.flat[:, 1]], axis=1)
     assert np.abs(x - nominal0).max() < 1e-6  # the composed map is the design's own
     miss = np.linalg.norm(fm.land(law, p) - nominal0, axis=1)
@@ -348,6 +418,177 @@ def test_render_forming_moves_the_print_by_the_law_and_records_its_truth(design,
     assert t["random_mm"] == 0.1 and np.allclose(t["random_shift_mm"], np.random.default_rng([7, 20]).normal(0, 0.1, 2))
 
 
+# --- several films: a field per film ----------------------------------------------------------
+
+TWO_FILMS = """
+[[films]]
+name = "logo"
+views = ["logo"]
+outline = "free"
+
+[[films]]
+name = "front"
+views = ["front"]
+outline = "free"
+"""
+
+
+def two_film_job(tmp_path: Path) -> Path:
+    """The default lid with one film per view, at 100 dpi (a design of several films in seconds)."""
+    for name in ("part.obj", "logo.png", "front.png"):
+        shutil.copy(ROOT / "fixtures" / "default" / name, tmp_path / name)
+    text = JOB.read_text().replace("dpi = 300", "dpi = 100")
+    (tmp_path / "job.toml").write_text(text + TWO_FILMS)
+    return tmp_path / "job.toml"
+
+
+@pytest.fixture(scope="module")
+def films_design(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("films")
+    job = two_film_job(tmp)
+    assert main(["design", str(job), "--out", str(tmp / "design"), "-q"]) == 0
+    return job, tmp / "design"
+
+
+def test_each_film_gets_its_own_field_and_its_compensation_is_exact(films_design, tmp_path):
+    """Two films, each formed by the law across its own print: the profile holds a field per film, and
+    the compensated design's films land exactly where the design wants them."""
+    job, design = films_design
+    v1, v2 = fake_validation(tmp_path / "v1", design), fake_validation(tmp_path / "v2", design)
+    prof = tmp_path / "profile.json"
+    r = wb("calibrate", "forming", v1, v2, "-o", prof)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(prof.read_text())
+    info0 = json.loads((design / "design.json").read_text())
+    assert [f["name"] for f in doc["films"]] == ["logo", "front"] == doc["design"]["films"]
+    assert doc["design"]["film_sizes_mm"] == [
+        [round(f["width_mm"], 6), round(f["height_mm"], 6)] for f in info0["films"]
+    ]
+    back = fm.read_profile(prof)
+    from workbench.calibration_forming import film_grids
+    from workbench.design_dir import Design
+
+    d0 = Design(design)
+    for k, (fr, grid) in enumerate(zip(d0.film_frames(), film_grids(design), strict=True)):
+        law = fm.parse_law(LAW, fr.size_mm)
+        err = np.linalg.norm(fm.profile_field(back, k)(grid.points) - law(grid.points), axis=1)
+        assert np.percentile(err, 95) < 0.01, (k, np.percentile(err, 95))
+        assert doc["films"][k]["measured_share"] > 0.95
+    out = tmp_path / "d1"
+    r = wb("design", job, "--forming-profile", prof, "--out", out, "-q")
+    assert r.returncode == 0, r.stderr
+    info = json.loads((out / "design.json").read_text())
+    assert info["forming"]["profile"]["sha256"] == hashlib.sha256(prof.read_bytes()).hexdigest()
+    d1 = Design(out)
+    for f0, f1 in zip(info0["films"], info["films"], strict=True):
+        # each film's print keeps its pixel grid and grows by whole pixels where it needs room
+        base = f1["forming"]["base_print"]
+        assert (base["width_mm"], base["height_mm"]) == (f0["width_mm"], f0["height_mm"])
+        ox, oy = f1["forming"]["frame_offset_px"]
+        assert f1["width_px"] >= f0["width_px"] + ox and f1["height_px"] >= f0["height_px"] + oy
+    # formed by each film's law, each vertex of the compensated design shows its own nominal point
+    laws = [fm.parse_law(LAW, fr.size_mm) for fr in d1.film_frames()]
+    assert np.abs(d1.formed_flat(laws) - d1.flat).max() < 0.02
+    # the composed map is the design's own, film by film
+    assert np.abs(d1.nominal_print_mm() - d0.nominal_print_mm()).max() < 1e-6
+    # a second round's sheet: its landing composed with each film's profile is the law again (a
+    # photo may see one film only)
+    from workbench.calibration_forming import read_sheet
+
+    sheet = read_sheet(fake_validation(tmp_path / "v3", out, films=[0], law="shift:0,0"))
+    assert (sheet.film == 0).all() and len(sheet.p) > 1000
+    lw = fm.parse_law(LAW, d1.film_frames()[0].size_mm)
+    assert np.percentile(np.linalg.norm(sheet.d - lw(sheet.p), axis=1), 95) < 0.02
+    # render forms each film by the law across its own print, and a random placement per film
+    photo = tmp_path / "p.png"
+    r = wb("render", out, "--view", "logo", "--forming", LAW, "--forming-random-mm", "0.1", "--seed", "3",
+           "--size", "320x240", "-o", photo, "-q")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    truth = json.loads(photo.with_suffix(".json").read_text())["forming"]
+    assert np.allclose(truth["random_shift_mm"], np.random.default_rng([3, 20]).normal(0, 0.1, (2, 2)))
+
+
+def test_a_profile_of_other_films_is_refused_in_one_line(films_design, tmp_path):
+    job, fdesign = films_design
+    prof = tmp_path / "films.json"
+    v1 = fake_validation(tmp_path / "v1", fdesign)
+    assert wb("calibrate", "forming", v1, "-o", prof).returncode == 0
+    doc = json.loads(prof.read_text())
+    # a film that is not this job's film
+    bad = tmp_path / "bad-size.json"
+    sizes = [list(x) for x in doc["design"]["film_sizes_mm"]]
+    sizes[1][0] += 3.0
+    bad.write_text(json.dumps({**doc, "design": {**doc["design"], "film_sizes_mm": sizes}}))
+    line = one_line_error(wb("design", job, "--forming-profile", bad, "--out", tmp_path / "dx", "-q"))
+    assert "measured for another design: its film front is" in line, line
+    # the films' profile on the same part at one film, and a one-film profile on the films' job
+    one_job = tmp_path / "one.toml"
+    one_job.write_text(job.read_text().replace(TWO_FILMS, ""))
+    for name in ("part.obj", "logo.png", "front.png"):
+        shutil.copy(job.parent / name, tmp_path / name)
+    line = one_line_error(wb("design", one_job, "--forming-profile", prof, "--out", tmp_path / "dx", "-q"))
+    assert "measured for another design: its films is ['logo', 'front'], this job's ['film-1']" in line, line
+    one = tmp_path / "one.json"
+    one.write_text(json.dumps({**doc, "design": {**doc["design"], "films": ["film-1"]}}))
+    line = one_line_error(wb("design", job, "--forming-profile", one, "--out", tmp_path / "dx", "-q"))
+    assert "its films is ['film-1'], this job's ['logo', 'front']" in line, line
+    assert not (tmp_path / "dx").exists()
+    # a landing of a design of several films that does not say which film each point is on
+    v2 = fake_validation(tmp_path / "v2", fdesign)
+    z = dict(np.load(v2 / "landing.npz"))
+    del z["fused_film"]
+    data = npz_bytes(z)
+    (v2 / "landing.npz").write_bytes(data)
+    rep = json.loads((v2 / "validation.json").read_text())
+    rep["landing"]["sha256"] = hashlib.sha256(data).hexdigest()
+    (v2 / "validation.json").write_text(json.dumps(rep))
+    out = tmp_path / "p.json"
+    line = one_line_error(wb("calibrate", "forming", v2, "-o", out))
+    assert "no film per point (fused_film) for a design of 2 films" in line, line
+    # a film with too few points: which film, how many, where
+    few = fake_validation(tmp_path / "few", fdesign, films=[1])
+    line = one_line_error(wb("calibrate", "forming", few, "-o", out))
+    assert "film logo: 0 measured points on the film" in line, line
+    assert not out.exists() and not out.with_suffix(".png").exists()
+
+
+def test_the_landing_says_which_film_each_block_is_on():
+    ppm, rows, cols = 10.0, 40, 100
+    texture = np.full((rows, cols), 2, np.uint8)
+    face = np.full((rows, cols), -1)
+    face[:, :40] = 0  # film 0's faces, then a gap, then film 1's
+    face[:, 60:] = 1
+    texture[face < 0] = 0
+    dr = SimpleNamespace(
+        texture=texture, sigma_mm=np.full((rows, cols), 0.02, np.float32), flow_px=np.zeros((rows, cols, 2), np.float32)
+    )
+    grid = SimpleNamespace(px_per_mm=ppm, surface_per_print=np.ones((rows, cols), np.float32), face=face)
+    lan = photo_landing(dr, grid, np.array([0, 1]))
+    assert np.array_equal(lan["film"], np.where(lan["q_mm"][:, 0] < 5, 0, 1))
+    assert set(np.unique(lan["film"])) == {0, 1}
+    f = fuse([lan, lan])
+    assert np.array_equal(f["film"], lan["film"])
+    assert "film" not in photo_landing(dr, grid)
+
+
+def test_calibration_film_of_several_films_is_each_films_part_of_one_pattern(films_design, tmp_path):
+    import cv2
+
+    _, design = films_design
+    r = wb("pdf", design, "--pattern", "forming", "-o", tmp_path / "calib.pdf", "-q")
+    assert r.returncode == 0, r.stderr
+    cd = tmp_path / "calib-design"
+    info = json.loads((cd / "design.json").read_text())
+    atlas = cv2.imread(str(cd / "print.png"), cv2.IMREAD_UNCHANGED)
+    for f in info["films"]:
+        own = cv2.imread(str(cd / f["print"]), cv2.IMREAD_UNCHANGED)
+        r0, c0 = f["atlas_px"]
+        assert np.array_equal(own[..., :3], atlas[r0 : r0 + f["height_px"], c0 : c0 + f["width_px"], :3])
+        # its outline is the film's own
+        was = cv2.imread(str(design / f["print"]), cv2.IMREAD_UNCHANGED)
+        assert np.array_equal(own[..., 3], was[..., 3])
+
+
 def test_calibration_film_is_the_design_filled_with_dots(design, tmp_path):
     out = tmp_path / "calib.pdf"
     r = wb("pdf", design, "--pattern", "forming", "-o", out, "-q")
@@ -416,3 +657,19 @@ def test_five_sheets_with_a_random_placement_report_it_as_repeatability(tmp_path
     # against what the five sheets' placements did (their spread per axis)
     assert r1["repeatability_mm"] == pytest.approx(r1["random_spread_mm"], rel=0.2)
     assert r1["misregistration_p95_mm"][0] <= 0.1 + 2 * 0.1 / np.sqrt(5)
+
+
+@pytest.mark.slow
+def test_the_face_mask_films_loop(tmp_path):
+    """The face mask on three films, each formed by the law across its own print: calibration films
+    photographed from the designed views (1.5 times their size, not widened: each sees markers)."""
+    job = ROOT / "fixtures" / "face-mask-films" / "job.toml"
+    res = _bench().run_loop(
+        tmp_path, job=job, scale=1.5, min_fov=0.0, sheets=2, rounds=2, calibration_film=True, log=lambda _m: None
+    )
+    r0, r1, r2 = res["rounds"]
+    for k, base in enumerate(r0["misregistration_p95_mm"]):
+        assert base > 0.5
+        assert r1["misregistration_p95_mm"][k] <= min(0.1, base / 10)
+        assert r2["misregistration_p95_mm"][k] <= base / 20
+    assert r1["design_ratio"] <= 1.5

@@ -1,20 +1,36 @@
-"""Forming calibration: a smooth landing field d(p) fitted to the validations of formed sheets.
+"""Forming calibration: a smooth landing field d(p) per film, fitted to the validations of formed sheets.
 
-Each sheet (one validation folder: one or more photos of one formed film) gives, per block
-of the print, where its film landed (``landing.npz`` of ``workbench validate``). The
-profile is a penalised cubic B-spline (P-spline: Eilers and Marx 1996) fitted to all sheets'
-points, weighted by their uncertainty, its smoothing chosen by spatially blocked
-cross-validation; each sheet is fitted alone with the same smoothing, and the spread of the
-sheets' fields about the mean is the repeatability (the random part of forming, which a
-profile cannot compensate and which therefore stays out of it: the mean over sheets is
-what is fitted).
+Each sheet (one validation folder: one or more photos of one formed part) gives, per block
+of the print, where its film landed (``landing.npz`` of ``workbench validate``; with several
+films, which film each block is on). Each film has its own field, on its own uncompensated
+print (films are formed one by one).
 
-Fields are on the uncompensated design's print (mm, x right, y down). A validation of a
-design that was itself compensated by a profile d₁ measures the residual r on that
-design's print; the film's landing on the uncompensated print is then (id + d₁)(q - o)
-(o: where the uncompensated print's corner sits in the compensated one): the fields compose.
+A sheet's landing is its film's deformation plus where the film was placed on the mould. The
+placement is random per sheet (it is what validate's film offset reports, and what the
+forming station's registration sets); a forming profile models the deformation. So the fit
+is d_s(p) = D(p) + t_s + ω_s J (p - c): one smooth field D (a penalised cubic B-spline,
+P-spline: Eilers and Marx 1996, weighted by the points' uncertainty, smoothing by spatially
+blocked cross-validation) and, per sheet, its placement's deviation from the sheets' mean
+(shift t_s, turn ω_s about the measured film's centre c; they sum to zero). D's own rigid
+part over the measured film is the sheets' mean placement m: the systematic placement plus
+the mean of the random ones, which no number of sheets tells apart, only bounds (its
+standard error is the placements' spread / √n). The profile records D - m (the deformation)
+and m with its standard error and whether the sheets show it beyond their own random
+placement (an F test at 95 %). By default m is compensated: unbiased, it adds its standard
+error to every part (a tenth of the placement's own spread from five sheets); leaving out a
+mean the test cannot tell from noise would leave a real offset of up to about three standard
+errors (the law's own rigid part over the measured film, on the default part: 1.4 of them).
+``--placement never`` leaves it to the forming station's registration, ``auto`` to the test.
 
-Numerics only; ``workbench/commands/calibrate.py`` reads and writes the files.
+The sheets' spread about the profile is the repeatability (what no compensation removes),
+reported whole and without the placements.
+
+Fields are on the uncompensated print (mm, x right, y down). A validation of a design that
+was itself compensated by a profile d₁ measures the residual r on that design's print; the
+film's landing on the uncompensated print is then (id + d₁)(q - o) (o: where the
+uncompensated print's corner sits in the compensated one): the fields compose.
+
+Numerics only; ``workbench/commands/calibrate_forming.py`` reads and writes the files.
 """
 
 from __future__ import annotations
@@ -35,7 +51,9 @@ from workbench.errors import WorkbenchError
 from workbench.jsonfile import read_json, resolve_recorded
 
 KNOT_MM = 4.0  # B-spline knot spacing: finer than any forming law's features (tens of mm) ...
-KNOTS_ACROSS = 30  # ... but at most this many knot intervals across the print (a 0.5 m face mask: 16 mm)
+# ... but at most this many knot intervals across a film (a 0.5 m face mask: 10 mm; cubic B-splines
+# with knots 10 mm apart follow a 40 mm wave to 1.5 % of its amplitude, 14 mm apart to 10 %)
+KNOTS_ACROSS = 50
 MARGIN_MM = 10.0  # the field's domain reaches this far beyond the print (compensation looks there)
 MIN_POINTS = 50  # measured blocks a film needs for a fit
 MIN_SIGMA_MM = 0.005  # a block's uncertainty is taken as at least this (the flow's own floor)
@@ -44,19 +62,22 @@ LAMBDAS = 10.0 ** np.arange(-3.0, 5.01, 0.5)  # smoothing candidates (relative t
 CV_BLOCK_MM = 12.0  # cross-validation folds are squares of this size: neighbours are correlated
 CV_FOLDS = 5
 EXTRAPOLATION_MM = 3.0  # film farther than this from a measured block is extrapolated
-EXTRAPOLATION_WARN_SHARE = 0.05  # a warning when more of the film than this is extrapolated
+EXTRAPOLATION_WARN_SHARE = 0.05  # a warning when more of the film that lands on the part than this is extrapolated
+PLACEMENT_LEVEL = 0.95  # a mean placement is systematic when the sheets show it at this confidence
+PLACEMENT_ITERATIONS = 20  # alternations between D and the sheets' placements (converges in a few)
+PLACEMENT_TOL_MM = 1e-5
 
 
 @dataclass
 class Sheet:
-    """One formed sheet's landing on the uncompensated print.
+    """One formed sheet's landing on the uncompensated films' prints.
 
     Attributes
     ----------
     name : str
         The validation folder.
     p : (n, 2) float
-        Film points (uncompensated print mm).
+        Film points (mm on their film's uncompensated print).
     d : (n, 2) float
         Where each landed, relative to it: nominal position p + d, mm.
     sigma : (n,) float
@@ -66,6 +87,8 @@ class Sheet:
     design_dir : Path
     validation : dict
         ``file`` and ``sha256`` of its validation.json.
+    film : (n,) int
+        The film of each point (0-based, design.json's ``films``; all 0 for a design of one film).
     """
 
     name: str
@@ -75,10 +98,19 @@ class Sheet:
     design: dict
     design_dir: Path
     validation: dict
+    film: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.film is None:
+            self.film = np.zeros(len(self.p), int)
+
+    def of_film(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        on = self.film == k
+        return self.p[on], self.d[on], self.sigma[on]
 
 
 def read_sheet(folder: Path) -> Sheet:
-    """One sheet's landing on the uncompensated print (composed with the design's profile).
+    """One sheet's landing on the uncompensated films' prints (composed with the design's profile).
 
     ``folder`` is a validation folder, or a folder of them (one per camera: photos of one
     sheet from several views, each validated with its own camera profile).
@@ -96,6 +128,7 @@ def read_sheet(folder: Path) -> Sheet:
                 parts[0].design,
                 parts[0].design_dir,
                 {"file": str(folder), "sha256": None, "parts": [s.validation for s in parts]},
+                np.concatenate([s.film for s in parts]),
             )
     vj = folder / "validation.json"
     if folder.is_file():
@@ -113,12 +146,13 @@ def read_sheet(folder: Path) -> Sheet:
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
             q, d, s = (np.asarray(z[f"fused_{k}"], np.float64) for k in ("q_mm", "d_mm", "sigma_mm"))
+            film = np.asarray(z["fused_film"], np.int64) if "fused_film" in z.files else None
     except (KeyError, ValueError, OSError, zipfile.BadZipFile) as exc:
         raise WorkbenchError(f"{npz}: not a landing file ({exc})") from None
     if q.ndim != 2 or q.shape[1:] != (2,) or d.shape != q.shape or s.shape != q.shape[:1]:
         raise WorkbenchError(f"{npz}: fused_q_mm, fused_d_mm (n, 2) and fused_sigma_mm (n,) expected")
-    ok = np.isfinite(q).all(1) & np.isfinite(d).all(1) & np.isfinite(s)
-    q, d, s = q[ok], d[ok], s[ok]
+    if film is not None and film.shape != s.shape:
+        raise WorkbenchError(f"{npz}: fused_film (n,) expected, as fused_sigma_mm")
     design = rep.get("design") or {}
     if not isinstance(design.get("dir"), str):
         raise WorkbenchError(f"{vj}: design.dir: missing")
@@ -131,13 +165,26 @@ def read_sheet(folder: Path) -> Sheet:
     from workbench.design_dir import Design
 
     des = Design(ddir)
-    o = des.frame_offset_mm()
-    comp = des.compensation()
-    # the film point printed at p = q - d landed where this design puts q; on the uncompensated
-    # print, that is x = q - o and it landed at x + d₁(x)
-    p = q - d - o
-    x = q - o
-    landed = x if comp is None else x + comp(x)
+    frames = des.film_frames()
+    if film is None:
+        if len(frames) > 1:
+            raise WorkbenchError(
+                f"{npz}: no film per point (fused_film) for a design of {len(frames)} films: validate it again with "
+                "this version of workbench validate"
+            )
+        film = np.zeros(len(q), np.int64)
+    ok = np.isfinite(q).all(1) & np.isfinite(d).all(1) & np.isfinite(s) & (film >= 0) & (film < len(frames))
+    q, d, s, film = q[ok], d[ok], s[ok], film[ok]
+    comps = des.compensations()
+    p = np.empty_like(q)
+    landed = np.empty_like(q)
+    for k, fr in enumerate(frames):
+        on = film == k
+        # the film point printed at q - d landed where this design puts q; on the film's uncompensated
+        # print, that is x = q - o and it landed at x + d₁(x)
+        x = q[on] - fr.origin_mm
+        p[on] = x - d[on]
+        landed[on] = x if comps is None else x + comps[k](x)
     return Sheet(
         str(folder),
         p,
@@ -146,6 +193,7 @@ def read_sheet(folder: Path) -> Sheet:
         des.info,
         ddir,
         {"file": str(vj), "sha256": hashlib.sha256(vj.read_bytes()).hexdigest()},
+        film,
     )
 
 
@@ -292,148 +340,429 @@ def fit_field(basis: Spline2D, p, d, sigma, lam: float | None = None):
     )
 
 
-def film_mask_mm(design_dir: Path, info: dict, spacing_mm: float):
-    """Points of a regular grid over the uncompensated print that lie on its film; (n, 2) mm."""
+def linear_coef(basis: Spline2D, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """The basis coefficients of the linear field f(x, y) = a + b x + c y (each (2,): its two components).
+
+    Clamped cubic B-splines reproduce linear functions exactly: the coefficient of x is the
+    Greville abscissa of its basis function (the mean of its three inner knots).
+    """
+    gx = (basis.tx[1:-3] + basis.tx[2:-2] + basis.tx[3:-1]) / 3.0
+    gy = (basis.ty[1:-3] + basis.ty[2:-2] + basis.ty[3:-1]) / 3.0
+    X, Y = np.meshgrid(gx, gy, indexing="ij")  # (nx, ny), column i * ny + j
+    return (a[None, :] + X.reshape(-1, 1) * b[None, :] + Y.reshape(-1, 1) * c[None, :]).astype(np.float64)
+
+
+def rigid_coef(basis: Spline2D, t: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Coefficients of the first-order rigid field t + ω J (p - c) (``t``: tx, ty, ω): linear, so exact."""
+    tx, ty, w = t
+    # d = (tx - ω (y - cy), ty + ω (x - cx))
+    a = np.array([tx + w * centre[1], ty - w * centre[0]])
+    return linear_coef(basis, a, np.array([0.0, w]), np.array([-w, 0.0]))
+
+
+def rigid_at(t: np.ndarray, p: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    x = p - centre
+    return np.stack([t[0] - t[2] * x[:, 1], t[1] + t[2] * x[:, 0]], axis=1)
+
+
+def fit_sheets(basis: Spline2D, parts: list, centre: np.ndarray, lam: float | None = None):
+    """One smooth field D and each sheet's placement deviation, fitted to the sheets' points together.
+
+    d_s(p) = D(p) + t_s + ω_s J (p - c), the deviations summing to zero over the sheets. By
+    alternation: D fitted to the points less their sheet's deviation, then each sheet's
+    deviation fitted to its residual (weighted least squares), centred over the sheets; rigid
+    fields lie in the spline's space, so a few rounds converge. The smoothing is chosen by
+    cross-validation on the points less their placements (a sheet's placement is not noise
+    about D, and would over-smooth it).
+
+    Parameters
+    ----------
+    basis : Spline2D
+    parts : list of ((n_s, 2), (n_s, 2), (n_s,)) float
+        Each sheet's points p, displacements d and uncertainties.
+    centre : (2,) float
+        The placements' turning centre, mm.
+    lam : float, optional
+        The smoothing (None: cross-validated).
+
+    Returns
+    -------
+    coef : (nx * ny, 2) float
+        D's coefficients (the sheets' mean placement included).
+    lam : float
+    info : dict
+        As :func:`fit_field`'s, and ``deviation`` (n_sheets, 3): each sheet's tx, ty (mm), ω (rad)
+        about the mean; ``keep`` per point of the concatenation.
+    """
+    n = len(parts)
+    sizes = [len(x[0]) for x in parts]
+    cut = np.cumsum([0, *sizes])
+    p = np.concatenate([x[0] for x in parts])
+    d = np.concatenate([x[1] for x in parts])
+    sig = np.concatenate([x[2] for x in parts])
+    w = 1.0 / np.maximum(sig, MIN_SIGMA_MM) ** 2
+    dev = np.zeros((n, 3))
+    if n == 1:
+        coef, chosen, info = fit_field(basis, p, d, sig, lam)
+        info["deviation"] = dev
+        return coef, chosen, info
+
+    def shifted():
+        return d - np.concatenate([rigid_at(dev[s], parts[s][0], centre) for s in range(n)])
+
+    def alternate(lam_abs):
+        nonlocal dev
+        for _ in range(PLACEMENT_ITERATIONS):
+            coef, _, info = fit_field(basis, p, shifted(), sig, lam_abs)
+            r = shifted() - basis.design(p) @ coef
+            keep = info["keep"]
+            inc = np.array(
+                [
+                    fm.fit_rigid(p[a:b][keep[a:b]], r[a:b][keep[a:b]], w[a:b][keep[a:b]], centre)
+                    if keep[a:b].sum() >= 3
+                    else np.zeros(3)
+                    for a, b in zip(cut[:-1], cut[1:], strict=True)
+                ]
+            )
+            inc -= inc.mean(axis=0)
+            dev = dev + inc
+            # (a turn of ω moves the film by ω r: 1e-5 mm at 500 mm from the centre)
+            if max(np.abs(inc[:, :2]).max(), np.abs(inc[:, 2]).max() * 500.0) < PLACEMENT_TOL_MM:
+                break
+
+    # the placements first, at a middling smoothing (they are the film's largest scale: any smoothing
+    # sees them alike), then the smoothing cross-validated on the points less their placements, and
+    # the placements again at it
+    cv = None
+    if lam is None:
+        alternate(10.0 * float(w.sum()) / np.prod(basis.shape))
+        _, lam, cvinfo = fit_field(basis, p, shifted(), sig, None)
+        cv = cvinfo["cv_rms_mm"]
+    alternate(lam)
+    coef, chosen, info = fit_field(basis, p, shifted(), sig, lam)
+    info["cv_rms_mm"] = cv
+    info["deviation"] = dev
+    return coef, chosen, info
+
+
+def placement_test(m: np.ndarray, dev: np.ndarray, mode: str = "always") -> dict:
+    """Is the sheets' mean placement ``m`` (tx, ty, ω) systematic, beyond their random placements ``dev``?
+
+    The deviations about the mean give the placement's spread: per axis for the shift (both axes
+    pooled, 2 (n - 1) degrees of freedom), and for the turn (n - 1). The mean's standard error is
+    the spread / √n; the shift is systematic when n |m_t|² / (2 s_t²) exceeds F(2, 2 (n - 1)) at
+    PLACEMENT_LEVEL, the turn when n ω² / s_ω² exceeds F(1, n - 1). ``mode``: "always" (the
+    default) compensates the mean, "never" none of it, "auto" what the test finds systematic.
+    """
+    from scipy.stats import f as fisher
+
+    n = len(dev)
+    out: dict = {"sheets": n}
+    if n > 1:
+        st = float(np.sqrt((dev[:, :2] ** 2).sum() / (2 * (n - 1))))
+        sw = float(np.sqrt((dev[:, 2] ** 2).sum() / (n - 1)))
+        ft = n * float(m[0] ** 2 + m[1] ** 2) / (2 * st * st) if st > 0 else np.inf
+        fw = n * float(m[2] ** 2) / (sw * sw) if sw > 0 else np.inf
+        sig_t = bool(ft > fisher.ppf(PLACEMENT_LEVEL, 2, 2 * (n - 1)))
+        sig_w = bool(fw > fisher.ppf(PLACEMENT_LEVEL, 1, n - 1))
+        out.update(
+            spread_mm=st,
+            rotation_spread_deg=float(np.degrees(sw)),
+            standard_error_mm=st / np.sqrt(n),
+            rotation_standard_error_deg=float(np.degrees(sw / np.sqrt(n))),
+            systematic={"shift": sig_t, "rotation": sig_w},
+        )
+    else:
+        sig_t = sig_w = True  # one sheet: nothing to test against
+        out["systematic"] = None
+    on = {"auto": (sig_t, sig_w), "always": (True, True), "never": (False, False)}[mode]
+    out["mode"] = mode
+    out["compensated_parts"] = {"shift": on[0], "rotation": on[1]}
+    return out
+
+
+@dataclass
+class FilmGrid:
+    """A film's points on a 1 mm grid of its uncompensated print, and its outline there.
+
+    Attributes
+    ----------
+    points : (n, 2) float
+        Grid points on the film as printed (this design's outline, mm on the uncompensated print).
+    on_part : callable (m, 2) -> (m,) bool
+        Whether points of the uncompensated print lie on the part (inside the outline the
+        design's map gives the film: where a film point that lands there is decorated).
+    """
+
+    points: np.ndarray
+    on_part: object
+
+
+def film_grids(design_dir: Path, spacing_mm: float = 1.0) -> list[FilmGrid]:
+    """Each film's grid points (as printed) and its outline on the part, on its uncompensated print."""
     from workbench.design_dir import Design
+    from workbench.texture.outline import film_mask
 
     des = Design(design_dir)
-    W, H = des.base_size_mm()
-    xs = np.arange(0.5 * spacing_mm, W, spacing_mm)
-    ys = np.arange(0.5 * spacing_mm, H, spacing_mm)
-    g = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-    if des.alpha is None:
-        return g
-    o = des.frame_offset_mm()
-    ppm = info["print"]["dpi"] / 25.4
-    ij = np.floor((g + o) * ppm).astype(int)
-    h, w = des.alpha.shape
-    inside = (ij[:, 0] >= 0) & (ij[:, 0] < w) & (ij[:, 1] >= 0) & (ij[:, 1] < h)
-    on = np.zeros(len(g), bool)
-    on[inside] = des.alpha[ij[inside, 1], ij[inside, 0]] > 0
-    return g[on]
+    nominal = des.nominal_print_mm()
+    vf = des.vertex_films()
+    films = des.info.get("films") or []
+    ppm = des.info["print"]["dpi"] / 25.4
+    out = []
+    for k, fr in enumerate(des.film_frames()):
+        W, H = fr.size_mm
+        xs = np.arange(0.5 * spacing_mm, fr.print_mm[0], spacing_mm)
+        ys = np.arange(0.5 * spacing_mm, fr.print_mm[1], spacing_mm)
+        # the film as printed, in its own print, then on its uncompensated print
+        g = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2) + fr.corner_mm
+        if des.alpha is not None:
+            ij = np.floor(g * ppm).astype(int)
+            h, w = des.alpha.shape
+            inside = (ij[:, 0] >= 0) & (ij[:, 0] < w) & (ij[:, 1] >= 0) & (ij[:, 1] < h)
+            on = np.zeros(len(g), bool)
+            on[inside] = des.alpha[ij[inside, 1], ij[inside, 0]] > 0
+            g = g[on]
+        # the film's outline on the part: its faces at their nominal (uncompensated) positions
+        faces = des.F if not films else des.F[slice(*films[k]["atlas_faces"])]
+        scale = 4.0  # px per mm of the outline's raster
+        lo = np.array([-20.0, -20.0])
+        shape = (int(np.ceil((H + 40) * scale)), int(np.ceil((W + 40) * scale)))
+        P = (np.where(np.isfinite(nominal), nominal, 0.0) - lo) * scale - 0.5
+        mask = film_mask(P, faces, *shape) if (vf == k).any() else np.ones(shape, bool)
+
+        def on_part(x, mask=mask, lo=lo, scale=scale):
+            ij = np.floor((np.asarray(x) - lo) * scale).astype(int)
+            inside = (ij[:, 0] >= 0) & (ij[:, 0] < mask.shape[1]) & (ij[:, 1] >= 0) & (ij[:, 1] < mask.shape[0])
+            res = np.zeros(len(ij), bool)
+            res[inside] = mask[ij[inside, 1], ij[inside, 0]]
+            return res
+
+        out.append(FilmGrid(g - fr.origin_mm, on_part))
+    return out
 
 
-def calibrate_forming(sheets: list[Sheet]) -> dict:
-    """The forming profile's numbers from the sheets (one film: the print).
+def film_where(sheet: Sheet, k: int, name: str) -> str:
+    return sheet.validation["file"] + (f": film {name}" if len(sheet.design.get("films") or []) > 1 else "")
+
+
+def calibrate_film(sheets: list[Sheet], k: int, size_mm, grid: FilmGrid, placement: str = "always") -> dict:
+    """Film ``k``'s profile from the sheets: its deformation, mean placement, spread and coverage.
 
     Returns
     -------
     dict
-        ``field`` (SplineField), ``smoothing``, ``cv_rms_mm``, ``fit_rms_mm``, ``points``,
-        ``outliers``, ``repeatability_mm`` (None with one sheet), per-sheet figures,
-        ``measured_share`` (and ``measured_share_on_part``), ``extrapolated_share``, ``max_extrapolation_mm``,
-        ``extrapolated_at_mm``, ``grid`` (film points) and ``warnings``.
+        ``field`` (SplineField: the deformation, without the mean placement), ``applied`` (what
+        compensation uses: the field plus the compensated part of the placement), ``placement``
+        (dict), ``smoothing``, ``cv_rms_mm``, ``fit_rms_mm``, ``points``, ``outliers``,
+        ``repeatability_mm`` (the sheets' spread about the profile, None with one sheet),
+        ``deformation_repeatability_mm`` (the same, each sheet's placement removed), ``per_sheet``,
+        ``measured_share`` (of the film as printed), ``measured_share_on_part`` (of the film
+        that lands on the part), ``extrapolated_share`` (and ``_on_part``), ``max_extrapolation_mm``,
+        ``extrapolated_at_mm``, ``grid``, ``measured``, ``points_mm``, ``warnings``, ``size_mm``.
     """
-    ref = sheets[0]
-    from workbench.design_dir import Design
-
-    W, H = Design(ref.design_dir).base_size_mm()
-    for s in sheets:
-        if len(s.p) < MIN_POINTS:
+    W, H = size_mm
+    name = (sheets[0].design.get("films") or [{"name": "film-1"}])[k]["name"]
+    parts = [s.of_film(k) for s in sheets]
+    for s, (p, _, _) in zip(sheets, parts, strict=True):
+        if len(p) < MIN_POINTS:
             where = ""
-            if len(s.p):
-                lo, hi = s.p.min(axis=0), s.p.max(axis=0)
+            if len(p):
+                lo, hi = p.min(axis=0), p.max(axis=0)
                 where = f", all within x {lo[0]:.0f} to {hi[0]:.0f} mm, y {lo[1]:.0f} to {hi[1]:.0f} mm of the print"
             raise WorkbenchError(
-                f"{s.validation['file']}: {len(s.p)} measured points on the film{where}; a forming profile needs at "
+                f"{film_where(s, k, name)}: {len(p)} measured points on the film{where}; a forming profile needs at "
                 f"least {MIN_POINTS}: photograph the sheet from its designed views, or print the calibration film "
                 "(workbench pdf DESIGN --pattern forming)"
             )
     knot = max(KNOT_MM, max(W, H) / KNOTS_ACROSS)
     basis = Spline2D.over((-MARGIN_MM, -MARGIN_MM), (W + MARGIN_MM, H + MARGIN_MM), knot)
-    p = np.concatenate([s.p for s in sheets])
-    d = np.concatenate([s.d for s in sheets])
-    sig = np.concatenate([s.sigma for s in sheets])
-    coef, lam, info = fit_field(basis, p, d, sig)
-    field = basis.field(coef)
-    per_sheet = []
-    fields = []
-    for s in sheets:
-        c, _, si = fit_field(basis, s.p, s.d, s.sigma, lam)
-        fields.append(basis.field(c))
-        r = field(s.p) - s.d
-        per_sheet.append({"points": int(len(s.p)), "residual_rms_mm": float(np.sqrt((r * r).sum(1).mean()))})
-    grid = film_mask_mm(ref.design_dir, ref.design, 1.0)
-    dist, _ = cKDTree(p[info["keep"]]).query(grid)
+    # the placements turn about the measured film's centre
+    allp = np.concatenate([x[0] for x in parts])
+    centre = np.round(allp.mean(axis=0), 3)
+    coef, lam, info = fit_sheets(basis, parts, centre)
+    dev = info["deviation"]
+    keep = info["keep"]
+    g = grid.points
+    dist, _ = cKDTree(allp[keep]).query(g) if len(g) else (np.zeros(0), None)
     measured = dist <= 1.0
-    landed = fm.land(field, grid) if len(grid) else grid
-    on_part = (landed >= 0).all(axis=1) & (landed[:, 0] <= W) & (landed[:, 1] <= H)
-    far = dist > EXTRAPOLATION_MM
-    rep = None
-    if len(sheets) > 1:
-        # the sheets' fields where they were all measured: their spread per axis about the mean
-        common = grid[measured]
-        vals = np.stack([f(common) for f in fields])  # (sheets, n, 2)
-        var = vals.var(axis=0, ddof=1)
-        rep = float(np.sqrt(var.mean()))
-    warnings = []
-    far_share = float(far.mean()) if len(grid) else 0.0
-    at = grid[np.argmax(dist)].tolist() if len(grid) else None
-    if far_share > EXTRAPOLATION_WARN_SHARE:
-        warnings.append(
-            f"{100 * far_share:.1f} % of the film lies more than {EXTRAPOLATION_MM:g} mm from a measured point "
-            f"(up to {dist.max():.1f} mm, at ({at[0]:.0f}, {at[1]:.0f}) mm on the print): the profile extrapolates "
-            "there (linearly); photograph the sheets from more views or print the calibration film"
+    # the mean placement: D's rigid part over the measured film (each grid point alike)
+    D = basis.field(coef)
+    gm = g[measured] if measured.sum() >= 3 else allp[keep]
+    m = fm.fit_rigid(gm, D(gm), np.ones(len(gm)), centre)
+    test = placement_test(m, dev, placement)
+    deform = basis.field(coef - rigid_coef(basis, m, centre))
+    on = test["compensated_parts"]
+    applied_t = np.array([m[0], m[1], 0.0]) * on["shift"] + np.array([0.0, 0.0, m[2]]) * on["rotation"]
+    applied = basis.field(coef - rigid_coef(basis, m - applied_t, centre))
+    pl = {
+        "shift_mm": [float(m[0]), float(m[1])],
+        "rotation_deg": float(np.degrees(m[2])),
+        "centre_mm": centre.tolist(),
+        **test,
+        # each sheet's placement (the mean plus its deviation): what validate's film offset sees of it
+        "per_sheet": [[float(m[0] + v[0]), float(m[1] + v[1]), float(np.degrees(m[2] + v[2]))] for v in dev],
+    }
+    # a profile applies shift and turn together: a part left out is zeroed in what is recorded as applied
+    pl["compensated"] = bool(on["shift"] or on["rotation"])
+    pl["applied"] = {
+        "shift_mm": [float(applied_t[0]), float(applied_t[1])],
+        "rotation_deg": float(np.degrees(applied_t[2])),
+    }
+    per_sheet, fields, fields_deform = [], [], []
+    for (p, d, sg), v in zip(parts, dev, strict=True):
+        c, _, _ = fit_field(basis, p, d, sg, lam)
+        fields.append(basis.field(c))
+        fields_deform.append(basis.field(c - rigid_coef(basis, v, centre)))
+        r = applied(p) - d
+        per_sheet.append(
+            {
+                "points": int(len(p)),
+                "residual_rms_mm": float(np.sqrt((r * r).sum(1).mean())),
+                "placement": {
+                    "shift_mm": [float(m[0] + v[0]), float(m[1] + v[1])],
+                    "rotation_deg": float(np.degrees(m[2] + v[2])),
+                },
+            }
         )
-    dmag = np.linalg.norm(field(grid), axis=1) if len(grid) else np.zeros(1)
+    landed = fm.land(applied, g) if len(g) else g
+    on_part = grid.on_part(landed) if len(g) else np.zeros(0, bool)
+    far = dist > EXTRAPOLATION_MM
+    rep = rep_deform = None
+    if len(sheets) > 1 and measured.any():
+        # the sheets' fields where they were all measured: their spread per axis about the mean
+        common = g[measured]
+        for fs, key in ((fields, "all"), (fields_deform, "deform")):
+            vals = np.stack([f(common) for f in fs])  # (sheets, n, 2)
+            spread = float(np.sqrt(vals.var(axis=0, ddof=1).mean()))
+            if key == "all":
+                rep = spread
+            else:
+                rep_deform = spread
+    warnings = []
+    far_share = float(far.mean()) if len(g) else 0.0
+    far_on_part = float(far[on_part].mean()) if on_part.any() else 0.0
+    at = g[np.argmax(dist)].tolist() if len(g) else None
+    films_of = len(sheets[0].design.get("films") or []) > 1
+    if far_on_part > EXTRAPOLATION_WARN_SHARE:
+        worst = g[on_part][np.argmax(dist[on_part])]
+        warnings.append(
+            ("" if not films_of else f"film {name}: ")
+            + f"{100 * far_on_part:.1f} % of the film that lands on the part lies more than {EXTRAPOLATION_MM:g} mm "
+            f"from a measured point (up to {dist[on_part].max():.1f} mm, at ({worst[0]:.0f}, {worst[1]:.0f}) mm on the "
+            "print): the profile extrapolates there (linearly); photograph the sheets from more views or print the "
+            "calibration film"
+        )
+    dmag = np.linalg.norm(deform(g), axis=1) if len(g) else np.zeros(1)
     return {
-        "field": field,
+        "name": name,
+        "field": deform,
+        "applied": applied,
+        "placement": pl,
         "sheet_fields": fields,
         "smoothing": lam,
-        **{k: v for k, v in info.items() if k != "keep"},
+        **{k2: v for k2, v in info.items() if k2 not in ("keep", "deviation")},
         "repeatability_mm": rep,
+        "deformation_repeatability_mm": rep_deform,
         "per_sheet": per_sheet,
-        "measured_share": float(measured.mean()) if len(grid) else 0.0,
-        # of the film that lands on the part (by the profile, inside the print's rectangle): a film that
-        # slides outwards at the rim puts its outer band beyond the part, where no photo can see it
+        "measured_share": float(measured.mean()) if len(g) else 0.0,
+        # of the film that lands on the part (by the profile, inside the film's outline on the part): a film
+        # that slides outwards at the rim puts its outer band beyond the part, where no photo can see it and
+        # where compensation never looks (it asks which film point lands on each point of the part)
         "measured_share_on_part": float(measured[on_part].mean()) if on_part.any() else 0.0,
+        "on_part_share": float(on_part.mean()) if len(g) else 0.0,
         "extrapolated_share": far_share,
-        "max_extrapolation_mm": float(dist.max()) if len(grid) else None,
+        "extrapolated_share_on_part": far_on_part,
+        "max_extrapolation_mm": float(dist.max()) if len(g) else None,
         "extrapolated_at_mm": at,
         "d_median_mm": float(np.median(dmag)),
         "d_p95_mm": float(np.percentile(dmag, 95)),
         "d_max_mm": float(dmag.max()),
-        "grid": grid,
+        "grid": g,
+        "on_part": grid.on_part,
         "measured": measured,
-        "points_mm": p[info["keep"]],
+        "points_mm": allp[keep],
         "warnings": warnings,
         "size_mm": (W, H),
     }
 
 
+def calibrate_forming(sheets: list[Sheet], placement: str = "always") -> dict:
+    """The forming profile's numbers from the sheets: one :func:`calibrate_film` per film.
+
+    Returns
+    -------
+    dict
+        ``films``: per film, :func:`calibrate_film`'s dict; ``warnings``: all films'.
+    """
+    from workbench.design_dir import Design
+
+    ref = sheets[0]
+    frames = Design(ref.design_dir).film_frames()
+    grids = film_grids(ref.design_dir)
+    films = [calibrate_film(sheets, k, fr.size_mm, grids[k], placement) for k, fr in enumerate(frames)]
+    return {"films": films, "warnings": [w for f in films for w in f["warnings"]]}
+
+
 def profile_picture(result: dict, title: str) -> bytes:
-    """The field over the print: |d| in colour, arrows (magnified), measured blocks and extrapolated film."""
+    """Each film's deformation over its print: |d| in colour, arrows (magnified), the film not measured
+    (shaded) and where the profile extrapolates (dark), the part's outline; one panel per film."""
     from workbench.figures import _figure, figure_png
 
     plt = _figure()
-    W, H = result["size_mm"]
-    xs = np.linspace(0, W, 241)
-    ys = np.linspace(0, H, max(2, int(241 * H / W)))
-    g = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-    d = result["field"](g).reshape(len(ys), len(xs), 2)
-    mag = np.linalg.norm(d, axis=2)
-    fig, ax = plt.subplots(figsize=(9, 6.5 * H / W + 1.4), dpi=110, layout="constrained")
-    im = ax.imshow(mag, extent=(0, W, H, 0), cmap="viridis", origin="upper")
-    fig.colorbar(im, ax=ax, label="|d| (mm): how far the film lands from where the design puts it", shrink=0.8)
-    step = max(1, len(xs) // 24)
-    sub = g.reshape(len(ys), len(xs), 2)[::step, ::step].reshape(-1, 2)
-    dv = d[::step, ::step].reshape(-1, 2)
-    top = float(np.abs(dv).max()) or 1.0
-    k = 0.8 * W / 24 / top
-    ax.quiver(sub[:, 0], sub[:, 1], dv[:, 0] * k, dv[:, 1] * k, angles="xy", scale_units="xy", scale=1, color="white")
-    # the film nothing measured (grey), and where the profile extrapolates (darker)
-    dist, _ = cKDTree(result["points_mm"]).query(g)
-    dist = dist.reshape(len(ys), len(xs))
-    shade = np.zeros((len(ys), len(xs), 4))
-    shade[..., 3] = np.where(dist > EXTRAPOLATION_MM, 0.6, np.where(dist > 1.0, 0.3, 0.0))
-    ax.imshow(shade, extent=(0, W, H, 0), origin="upper")
-    ax.set_xlim(0, W)
-    ax.set_ylim(H, 0)
-    ax.set_xlabel("print x (mm)")
-    ax.set_ylabel("print y (mm)")
-    ax.set_title(
-        title + f"\narrows x {k:.1f}; shaded: not measured ({100 * (1 - result['measured_share']):.1f} % of the film), "
-        f"dark: more than {EXTRAPOLATION_MM:g} mm from a measurement ({100 * result['extrapolated_share']:.1f} %)",
-        fontsize=8,
+    films = result["films"]
+    n = len(films)
+    cols = min(n, 2)
+    rows = (n + cols - 1) // cols
+    aspect = max(f["size_mm"][1] / f["size_mm"][0] for f in films)
+    width = 9.0 if n == 1 else 6.0 * cols
+    fig, axes = plt.subplots(rows, cols, figsize=(width, rows * (width / cols) * 0.75 * aspect + 1.2), dpi=110,
+                             layout="constrained", squeeze=False)  # fmt: skip
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    for ax, res in zip(axes.ravel(), films, strict=False):
+        W, H = res["size_mm"]
+        xs = np.linspace(0, W, 241)
+        ys = np.linspace(0, H, max(2, int(241 * H / W)))
+        g = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+        d = res["field"](g).reshape(len(ys), len(xs), 2)
+        mag = np.linalg.norm(d, axis=2)
+        # (the colours and arrows of the film on the part: beyond it the field only extrapolates)
+        part = res["on_part"](g).reshape(len(ys), len(xs)) if "on_part" in res else np.ones(mag.shape, bool)
+        top = float(mag[part].max()) if part.any() else float(mag.max())
+        im = ax.imshow(mag, extent=(0, W, H, 0), cmap="viridis", origin="upper", vmin=0.0, vmax=top or None)
+        fig.colorbar(im, ax=ax, label="|d| (mm)", shrink=0.8)
+        step = max(1, len(xs) // 24)
+        sub = g.reshape(len(ys), len(xs), 2)[::step, ::step].reshape(-1, 2)
+        dv = d[::step, ::step].reshape(-1, 2)
+        on = part[::step, ::step].reshape(-1)
+        k = 0.8 * W / 24 / (top or 1.0)
+        ax.quiver(sub[on, 0], sub[on, 1], dv[on, 0] * k, dv[on, 1] * k, angles="xy", scale_units="xy", scale=1,
+                  color="white")  # fmt: skip
+        # the film nothing measured (grey), where the profile extrapolates (darker), and beyond the
+        # film's outline on the part (white: compensation never looks there)
+        dist, _ = cKDTree(res["points_mm"]).query(g)
+        dist = dist.reshape(len(ys), len(xs))
+        shade = np.zeros((len(ys), len(xs), 4))
+        shade[..., 3] = np.where(dist > EXTRAPOLATION_MM, 0.6, np.where(dist > 1.0, 0.3, 0.0))
+        shade[~part] = [1.0, 1.0, 1.0, 0.85]
+        ax.imshow(shade, extent=(0, W, H, 0), origin="upper")
+        ax.set_xlim(0, W)
+        ax.set_ylim(H, 0)
+        ax.set_xlabel("print x (mm)")
+        ax.set_ylabel("print y (mm)")
+        pl = res["placement"]
+        ax.set_title(
+            (f"{res['name']}: " if n > 1 else "")
+            + f"arrows x {k:.1f}; measured {100 * res['measured_share_on_part']:.1f} % of the film on the part "
+            f"({100 * res['measured_share']:.1f} % of the film)\nmean placement ({pl['shift_mm'][0]:.3f}, "
+            f"{pl['shift_mm'][1]:.3f}) mm, {pl['rotation_deg']:.4f}°, "
+            + ("compensated" if pl["compensated"] else "not compensated")
+            + " (not in the field shown)",
+            fontsize=8,
+        )
+    fig.suptitle(
+        title + f"\nshaded: the film not measured; dark: more than {EXTRAPOLATION_MM:g} mm from a measurement; "
+        "white: beyond the film's outline on the part",
+        fontsize=9,
     )
     return figure_png(fig)

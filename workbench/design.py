@@ -155,6 +155,8 @@ class Film:
         Its faces in the atlas mesh.
     within : float
         Share of its surface within [0.8, max_stretch].
+    compensation : Compensation or None
+        Its pre-compensation for a forming profile (its own print's frame offset, base size, moves).
     """
 
     name: str
@@ -169,6 +171,7 @@ class Film:
     atlas_px: tuple[int, int] = (0, 0)
     atlas_faces: tuple[int, int] = (0, 0)
     within: float = float("nan")
+    compensation: object = None  # workbench.forming.Compensation, with a forming profile
 
 
 # free pixels between films on the atlas, mm
@@ -262,8 +265,12 @@ def _read_faces(path, n_faces: int, where: str) -> np.ndarray:
     return idx
 
 
-def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
-    """The design with several films: views on the whole part, one map and print per film, their atlas."""
+def _design_films(job: Job, V, F, images, say, t, forming_profile: Path | None = None) -> DesignResult:
+    """The design with several films: views on the whole part, one map and print per film, their atlas.
+
+    With a forming profile, each film's map is pre-compensated by that film's field (films are
+    formed one by one, each on its own print) before its print is synthesised.
+    """
     t0 = time.perf_counter()
     cameras, visibilities, status = assign_job_views(job, V, F, images)
     t["views"] = time.perf_counter() - t0
@@ -271,6 +278,18 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
     warnings: list[str] = []
     regions = _film_regions(job, V, F, status, say, warnings)
     t["flatten"] = time.perf_counter() - t0
+    comps: list = [None] * len(regions)
+    if forming_profile is not None:
+        t0 = time.perf_counter()
+        prof = read_checked_profile(job, forming_profile, [r[2] for r in regions], [r[0] for r in regions])
+        for k, (name, faces, flat, material, outline) in enumerate(regions):
+            flat, comps[k] = compensate_flat(job, flat, prof, k, forming_profile)
+            regions[k] = (name, faces, flat, material, outline)
+            say(
+                f"film {name}: forming profile {forming_profile.name}: print moved by up to "
+                f"{comps[k].moved_mm.max():.3f} mm, frame grown by {list(comps[k].frame_offset_px)} px"
+            )
+        t["forming compensation"] = time.perf_counter() - t0
     owned = status != 0
     film_of_face = np.full(len(F), -1)
     for k, (_, faces, _, _, _) in enumerate(regions):
@@ -281,7 +300,7 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
     t0 = time.perf_counter()
     films: list[Film] = []
     scales = np.zeros(len(job.views))
-    for name, faces, flat, material, outline in regions:
+    for (name, faces, flat, material, outline), comp in zip(regions, comps, strict=True):
         grid = PrintGrid(flat.width_mm, flat.height_mm, job.print.dpi)
         check_print_fits(grid, f"{job.path}: [print].dpi (film {name})")
         sub_status = status[faces][flat.parent]
@@ -289,14 +308,17 @@ def _design_films(job: Job, V, F, images, say, t) -> DesignResult:
             grid, flat.uv, flat.V, flat.F, sub_status, visibilities, images, job.print.background
         )
         rows, cols = grid.shape
-        if outline == "rectangle":
+        if outline == "rectangle" and comp is None:
             inside = np.ones((rows, cols), bool)
         else:
+            # (a compensated film's outline is its own, pre-distorted)
             inside = film_mask(grid.to_pixels(flat.uv), flat.F, rows, cols)
         ok = ~flat.collapsed
         hi = material.max_stretch or np.inf
         within = float(flat.area_3d[ok & (flat.stretch >= 0.8) & (flat.stretch <= hi)].sum() / flat.area_3d.sum())
-        films.append(Film(name, faces, flat, grid, rgb, owner, inside, material, outline, within=within))
+        films.append(
+            Film(name, faces, flat, grid, rgb, owner, inside, material, outline, within=within, compensation=comp)
+        )
         scales = np.maximum(scales, s)
 
     # the atlas: every film's print on one sheet, every film's mesh (seams repeated)
@@ -402,26 +424,23 @@ def check_print_fits(grid: PrintGrid, where: str) -> None:
 
 
 def profile_identity(job: Job) -> dict:
-    """What a forming profile must have been measured for, known before the map: mesh, dpi, films."""
-    return {
+    """What a forming profile must have been measured for, known before the map: mesh, dpi (and, with
+    one film, its name; several films are named once split)."""
+    out = {
         "mesh_sha256": hashlib.sha256(job.object.mesh.read_bytes()).hexdigest(),
         "dpi": float(job.print.dpi),
-        "films": ["film-1"],
     }
+    if job.films is None:
+        out["films"] = ["film-1"]
+    return out
 
 
-def compensate_flat(job: Job, V: np.ndarray, flat: FlattenResult, path: Path):
-    """The flat layout pre-compensated by the forming profile at ``path`` (checked against this job)."""
+def compensate_flat(job: Job, flat: FlattenResult, prof: dict, film: int, path: Path):
+    """One film's flat layout pre-compensated by film ``film`` of the forming profile ``prof`` (read from
+    ``path``; its print size checked against this film's)."""
     from workbench import forming as fm
 
-    prof = fm.read_profile(path)
-    identity = {
-        **profile_identity(job),
-        "width_mm": round(float(flat.width_mm), 6),
-        "height_mm": round(float(flat.height_mm), 6),
-    }
-    fm.check_profile_for(prof, identity, job.object.material.name, str(path))
-    comp = fm.compensate_layout(flat.uv, flat.width_mm, flat.height_mm, job.print.dpi, fm.profile_field(prof))
+    comp = fm.compensate_layout(flat.uv, flat.width_mm, flat.height_mm, job.print.dpi, fm.profile_field(prof, film))
     comp.base = (flat.width_mm, flat.height_mm)
     comp.profile = path
     comp.round = int(prof["design"].get("round", 1))
@@ -431,6 +450,24 @@ def compensate_flat(job: Job, V: np.ndarray, flat: FlattenResult, path: Path):
     sigma[ok] = flat_to_surface_singular_values(flat.V, flat.F[ok], comp.uv)
     new = replace(flat, uv=comp.uv, width_mm=comp.width_mm, height_mm=comp.height_mm, sigma=sigma)
     return new, comp
+
+
+def read_checked_profile(job: Job, path: Path, films: list[FlattenResult] | None = None, names=None) -> dict:
+    """The forming profile at ``path``, checked against this job: mesh, dpi, material; once the films'
+    maps are known (``films``, ``names``), their names and uncompensated print sizes."""
+    from workbench import forming as fm
+
+    prof = fm.read_profile(path)
+    identity = profile_identity(job)
+    if films is not None:
+        identity["films"] = list(names)
+        if job.films is None:
+            identity["width_mm"] = round(float(films[0].width_mm), 6)
+            identity["height_mm"] = round(float(films[0].height_mm), 6)
+        else:
+            identity["film_sizes_mm"] = [[round(float(f.width_mm), 6), round(float(f.height_mm), 6)] for f in films]
+    fm.check_profile_for(prof, identity, job.object.material.name, str(path))
+    return prof
 
 
 def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: Path | None = None) -> DesignResult:
@@ -464,19 +501,11 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     t["read"] = time.perf_counter() - t0
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")
 
-    if job.films is not None:
-        if forming_profile is not None:
-            raise WorkbenchError(
-                f"{forming_profile}: a forming profile compensates a design of one film; this job has [[films]]"
-            )
-        return _design_films(job, V, F, images, say, t)
     if forming_profile is not None:
         # before the minutes of work: a profile of another part, dpi or material
-        from workbench import forming as fm
-
-        fm.check_profile_for(
-            fm.read_profile(forming_profile), profile_identity(job), job.object.material.name, str(forming_profile)
-        )
+        read_checked_profile(job, forming_profile)
+    if job.films is not None:
+        return _design_films(job, V, F, images, say, t, forming_profile)
 
     t0 = time.perf_counter()
     auto = job.object.corners == "auto"
@@ -498,7 +527,8 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     compensation = None
     if forming_profile is not None:
         t0 = time.perf_counter()
-        flat, compensation = compensate_flat(job, V, flat, forming_profile)
+        prof = read_checked_profile(job, forming_profile, [flat], ["film-1"])
+        flat, compensation = compensate_flat(job, flat, prof, 0, forming_profile)
         t["forming compensation"] = time.perf_counter() - t0
         say(
             f"forming profile {forming_profile.name}: print moved by up to {compensation.moved_mm.max():.3f} mm, "

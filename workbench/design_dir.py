@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -38,6 +39,39 @@ def design_files(directory: Path) -> list[Path]:
     names = folder_manifest(directory)
     files = [directory / n for n in names] or [p for pat in _DESIGN_FILES for p in sorted(directory.glob(pat))]
     return [directory, *files, *([directory / MANIFEST] if names else [])]
+
+
+def fm_sizes(info: dict) -> list[tuple[float, float]]:
+    from workbench.forming import film_base_sizes
+
+    return film_base_sizes(info)
+
+
+@dataclass(frozen=True)
+class FilmFrame:
+    """One film's uncompensated print in a design's print.
+
+    Attributes
+    ----------
+    name : str
+    origin_mm : (2,) float
+        Its uncompensated print's top-left corner in the design's print, mm (x right, y down).
+    size_mm : (2,) float
+        Its uncompensated print's width and height, mm: what its forming field is defined on.
+    corner_mm : (2,) float
+        Its own print's top-left corner in the design's print (the atlas place; 0 for one film), mm.
+    print_mm : (2,) float
+        Its own print's width and height (compensated: grown), mm.
+    index : int or None
+        Its index in design.json's ``films`` (None: a design of one film).
+    """
+
+    name: str
+    origin_mm: np.ndarray
+    size_mm: tuple
+    corner_mm: np.ndarray
+    print_mm: tuple
+    index: int | None
 
 
 class Design:
@@ -131,18 +165,38 @@ class Design:
             vertex_film=self.vertex_film(),
         )
 
-    def frame_offset_mm(self) -> np.ndarray:
-        """Where the uncompensated print's top-left corner is in this print, mm (0 unless compensated)."""
+    def film_frames(self) -> list[FilmFrame]:
+        """Where each film's uncompensated print sits in this design's print (one film: the print).
+
+        Forming fields are defined per film on its uncompensated print (x right, y down from its
+        top-left corner): this print's point q is that film's ``q - origin_mm``.
+        """
         p = self.info["print"]
-        return np.asarray(p.get("frame_offset_px", [0, 0]), dtype=np.float64) * 25.4 / p["dpi"]
+        mm = 25.4 / p["dpi"]
+        films = self.info.get("films")
+        sizes = fm_sizes(self.info)
+        if not films:
+            off = np.asarray(p.get("frame_offset_px", [0, 0]), dtype=np.float64) * mm
+            return [FilmFrame("film-1", off, sizes[0], np.zeros(2), (p["width_mm"], p["height_mm"]), None)]
+        out = []
+        for k, f in enumerate(films):
+            r0, c0 = f["atlas_px"]
+            off = np.asarray((f.get("forming") or {}).get("frame_offset_px", [0, 0]), dtype=np.float64)
+            corner = np.array([c0, r0], dtype=np.float64) * mm
+            out.append(FilmFrame(f["name"], corner + off * mm, sizes[k], corner, (f["width_mm"], f["height_mm"]), k))
+        return out
 
-    def base_size_mm(self) -> tuple[float, float]:
-        """The uncompensated print's width and height, mm: what forming fields are defined on."""
-        base = (self.info.get("forming") or {}).get("base_print") or self.info["print"]
-        return float(base["width_mm"]), float(base["height_mm"])
+    def film_of_print_mm(self, q: np.ndarray) -> np.ndarray:
+        """The film (0-based) whose print holds each point ``q`` of this print (mm, x right, y down); -1: none."""
+        q = np.asarray(q, dtype=np.float64).reshape(-1, 2)
+        out = np.full(len(q), -1)
+        for k, fr in enumerate(self.film_frames()):
+            inside = ((q >= fr.corner_mm) & (q <= fr.corner_mm + np.asarray(fr.print_mm))).all(axis=1)
+            out[inside & (out < 0)] = k
+        return out
 
-    def compensation(self):
-        """The forming field this design pre-compensates for (its ``forming-profile.json``), or None."""
+    def compensations(self) -> list | None:
+        """Each film's forming field this design pre-compensates for (its ``forming-profile.json``), or None."""
         rec = self.info.get("forming")
         if not rec:
             return None
@@ -151,22 +205,50 @@ class Design:
         path = self.dir / "forming-profile.json"
         if not path.is_file() or fm.file_sha256(path) != rec["profile"]["sha256"]:
             raise WorkbenchError(f"{path}: missing or not the profile design.json records; rerun workbench design")
-        return fm.profile_field(fm.read_profile(path))
+        fields = fm.profile_fields(fm.read_profile(path))
+        if len(fields) != len(self.film_frames()):
+            raise WorkbenchError(
+                f"{path}: {len(fields)} films, the design {len(self.film_frames())}; rerun workbench design"
+            )
+        return fields
+
+    def vertex_films(self) -> np.ndarray:
+        """The film (0-based) of each vertex of decorated.obj (all 0 with one film)."""
+        vf = self.vertex_film()
+        return np.zeros(len(self.V), int) if vf is None else vf
 
     def nominal_print_mm(self) -> np.ndarray:
-        """Each vertex's design print position in the uncompensated print (mm, x right, y down):
+        """Each vertex's design print position on its film's uncompensated print (mm, x right, y down):
         where the conformal map puts it (for a compensated design: x + d(x), x its print point)."""
         p = np.stack([self.flat[:, 0], self.info["print"]["height_mm"] - self.flat[:, 1]], axis=1)
-        x = p - self.frame_offset_mm()
-        comp = self.compensation()
-        return x if comp is None else x + comp(x)
+        vf = self.vertex_films()
+        comps = self.compensations()
+        out = np.full_like(p, np.nan)
+        for k, fr in enumerate(self.film_frames()):
+            on = vf == k
+            x = p[on] - fr.origin_mm
+            out[on] = x if comps is None else x + comps[k](x)
+        return out
 
     def formed_flat(self, forming) -> np.ndarray:
-        """The flat layout (y up, mm) a film formed by ``forming`` has: each vertex shows the film
-        point that lands at its nominal position, p with p + d(p) = nominal."""
+        """The flat layout (y up, mm) films formed by ``forming`` (one field per film; or one field, for a
+        design of one film) have: each vertex shows the film point that lands at its nominal position,
+        p with p + d(p) = nominal."""
         from workbench import forming as fm
 
-        p = fm.invert(forming, self.nominal_print_mm()) + self.frame_offset_mm()
+        fields = forming if isinstance(forming, (list, tuple)) else [forming]
+        frames = self.film_frames()
+        if len(fields) != len(frames):
+            raise WorkbenchError(f"{len(fields)} forming fields for a design of {len(frames)} films")
+        nominal = self.nominal_print_mm()
+        vf = self.vertex_films()
+        p = np.full_like(nominal, np.nan)
+        for k, fr in enumerate(frames):
+            on = vf == k
+            p[on] = fm.invert(fields[k], nominal[on]) + fr.origin_mm
+        # (a vertex on no film, if any: where it is)
+        off = ~np.isfinite(p).all(axis=1)
+        p[off] = np.stack([self.flat[off, 0], self.info["print"]["height_mm"] - self.flat[off, 1]], axis=1)
         return np.stack([p[:, 0], self.info["print"]["height_mm"] - p[:, 1]], axis=1)
 
     def vertex_film(self) -> np.ndarray | None:

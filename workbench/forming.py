@@ -1,9 +1,11 @@
 """How a formed film really lands: displacement fields d(p) on the print.
 
-Forming moves the film point printed at p (print mm of the uncompensated design, x right,
+Forming moves the film point printed at p (print mm of the uncompensated film, x right,
 y down from the trim's top-left corner) to the surface point the design's map puts at
 ``q = p + d(p)``. The conformal map is the hypothesis d = 0; a forming law (for the tests'
 truth) or a measured forming profile (``workbench calibrate forming``) is a smooth d.
+A design of several films has one field per film, each on that film's own print (films
+are formed one by one: each deforms and is placed on its own).
 
 Every field here is a callable ``field(p) -> d``, ``p`` and ``d`` of shape (n, 2) float64,
 mm. Two kinds:
@@ -127,6 +129,8 @@ class SplineField:
         return BSpline.design_matrix(x, self.tx, 3), BSpline.design_matrix(y, self.ty, 3)
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
+        if not len(np.asarray(p).reshape(-1, 2)):
+            return np.zeros((0, 2))
         Bx, By = self.basis(p)
         Bx, By = Bx.toarray(), By.toarray()
         # d_c(p) = Σ_ij Bx_i(x) By_j(y) c_ijc
@@ -189,6 +193,45 @@ class Placement:
         return (p - c) @ R.T + c - p + np.asarray(self.shift_mm)
 
 
+def fit_rigid(p: np.ndarray, r: np.ndarray, w: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The rigid motion (small rotation) that best explains the displacements ``r`` at ``p``.
+
+    Weighted least squares of r ≈ t + ω J (p - c), J the quarter turn (x, y) → (-y, x):
+    a film placement (shift and turn about ``centre``) to first order.
+
+    Parameters
+    ----------
+    p, r : (n, 2) float
+        Points and their displacements, mm.
+    w : (n,) float
+        Weights (1 / variance).
+    centre : (2,) float
+        The turn's centre, mm.
+
+    Returns
+    -------
+    (3,) float
+        tx, ty (mm) and ω (rad).
+    """
+    x = np.asarray(p, np.float64) - centre
+    # rows of the 2n x 3 design matrix, x and y components interleaved
+    A = np.zeros((len(x), 2, 3))
+    A[:, 0, 0] = 1.0
+    A[:, 1, 1] = 1.0
+    A[:, 0, 2] = -x[:, 1]
+    A[:, 1, 2] = x[:, 0]
+    ww = np.repeat(np.asarray(w, np.float64), 2)
+    A2 = A.reshape(-1, 3)  # (2n, 3)
+    N = A2.T @ (ww[:, None] * A2)
+    return np.linalg.solve(N + 1e-12 * np.trace(N) * np.eye(3), A2.T @ (ww * np.asarray(r, np.float64).reshape(-1)))
+
+
+def rigid_field(t: np.ndarray, centre) -> Placement:
+    """``fit_rigid``'s (tx, ty, ω) as a field (the exact turn, not its first order: rotations here are
+    thousandths of a radian, where both agree to 1e-6 of the film's size)."""
+    return Placement((float(t[0]), float(t[1])), float(t[2]), (float(centre[0]), float(centre[1])))
+
+
 def zero_field(p):
     return np.zeros((len(np.asarray(p).reshape(-1, 2)), 2))
 
@@ -241,7 +284,12 @@ def file_sha256(path) -> str:
 
 
 def read_profile(path, where: str | None = None) -> dict:
-    """A forming profile (``workbench calibrate forming``), checked; its films' fields as ``SplineField``."""
+    """A forming profile (``workbench calibrate forming``), checked; each film's applied field as ``_field``.
+
+    A film's applied field is its deformation (``field``) plus its systematic placement when the
+    profile compensates it (``placement.compensated``); a profile without ``placement`` (written
+    before placements were separated) applies its field as it is.
+    """
     where = where or str(path)
     try:
         prof = json.loads(open(path, "rb").read())
@@ -259,33 +307,76 @@ def read_profile(path, where: str | None = None) -> dict:
     for k, f in enumerate(films):
         if not isinstance(f, dict) or "field" not in f or not isinstance(f.get("name"), str):
             raise WorkbenchError(f"{where}: films[{k}]: name and field expected")
-        f["_field"] = SplineField.from_dict(f["field"], f"{where}: films[{k}]")
+        field = SplineField.from_dict(f["field"], f"{where}: films[{k}]")
+        pl = f.get("placement")
+        if pl is not None:
+            # what the profile compensates of the sheets' mean placement (calibrate forming's test)
+            try:
+                shift = tuple(float(x) for x in pl["applied"]["shift_mm"])
+                turn = float(np.radians(float(pl["applied"]["rotation_deg"])))
+                centre = tuple(float(x) for x in pl["centre_mm"])
+            except (KeyError, TypeError, ValueError):
+                shift, turn, centre = (), 0.0, ()
+            if len(shift) != 2 or len(centre) != 2 or not np.isfinite([*shift, turn, *centre]).all():
+                raise WorkbenchError(
+                    f"{where}: films[{k}].placement: applied.shift_mm [x, y], applied.rotation_deg and centre_mm "
+                    "[x, y] (finite numbers) expected"
+                )
+            if shift != (0.0, 0.0) or turn != 0.0:
+                field = Sum(field, Placement(shift, turn, centre))
+        f["_field"] = field
     for key in ("design", "material", "process"):
         if not isinstance(prof.get(key), dict):
             raise WorkbenchError(f"{where}: {key}: missing (an object)")
     return prof
 
 
-def profile_field(prof: dict, film: int = 0) -> SplineField:
+def profile_field(prof: dict, film: int = 0):
+    """Film ``film``'s applied field: what compensation and ``render --forming PROFILE`` use."""
     return prof["films"][film]["_field"]
 
 
+def profile_fields(prof: dict) -> list:
+    """Every film's applied field, in the profile's film order."""
+    return [f["_field"] for f in prof["films"]]
+
+
+def film_base_sizes(info: dict) -> list[tuple[float, float]]:
+    """Each film's uncompensated print size, mm, from design.json: what its forming field is defined on.
+
+    One film: the print (``forming.base_print`` when compensated); several: each film's record
+    (its ``forming.base_print`` when compensated).
+    """
+    films = info.get("films")
+    if not films:
+        base = (info.get("forming") or {}).get("base_print") or info["print"]
+        return [(float(base["width_mm"]), float(base["height_mm"]))]
+    out = []
+    for f in films:
+        base = (f.get("forming") or {}).get("base_print") or f
+        out.append((float(base["width_mm"]), float(base["height_mm"])))
+    return out
+
+
 def design_identity(info: dict) -> dict:
-    """What a forming profile must match in a design: its mesh, print rectangle, dpi, films and material.
+    """What a forming profile must match in a design: its mesh, print rectangle, dpi and films.
 
     ``info`` is design.json; for a compensated design the uncompensated print's size
-    (``forming.base_print``) is the one the profile's field is defined on.
+    (``forming.base_print``) is the one the profile's field is defined on; with several
+    films, each film's uncompensated print (``film_sizes_mm``).
     """
-    forming = info.get("forming") or {}
-    base = forming.get("base_print") or info["print"]
     mesh = next((i for i in info.get("inputs", [])), {})
-    return {
+    sizes = [[round(w, 6), round(h, 6)] for w, h in film_base_sizes(info)]
+    out = {
         "mesh_sha256": mesh.get("sha256"),
-        "width_mm": round(float(base["width_mm"]), 6),
-        "height_mm": round(float(base["height_mm"]), 6),
         "dpi": float(info["print"]["dpi"]),
         "films": [f["name"] for f in info.get("films", [])] or ["film-1"],
     }
+    if info.get("films"):
+        out["film_sizes_mm"] = sizes
+    else:
+        out["width_mm"], out["height_mm"] = sizes[0]
+    return out
 
 
 @dataclass
@@ -354,14 +445,15 @@ def compensate_layout(uv_mm: np.ndarray, width_mm: float, height_mm: float, dpi:
 
 
 def check_profile_for(prof: dict, identity: dict, material: str | None, where: str) -> None:
-    """A profile measured for this design (mesh, print rectangle, dpi, films) and material; one line otherwise."""
+    """A profile measured for this design (mesh, print rectangle or films' prints, dpi, films) and material;
+    one line otherwise. Keys missing from ``identity`` are not checked (the sizes, before the map is known)."""
     d = prof["design"]
     for key, what in (
         ("mesh_sha256", "mesh"),
         ("dpi", "dpi"),
         ("films", "films"),
     ):
-        if d.get(key) != identity[key]:
+        if key in identity and d.get(key) != identity[key]:
             raise WorkbenchError(
                 f"{where}: measured for another design: its {what} is {d.get(key)!r}, this job's {identity[key]!r}"
             )
@@ -373,6 +465,15 @@ def check_profile_for(prof: dict, identity: dict, material: str | None, where: s
                 f"{where}: measured for another design: its print is {d.get('width_mm')} x {d.get('height_mm')} mm, "
                 f"this job's {identity['width_mm']} x {identity['height_mm']} mm"
             )
+    if "film_sizes_mm" in identity:
+        got = d.get("film_sizes_mm")
+        for k, (name, want) in enumerate(zip(identity["films"], identity["film_sizes_mm"], strict=True)):
+            have = got[k] if isinstance(got, list) and k < len(got) and isinstance(got[k], list) else [np.nan] * 2
+            if not (len(have) == 2 and all(abs(float(a) - b) <= 1e-3 for a, b in zip(have, want, strict=True))):
+                raise WorkbenchError(
+                    f"{where}: measured for another design: its film {name} is {have[0]} x {have[1]} mm, "
+                    f"this job's {want[0]} x {want[1]} mm"
+                )
     got = (prof.get("material") or {}).get("name")
     if material is not None and got != material:
         raise WorkbenchError(f"{where}: measured for material {got!r}, this job's is {material!r}")

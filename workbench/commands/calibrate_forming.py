@@ -27,6 +27,15 @@ def add_parser(s) -> None:
     f.add_argument("-o", "--output", metavar="PROFILE.json", required=True)
     f.add_argument("--material", help="the film (default: the design's material)")
     f.add_argument("--process", default="thermoforming", help="how the sheets were formed (default thermoforming)")
+    f.add_argument(
+        "--placement",
+        choices=("always", "never", "auto"),
+        default="always",
+        help="the sheets' mean film placement (shift and turn) in the print: always (default: unbiased, it adds "
+        "its standard error to every part); never (the forming station's registration corrects it); auto (when "
+        "the sheets show it beyond their own random placement, F test at 95 %%). Each sheet's own placement is "
+        "never part of the profile",
+    )
     f.add_argument("-q", "--quiet", action="store_true")
     f.set_defaults(run=run_forming)
 
@@ -40,41 +49,62 @@ def run_forming(args) -> int:
     inputs = [*folders, *(f / "validation.json" for f in folders), *(f / "landing.npz" for f in folders)]
     inputs += design_files(sheets[0].design_dir)
     check_outputs(out, out.with_suffix(".png"), inputs=inputs)
-    res = calibrate_forming(sheets)
+    res = calibrate_forming(sheets, args.placement)
     info = sheets[0].design
     base = (info.get("forming") or {}).get("base_print") or info["print"]
     material = dict(info.get("material") or {})
     if args.material:
         material["name"] = args.material
-    film = {
-        "name": "film-1",
-        "field": res["field"].to_dict(),
-        "smoothing": res["smoothing"],
-        "points": res["points"],
-        "outliers": res["outliers"],
-        "cv_rms_mm": res["cv_rms_mm"],
-        "fit_rms_mm": res["fit_rms_mm"],
-        "repeatability_mm": res["repeatability_mm"],
-        "measured_share": res["measured_share"],
-        "measured_share_on_part": res["measured_share_on_part"],
-        "extrapolated_share": res["extrapolated_share"],
-        "max_extrapolation_mm": res["max_extrapolation_mm"],
-        "d_median_mm": res["d_median_mm"],
-        "d_p95_mm": res["d_p95_mm"],
-        "d_max_mm": res["d_max_mm"],
-    }
+    design_films = info.get("films") or []
+    films = []
+    for k, r in enumerate(res["films"]):
+        films.append(
+            {
+                "name": r["name"],
+                "base_print": {"width_mm": r["size_mm"][0], "height_mm": r["size_mm"][1]},
+                **({"material": design_films[k].get("material")} if design_films else {}),
+                "field": r["field"].to_dict(),
+                "placement": r["placement"],
+                **{
+                    key: r[key]
+                    for key in (
+                        "smoothing",
+                        "points",
+                        "outliers",
+                        "cv_rms_mm",
+                        "fit_rms_mm",
+                        "repeatability_mm",
+                        "deformation_repeatability_mm",
+                        "measured_share",
+                        "measured_share_on_part",
+                        "on_part_share",
+                        "extrapolated_share",
+                        "extrapolated_share_on_part",
+                        "max_extrapolation_mm",
+                        "d_median_mm",
+                        "d_p95_mm",
+                        "d_max_mm",
+                    )
+                },
+                "per_sheet": r["per_sheet"],
+            }
+        )
     profile = {
         "kind": "forming profile",
         "note": (
-            "d(p), mm on the uncompensated print (x right, y down from its top-left corner): the film point printed "
-            "at p lands where the design's conformal map puts p + d(p); repeatability_mm: the sheets' spread about "
-            "the profile (standard deviation per axis, the random part no compensation removes)"
+            "per film, d(p), mm on the film's uncompensated print (x right, y down from its top-left corner): the "
+            "film point printed at p lands where the design's conformal map puts p + d(p) (field: the deformation, "
+            "the sheets' mean placement taken out); placement: the sheets' mean film placement (shift, turn about "
+            "centre_mm), its standard error and spread, and what of it the profile compensates (applied); "
+            "repeatability_mm: the sheets' spread about the profile (standard deviation per axis, the random part "
+            "no compensation removes; deformation_repeatability_mm: the same, each sheet's placement taken out); "
+            "measured_share_on_part: the share of the film that lands on the part within 1 mm of a measured point"
         ),
         "design": {
             **fm.design_identity(info),
             "job_sha256": (info.get("job") or {}).get("sha256"),
             "name": (info.get("job") or {}).get("name"),
-            "base_print": {"width_mm": base["width_mm"], "height_mm": base["height_mm"]},
+            **({} if design_films else {"base_print": {"width_mm": base["width_mm"], "height_mm": base["height_mm"]}}),
             "round": 1 + int((info.get("forming") or {}).get("round", 0)),
         },
         "material": material,
@@ -83,30 +113,49 @@ def run_forming(args) -> int:
             {
                 "validation": recorded_path(Path(s.validation["file"]), out.parent),
                 "sha256": s.validation["sha256"],
-                **ps,
+                "points": int(len(s.p)),
             }
-            for s, ps in zip(sheets, res["per_sheet"], strict=True)
+            for s in sheets
         ],
-        "films": [film],
+        "films": films,
         "warnings": res["warnings"],
         "picture": out.with_suffix(".png").name,
         "software": {"name": "workbench", "version": __version__},
     }
-    rep = res["repeatability_mm"]
+    reps = [r["repeatability_mm"] for r in res["films"] if r["repeatability_mm"] is not None]
     pic = profile_picture(
         res,
-        f"{out.name}: forming profile from {len(sheets)} sheet(s); |d| p95 {res['d_p95_mm']:.2f} mm"
-        + (f", repeatability {rep:.3f} mm" if rep is not None else ""),
+        f"{out.name}: forming profile from {len(sheets)} sheet(s)"
+        + (f", repeatability {max(reps):.3f} mm" if reps else ""),
     )
     write_files({out: (json.dumps(profile, indent=1) + "\n").encode(), out.with_suffix(".png"): pic}, inputs=inputs)
     for w in res["warnings"]:
         log(f"warning: {w}")
-    log(
-        f"{len(sheets)} sheet(s), {res['points']} points ({res['outliers']} outliers dropped): |d| median "
-        f"{res['d_median_mm']:.3f} p95 {res['d_p95_mm']:.3f} max {res['d_max_mm']:.3f} mm; cross-validated RMS "
-        f"{res['cv_rms_mm']:.4f} mm; measured {100 * res['measured_share']:.1f} % of the film "
-        f"({100 * res['measured_share_on_part']:.1f} % of what lands on the part); repeatability "
-        + (f"{rep:.4f} mm" if rep is not None else "not measured (one sheet)")
-        + f"; wrote {out} and {out.with_suffix('.png')}"
-    )
+    for r in res["films"]:
+        pl, rep = r["placement"], r["repeatability_mm"]
+        se = pl.get("standard_error_mm")
+        log(
+            (f"{r['name']}: " if len(res["films"]) > 1 else "")
+            + f"{len(sheets)} sheet(s), {r['points']} points ({r['outliers']} outliers dropped): deformation |d| "
+            f"median {r['d_median_mm']:.3f} p95 {r['d_p95_mm']:.3f} max {r['d_max_mm']:.3f} mm; cross-validated RMS "
+            f"{r['cv_rms_mm']:.4f} mm; measured {100 * r['measured_share_on_part']:.1f} % of the film that lands on "
+            f"the part ({100 * r['measured_share']:.1f} % of the film as printed); mean placement "
+            f"({pl['shift_mm'][0]:.3f}, {pl['shift_mm'][1]:.3f}) mm, {pl['rotation_deg']:.4f}°"
+            + (f" ± {se:.3f} mm" if se is not None else "")
+            + (
+                ""
+                if pl.get("systematic") is None
+                else ", beyond the sheets' random placement"
+                if pl["systematic"]["shift"]
+                else ", within the sheets' random placement"
+            )
+            + (", compensated" if pl["compensated"] else ", not compensated")
+            + "; repeatability "
+            + (
+                f"{rep:.4f} mm per axis ({r['deformation_repeatability_mm']:.4f} mm without the placements)"
+                if rep is not None
+                else "not measured (one sheet)"
+            )
+        )
+    log(f"wrote {out} and {out.with_suffix('.png')}")
     return 0

@@ -86,6 +86,20 @@ def film_records(result) -> list[dict]:
     return records
 
 
+def base_print(comp, px_per_mm: float) -> dict:
+    """The uncompensated print a compensation started from (what the profile's field is defined on)."""
+    return {
+        "width_mm": comp.base[0],
+        "height_mm": comp.base[1],
+        "width_px": int(np.ceil(comp.base[0] * px_per_mm - 1e-9)),
+        "height_px": int(np.ceil(comp.base[1] * px_per_mm - 1e-9)),
+    }
+
+
+def moved_summary(moved: np.ndarray) -> dict:
+    return {"median": float(np.median(moved)), "p95": float(np.percentile(moved, 95)), "max": float(moved.max())}
+
+
 def print_with_alpha(rgb: np.ndarray, film: np.ndarray) -> np.ndarray:
     """The print as RGB when the film is the whole rectangle, else RGBA, transparent outside the film."""
     return rgb if film.all() else np.dstack([rgb, np.where(film, 255, 0).astype(np.uint8)])
@@ -174,12 +188,15 @@ def run(args) -> int:
         "views": stats,
         "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
-    comp = result.compensation
+    comps = [f.compensation for f in result.films] if result.films else [result.compensation]
+    comp = comps[0]
     if comp is not None:
         # the profile travels with the design (render, validate and a second round read it)
         data = Path(comp.profile).read_bytes()
         files_forming = {out / "forming-profile.json": data}
-        info["print"]["frame_offset_px"] = list(comp.frame_offset_px)
+        moved = np.concatenate([c.moved_mm for c in comps])
+        if not result.films:
+            info["print"]["frame_offset_px"] = list(comp.frame_offset_px)
         info["forming"] = {
             "profile": {
                 "file": "forming-profile.json",
@@ -187,22 +204,16 @@ def run(args) -> int:
                 "source": recorded_path(Path(comp.profile), out),
             },
             "round": comp.round,
-            "base_print": {
-                "width_mm": comp.base[0],
-                "height_mm": comp.base[1],
-                "width_px": int(np.ceil(comp.base[0] * grid.px_per_mm - 1e-9)),
-                "height_px": int(np.ceil(comp.base[1] * grid.px_per_mm - 1e-9)),
-            },
-            "frame_offset_px": list(comp.frame_offset_px),
-            "moved_mm": {
-                "median": float(np.median(comp.moved_mm)),
-                "p95": float(np.percentile(comp.moved_mm, 95)),
-                "max": float(comp.moved_mm.max()),
-            },
+            "moved_mm": moved_summary(moved),
             "note": "each print pixel p shows the surface point where the profile says p lands: the design's map "
             "composed with the profile; the uncompensated print's pixel (i, j) is this print's "
-            "(i + frame_offset_px[1], j + frame_offset_px[0])",
+            "(i + frame_offset_px[1], j + frame_offset_px[0])"
+            + ("; with several films, each film's own print and its films[k].forming" if result.films else ""),
         }
+        if not result.films:
+            info["forming"].update(
+                base_print=base_print(comp, grid.px_per_mm), frame_offset_px=list(comp.frame_offset_px)
+            )
     else:
         files_forming = {}
     # with several films, each film's name at its centre on views.png and stretch.png
@@ -258,6 +269,14 @@ def run(args) -> int:
     files.update(files_forming)
     if result.films:
         info["films"] = film_records(result)
+        for rec, f in zip(info["films"], result.films, strict=True):
+            if f.compensation is not None:
+                # each film's print grew on its own: where its uncompensated print's corner went
+                rec["forming"] = {
+                    "base_print": base_print(f.compensation, grid.px_per_mm),
+                    "frame_offset_px": list(f.compensation.frame_offset_px),
+                    "moved_mm": moved_summary(f.compensation.moved_mm),
+                }
         info["seams"] = {"length_mm": result.seams["length_mm"], "inside_a_view_mm": result.seams["in_view_mm"]}
         for f in result.films:
             files[out / f"print-{f.name}.png"] = png_bytes(print_with_alpha(f.rgb, f.film), grid.dpi)

@@ -182,8 +182,9 @@ def film_outline(path: Path) -> np.ndarray | None:
     return V[loops[0], :2]
 
 
-def film_pages(directory: Path, info: dict) -> list[FilmPage]:
-    """One page per film of a design with several: its print, outline and label."""
+def film_pages(directory: Path, info: dict, pattern: np.ndarray | None = None) -> list[FilmPage]:
+    """One page per film of a design with several: its print, outline and label; with ``pattern``
+    (the atlas's calibration pattern, RGB), each film's part of it instead of its print."""
     pages = []
     films = info["films"]
     for k, f in enumerate(films):
@@ -196,6 +197,10 @@ def film_pages(directory: Path, info: dict) -> list[FilmPage]:
         img = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
         if img is None or img.ndim != 3 or img.shape[:2] != size:
             raise WorkbenchError(f"{png}: missing, unreadable or not {size[1]} x {size[0]} px; rerun workbench design")
+        if pattern is not None:
+            r0, c0 = f["atlas_px"]
+            img = np.dstack([cv2.cvtColor(pattern[r0 : r0 + size[0], c0 : c0 + size[1]], cv2.COLOR_RGB2BGR),
+                             img[:, :, 3] if img.shape[2] == 4 else np.full(size, 255, np.uint8)])  # fmt: skip
         outline = film_outline(flat)
         if outline is None:
             raise WorkbenchError(f"{flat}: missing; rerun workbench design")
@@ -218,14 +223,15 @@ def calibration_design(directory: Path, info: dict, film, out: Path) -> tuple[np
     import json
 
     from workbench.export import png_bytes
-    from workbench.printing.pattern import PATTERN, dot_pattern
+    from workbench.printing.pattern import dot_pattern, pattern_for
 
     pr = info["print"]
-    rgb = dot_pattern(pr["height_px"], pr["width_px"], pr["dpi"])
+    definition = pattern_for(pr["height_px"], pr["width_px"], pr["dpi"])
+    rgb = dot_pattern(pr["height_px"], pr["width_px"], pr["dpi"], definition)
     png = png_bytes(rgb if film is None else np.dstack([rgb, np.where(film, 255, 0).astype(np.uint8)]), pr["dpi"])
     full = json.loads((directory / "design.json").read_bytes())
     full["pattern"] = {
-        **PATTERN,
+        **definition,
         "note": "the forming calibration film (workbench pdf --pattern forming): this print replaces the design's; "
         "the map, views and fixture are the design's",
         "design_json_sha256": hashlib.sha256((directory / "design.json").read_bytes()).hexdigest(),
@@ -236,6 +242,14 @@ def calibration_design(directory: Path, info: dict, film, out: Path) -> tuple[np
         if p.is_file() and p.name not in ("print.png", "design.json", ".workbench-files"):
             files[out / p.name] = p.read_bytes()
     files[out / "print.png"] = png
+    for f in info.get("films") or []:
+        # each film's print: its part of the atlas's pattern, its own outline
+        r0, c0 = f["atlas_px"]
+        own = cv2.imread(str(directory / f["print"]), cv2.IMREAD_UNCHANGED)
+        if own is None or own.shape[:2] != (f["height_px"], f["width_px"]):
+            raise WorkbenchError(f"{directory / f['print']}: missing or not the film's print; rerun workbench design")
+        crop = rgb[r0 : r0 + f["height_px"], c0 : c0 + f["width_px"]]
+        files[out / f["print"]] = png_bytes(crop if own.shape[2] == 3 else np.dstack([crop, own[:, :, 3]]), pr["dpi"])
     files[out / "design.json"] = (json.dumps(full, indent=2) + "\n").encode()
     return rgb, files
 
@@ -271,16 +285,16 @@ def run(args) -> int:
     # the design folder's files and the profiles: `-o DESIGN/print.png` would destroy the design
     inputs = [*design_files(Path(args.design)), *(Path(p) for p in (args.printer_profile, args.output_profile) if p)]
     check_outputs(out, inputs=inputs)
+    pattern = None
     if args.pattern:
-        if info.get("films"):
-            raise WorkbenchError(f"{args.design}: --pattern forming: a design of one film (this one has several)")
         calib_dir = out.with_name(out.stem + "-design")
         check_output_dir(calib_dir, inputs)
         rgb, folder = calibration_design(Path(args.design), info, film, calib_dir)
+        pattern = rgb
         write_folder(calib_dir, folder, inputs)
         log(f"wrote {calib_dir}/: the design with the calibration film as its print (validate photos against it)")
     if info.get("films"):
-        pages = film_pages(Path(args.design), info)
+        pages = film_pages(Path(args.design), info, pattern)
     else:
         outline = None if args.no_cut else film_outline(Path(args.design) / "flat.obj")
         pages = [FilmPage(rgb, pr["width_mm"], pr["height_mm"], outline, film)]

@@ -332,36 +332,47 @@ BYTES_PER_PIXEL_MITSUBA = 400
 
 
 def forming_from(args, design: Design):
-    """The forming field ``--forming`` and ``--forming-random-mm`` ask for, and its truth for PHOTO.json.
+    """The forming fields ``--forming`` and ``--forming-random-mm`` ask for (one per film), and their truth
+    for PHOTO.json.
 
-    The field is defined on the uncompensated print of the design (``Design.base_size_mm``).
+    Each film's field is defined on its uncompensated print (``Design.film_frames``): a law's u, v
+    run across each film's own print; a profile gives one field per film. The random placement is
+    drawn per film (films are formed one by one), the first film's as a design of one film's.
     Returns (None, None) without either option.
     """
     from workbench import forming as fm
 
     if args.forming is None and not args.forming_random_mm:
         return None, None
-    size = design.base_size_mm()
-    record: dict = {"law": args.forming, "defined_on": "the uncompensated print, mm (x right, y down)"}
-    fields = []
+    frames = design.film_frames()
+    record: dict = {"law": args.forming, "defined_on": "each film's uncompensated print, mm (x right, y down)"}
+    fields = [[] for _ in frames]
     if args.forming is not None:
         if args.forming.lower().endswith(".json"):
             prof = fm.read_profile(Path(args.forming), f"--forming {args.forming}")
-            fields.append(fm.profile_field(prof))
+            got = fm.profile_fields(prof)
+            if len(got) != len(frames):
+                raise WorkbenchError(
+                    f"--forming {args.forming}: a profile of {len(got)} film(s), the design has {len(frames)}"
+                )
+            for k, f in enumerate(got):
+                fields[k].append(f)
             record["profile_sha256"] = fm.file_sha256(args.forming)
         else:
             try:
-                fields.append(fm.parse_law(args.forming, size))
+                for k, fr in enumerate(frames):
+                    fields[k].append(fm.parse_law(args.forming, fr.size_mm))
             except WorkbenchError as exc:
                 raise UsageError(str(exc)) from None
     if args.forming_random_mm:
         rng = np.random.default_rng([int(args.seed), 20])
-        shift = rng.normal(0.0, args.forming_random_mm, 2)
-        fields.append(fm.Placement(tuple(shift), 0.0, (0.5 * size[0], 0.5 * size[1])))
+        shifts = rng.normal(0.0, args.forming_random_mm, (len(frames), 2))
+        for k, fr in enumerate(frames):
+            fields[k].append(fm.Placement(tuple(shifts[k]), 0.0, (0.5 * fr.size_mm[0], 0.5 * fr.size_mm[1])))
         record["random_mm"] = args.forming_random_mm
-        record["random_shift_mm"] = shift.tolist()
-    field = fields[0] if len(fields) == 1 else fm.Sum(fields[0], fields[1])
-    return field, record
+        record["random_shift_mm"] = shifts[0].tolist() if len(frames) == 1 else shifts.tolist()
+    out = [f[0] if len(f) == 1 else fm.Sum(f[0], f[1]) for f in fields]
+    return out, record
 
 
 def check_render_fits(width: int, height: int, supersample: int | None, renderer: str = "workbench") -> None:

@@ -19,6 +19,30 @@ PATTERN = {
 }
 
 
+def pattern_for(rows: int, cols: int, dpi: float, definition: dict = PATTERN) -> dict:
+    """The pattern's definition for a print of ``rows`` x ``cols`` px at ``dpi``: its dots scaled up
+    where validate's analysis grid is coarser than they are.
+
+    validate measures the landing on the print reduced to at most ``MAX_GRID_PX`` pixels (a
+    large print or a sheet of several films: a whole factor coarser); a dot must span at least
+    a grid pixel there, or the flow sees no texture. The density falls with the square of the
+    scale, so the pattern keeps its look at the grid's resolution.
+    """
+    from workbench.validate.dense import MAX_GRID_PX
+
+    factor = max(1, int(np.ceil(np.sqrt(rows * cols / MAX_GRID_PX))))
+    grid_mm = 25.4 / dpi * factor
+    scale = max(1.0, grid_mm / definition["radius_mm"][0])
+    if scale == 1.0:
+        return dict(definition)
+    return {
+        **definition,
+        "radius_mm": [round(r * scale, 4) for r in definition["radius_mm"]],
+        "density_per_mm2": round(definition["density_per_mm2"] / scale**2, 5),
+        "scaled": f"x {scale:.3g}: validate's analysis grid of this print has {grid_mm:.3g} mm pixels",
+    }
+
+
 def dot_pattern(rows: int, cols: int, dpi: float, definition: dict = PATTERN) -> np.ndarray:
     """The pattern on a print of ``rows`` x ``cols`` px at ``dpi``; (rows, cols, 3) uint8 RGB.
 

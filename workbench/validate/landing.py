@@ -15,18 +15,123 @@ import hashlib
 import io
 import zipfile
 
+import cv2
 import numpy as np
 
-from workbench.validate.dense import DenseResult, PrintGrid
+from workbench.validate.dense import MEASURED, REGISTRATION_BLUR_PX, DenseResult, PrintGrid
 
 SPACING_MM = 1.0  # block of the landing grid, print mm
 MIN_BLOCK_SHARE = 0.25  # a block is measured when this share of its pixels measures the full vector
 # a pixel's flow is kept when its uncertainty (print mm) is at most this: the landing is a
 # calibration, it wants the well-textured pixels only
 MAX_SIGMA_MM = 0.05
+# The flow of the dense field sees the print in place of the photo where the photo is not
+# scored (no motion there), and its patches and smoothing drag the motion towards none over
+# about 15 analysis-grid pixels from what is scored (the law's truth against the landing: biased
+# by 0.03 to 0.2 mm median there, at 100 and 300 dpi alike). The landing refines that flow by
+# Lucas-Kanade whose windows hold the scored pixels only, and keeps a pixel whose window is at
+# least this much scored (its uncertainty grows as the window shrinks).
+LK_WINDOW_PX = 5.0  # Gaussian sigma of the refinement's window, grid px
+LK_NORM_PX = 6.0  # window of the local exposure normalisation, grid px (the flow's)
+LK_ITERATIONS = 5
+LK_DAMPING = 0.2  # Levenberg-Marquardt damping, relative to the window's gradient energy
+MAX_REFINE_PX = 1.5  # farther from the flow than this, the refinement is not trusted
+MIN_WINDOW_SHARE = 0.5
 
 
-def photo_landing(dr: DenseResult, grid: PrintGrid) -> dict:
+def masked_normalise(gray: np.ndarray, w: np.ndarray, sigma: float) -> np.ndarray:
+    """``gray`` less its local mean, over its local contrast, both weighted by ``w`` (H, W) in [0, 1]."""
+    sw = cv2.GaussianBlur(w, (0, 0), sigma) + 1e-6
+    m = cv2.GaussianBlur(gray * w, (0, 0), sigma) / sw
+    d = gray - m
+    s = np.sqrt(cv2.GaussianBlur(d * d * w, (0, 0), sigma) / sw)
+    # (a floor on the contrast, as the flow's: flat areas stay flat instead of amplifying noise)
+    return d / np.maximum(s, 6.0)
+
+
+def refine_flow(
+    reference: np.ndarray, photo: np.ndarray, scored: np.ndarray, flow_px: np.ndarray, blur_px: float, scale: float
+):
+    """The dense field's flow refined where the photo is scored, by Lucas-Kanade on scored pixels alone.
+
+    Both images are smoothed as the flow smoothed them (to the photo's resolution where it is
+    coarser than the grid), and the print also by the photo's own blur, so that the print
+    predicts the photo; the steps are damped where a window's texture leaves a direction
+    undetermined (Levenberg-Marquardt), and a pixel the refinement moves more than
+    ``MAX_REFINE_PX`` from the flow is not trusted (neither says where it is).
+
+    Parameters
+    ----------
+    reference, photo : (H, W, 3) uint8
+        The print on the analysis grid and the photo warped onto it.
+    scored : (H, W) bool
+        Where the photo is measured.
+    flow_px : (H, W, 2) float
+        Misregistration m, grid px: the photo shows at y what the print has at y - m.
+    blur_px : float
+        The photo's blur on the grid relative to the print (Gaussian sigma).
+    scale : float
+        Photo pixels per grid pixel.
+
+    Returns
+    -------
+    m : (H, W, 2) float32
+        The refined misregistration, grid px (NaN where not trusted).
+    share : (H, W) float32
+        The share of each pixel's window that is scored.
+    """
+    reg = max(REGISTRATION_BLUR_PX, REGISTRATION_BLUR_PX / max(scale, 1e-3))
+    P = cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    F = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    P = cv2.GaussianBlur(P, (0, 0), float(np.hypot(reg, max(blur_px, 0.0))))
+    F = cv2.GaussianBlur(F, (0, 0), reg)
+    w = scored.astype(np.float32)
+    Fn = masked_normalise(F, w, LK_NORM_PX)
+    H, W = w.shape
+    jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
+    g0 = -np.nan_to_num(flow_px.astype(np.float32))  # print(y + g) ≈ photo(y)
+    g = g0.copy()
+
+    def win(a):
+        return cv2.GaussianBlur(a, (0, 0), LK_WINDOW_PX)
+
+    share = win(w)
+    for _ in range(LK_ITERATIONS):
+        Pw = cv2.remap(P, jj + g[..., 0], ii + g[..., 1], cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+        Pn = masked_normalise(Pw, w, LK_NORM_PX)
+        gx = cv2.Scharr(Pn, cv2.CV_32F, 1, 0) / 32.0
+        gy = cv2.Scharr(Pn, cv2.CV_32F, 0, 1) / 32.0
+        r = (Pn - Fn) * w
+        a11, a12, a22 = win(w * gx * gx), win(w * gx * gy), win(w * gy * gy)
+        b1, b2 = win(gx * r), win(gy * r)
+        # damped: a direction the window's texture does not determine barely moves
+        mu = LK_DAMPING * (a11 + a22) + 1e-6
+        a11, a22 = a11 + mu, a22 + mu
+        det = a11 * a22 - a12 * a12
+        dx = -(a22 * b1 - a12 * b2) / det
+        dy = -(a11 * b2 - a12 * b1) / det
+        n = np.maximum(1.0, np.hypot(dx, dy))  # at most a pixel a step (the linearisation's reach)
+        g[..., 0] += dx / n
+        g[..., 1] += dy / n
+    m = -g
+    m[np.hypot(*(g - g0).transpose(2, 0, 1)) > MAX_REFINE_PX] = np.nan
+    return m, share
+
+
+def film_of_face(info: dict, n_faces: int) -> np.ndarray | None:
+    """With several films, the film (0-based) of each face of decorated.obj (design.json's ``films``'
+    ``atlas_faces``); None for a design of one film."""
+    films = info.get("films")
+    if not films:
+        return None
+    out = np.full(n_faces, -1, np.int32)
+    for k, f in enumerate(films):
+        lo, hi = f["atlas_faces"]
+        out[lo:hi] = k
+    return out
+
+
+def photo_landing(dr: DenseResult, grid: PrintGrid, face_film: np.ndarray | None = None, scale: float = 1.0) -> dict:
     """One photo's landing on the blocks of the print grid.
 
     Parameters
@@ -35,6 +140,11 @@ def photo_landing(dr: DenseResult, grid: PrintGrid) -> dict:
         The photo's dense field (:func:`workbench.validate.dense.analyse`).
     grid : PrintGrid
         The print's analysis grid.
+    face_film : (#F,) int, optional
+        With several films, the film of each face (:func:`film_of_face`): each block then says
+        which film it is on (``film``), since each film has its own forming field.
+    scale : float
+        Photo pixels per grid pixel (:func:`workbench.validate.dense.warp_to_print`).
 
     Returns
     -------
@@ -42,13 +152,22 @@ def photo_landing(dr: DenseResult, grid: PrintGrid) -> dict:
         ``block`` (n,) int: block index (row-major over blocks of ``SPACING_MM``); ``q_mm``
         (n, 2): where the block's film landed, print mm (x right, y down); ``d_mm`` (n, 2): its
         displacement, print mm; ``sigma_mm`` (n,): standard uncertainty of each component,
-        print mm; ``blocks`` (2,): blocks per row and per column.
+        print mm; ``blocks`` (2,): blocks per row and per column; with ``face_film``, ``film`` (n,)
+        int: the film under the block's measured pixels.
     """
     b = max(1, int(round(SPACING_MM * grid.px_per_mm)))
     rows, cols = dr.texture.shape
     with np.errstate(invalid="ignore", divide="ignore"):
         sigma = dr.sigma_mm / grid.surface_per_print  # surface mm to print mm
-    finite = np.isfinite(dr.flow_px[..., 0]) & np.isfinite(dr.flow_px[..., 1])
+    flow = dr.flow_px
+    if getattr(dr, "state", None) is not None and getattr(dr, "warped", None) is not None:
+        scored = np.isin(dr.state, MEASURED)
+        flow, share = refine_flow(grid.reference, dr.warped, scored, dr.flow_px, float(dr.blur_px or 0.0), scale)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            # a window cut short by what is not scored holds fewer pixels: less certain
+            sigma = sigma / np.sqrt(np.clip(share, MIN_WINDOW_SHARE, 1.0))
+        sigma = np.where(share >= MIN_WINDOW_SHARE, sigma, np.nan)
+    finite = np.isfinite(flow[..., 0]) & np.isfinite(flow[..., 1])
     ok = (dr.texture == 2) & np.isfinite(sigma) & (sigma <= MAX_SIGMA_MM) & finite
     br, bc = rows // b, cols // b
     # pixels per block (row-major over blocks; within one, row-major over its b x b pixels)
@@ -63,12 +182,12 @@ def photo_landing(dr: DenseResult, grid: PrintGrid) -> dict:
     jj = bj[:, None] * b + k[None, :] % b
     w = ok[ii, jj].astype(np.float64)
     y = np.stack([jj + 0.5, ii + 0.5], axis=-1) / grid.px_per_mm
-    m = dr.flow_px[ii, jj].astype(np.float64) / grid.px_per_mm
+    m = np.nan_to_num(flow[ii, jj].astype(np.float64)) / grid.px_per_mm  # (a pixel not kept weighs nothing)
     with np.errstate(invalid="ignore", divide="ignore"):
         q = (y * w[..., None]).sum(axis=1) / n[idx, None]
         d = (m * w[..., None]).sum(axis=1) / n[idx, None]
     s = np.where(ok[ii, jj], sigma[ii, jj], np.nan)
-    return {
+    out = {
         "block": idx.astype(np.int32),
         "q_mm": q,
         "d_mm": d,
@@ -76,6 +195,12 @@ def photo_landing(dr: DenseResult, grid: PrintGrid) -> dict:
         "sigma_mm": np.nanmedian(s, axis=1) if len(idx) else np.zeros(0),
         "blocks": np.array([bc, br], np.int32),
     }
+    if face_film is not None:
+        # films lie ATLAS_GAP_MM (5 mm) apart on the print: a 1 mm block's measured pixels are on one
+        face = grid.face[ii, jj]
+        f = np.where(ok[ii, jj] & (face >= 0), face_film[np.maximum(face, 0)], -1)
+        out["film"] = (f.max(axis=1) if len(idx) else np.zeros(0, np.int64)).astype(np.int32)
+    return out
 
 
 def fuse(landings: list[dict]) -> dict:
@@ -89,6 +214,7 @@ def fuse(landings: list[dict]) -> dict:
             "sigma_mm": np.zeros(0),
         }
     block = np.concatenate([x["block"] for x in ls])
+    film = np.concatenate([x["film"] for x in ls]) if all("film" in x for x in ls) else None
     w = np.concatenate([1.0 / np.maximum(x["sigma_mm"], 1e-6) ** 2 for x in ls])
     q = np.concatenate([x["q_mm"] for x in ls])
     d = np.concatenate([x["d_mm"] for x in ls])
@@ -96,7 +222,11 @@ def fuse(landings: list[dict]) -> dict:
     W = np.bincount(inv, w, len(u))
     out_q = np.stack([np.bincount(inv, w * q[:, k], len(u)) / W for k in range(2)], axis=1)
     out_d = np.stack([np.bincount(inv, w * d[:, k], len(u)) / W for k in range(2)], axis=1)
-    return {"block": u.astype(np.int32), "q_mm": out_q, "d_mm": out_d, "sigma_mm": 1.0 / np.sqrt(W)}
+    out = {"block": u.astype(np.int32), "q_mm": out_q, "d_mm": out_d, "sigma_mm": 1.0 / np.sqrt(W)}
+    if film is not None:
+        out["film"] = np.zeros(len(u), np.int32)
+        out["film"][inv] = film  # (a block is on one film in every photo)
+    return out
 
 
 def summary(landing: dict) -> dict:
@@ -136,12 +266,14 @@ def add_to_report(report: dict, entries: list[dict], out) -> dict:
         if got is None:
             continue
         e["landing"] = {"index": k, **summary(got)}
-        for key in ("block", "q_mm", "d_mm", "sigma_mm"):
-            arrays[f"photo{k}_{key}"] = got[key]
+        for key in ("block", "q_mm", "d_mm", "sigma_mm", "film"):
+            if key in got:
+                arrays[f"photo{k}_{key}"] = got[key]
         arrays["blocks"] = got["blocks"]
     fused = fuse(landings)
-    for key in ("block", "q_mm", "d_mm", "sigma_mm"):
-        arrays[f"fused_{key}"] = fused[key]
+    for key in ("block", "q_mm", "d_mm", "sigma_mm", "film"):
+        if key in fused:
+            arrays[f"fused_{key}"] = fused[key]
     data = npz_bytes(arrays)
     report["landing"] = {
         "file": "landing.npz",
@@ -150,7 +282,8 @@ def add_to_report(report: dict, entries: list[dict], out) -> dict:
         "note": (
             "where the film landed: per block of the print, the film point p = q - d printed there landed where the "
             "design puts q (print mm of this design, x right, y down); d and its standard uncertainty per component "
-            "(sigma), per photo (photoK_*) and fused over the photos (fused_*): what workbench calibrate forming reads"
+            "(sigma), per photo (photoK_*) and fused over the photos (fused_*); with several films, the film (0-based, "
+            "design.json's films) of each block (film): what workbench calibrate forming reads"
         ),
         **summary(fused),
     }

@@ -24,7 +24,7 @@ from workbench.raster import depth_buffer
 from workbench.validate import dense, detection, pictures
 from workbench.validate.colour import photo_colour
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
-from workbench.validate.landing import photo_landing
+from workbench.validate.landing import film_of_face, photo_landing
 from workbench.validate.photo_quality import photo_quality, read_jpeg_quality
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
@@ -350,7 +350,11 @@ def _validate_photo(
     clock.append(time.perf_counter())  # colour
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     # arrays: the command moves them to landing.npz; a photo at fault lands nothing
-    entry["landing"] = None if entry["photo_quality"]["problems"] else photo_landing(dr, grid)
+    entry["landing"] = (
+        None
+        if entry["photo_quality"]["problems"]
+        else photo_landing(dr, grid, film_of_face(design.info, len(design.F)), scale)
+    )
     if not entry["photo_quality"]["problems"]:
         entry["detection_maps"] = {
             "shift_limit_um": detection.to_stored(dr.shift_limit_mm),

@@ -175,6 +175,15 @@ def test_the_rule_never_calls_a_matching_decoration_a_wrong_print():
         entry(tiles=0, misregistration_source="dense", misregistration_mm={"p95": 0.3}), 0.2, 4.0
     )
     assert verdict == "FAIL" and "(dense field) 0.300 mm" in why
+    # a tiles' p95 beyond the tolerance fails the part when two tiles at least are each beyond it
+    # by more than their own uncertainty; one tile of sixteen is one measurement (a glossy sheen
+    # pulled one over a faint logo by 0.32 mm on a perfect part)
+    over = {"median": 0.03, "p95": 0.235, "max": 0.30}
+    e = entry(tiles=16, tiles_examined=46, misregistration_mm=over, misregistration_uncertainty_mm=0.009)
+    verdict, why = rule.photo_verdict(dict(e, tiles_beyond=1), 0.2, 4.0)
+    assert verdict == "PASS" and "in 1 tile only" in why
+    verdict, why = rule.photo_verdict(dict(e, tiles_beyond=2), 0.2, 4.0)
+    assert verdict == "FAIL" and "p95 0.235 mm > tolerance 0.2 mm" in why
 
 
 def checker_rgb(shape=(160, 160), square=8, tint=(180.0, 150.0, 200.0)):

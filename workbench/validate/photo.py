@@ -293,6 +293,8 @@ def _validate_photo(
             "misregistration_uncertainty_mm": float(np.median(sc.sigma_mm)) if len(sc.sigma_mm) else None,
             "misregistration_px": stats(px_mag),
             "tiles": int(len(sc.shift_mm)),
+            # (beyond the tolerance by more than SIGNIFICANCE_Z of their own uncertainty)
+            "tiles_beyond": int((sc.shift_mm - dense.SIGNIFICANCE_Z * sc.sigma_mm > tolerance_mm).sum()),
             "tiles_examined": sc.tiles_examined,
             "ssim": sc.ssim,
             "coverage": sc.coverage,

@@ -31,7 +31,8 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float, max_delta_e: float 
     return {
         "text": (
             f"FAIL when any defect is larger than {max_defect_mm2:g} mm² on the print, or the misregistration "
-            f"p95 exceeds {tolerance_mm:g} mm by more than {z:g} times a measurement's uncertainty (from the tiles; "
+            f"p95 exceeds {tolerance_mm:g} mm by more than {z:g} times a measurement's uncertainty (from the tiles, "
+            f"at least {MIN_TILES_BEYOND} of them and 5 % each beyond it by more than {z:g} times their own; "
             f"with fewer than {MIN_TILES} tiles, from the dense field where it is accurate), or the decoration "
             f"does not match the design (SSIM < {MIN_SSIM}), or the colour "
             f"differs from the design's soft proof by a mean CIEDE2000 above {max_delta_e:g} (the photo corrected "
@@ -61,6 +62,7 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float, max_delta_e: float 
         "colour_tolerance_grey_levels": dense.COLOUR_TOL,
         "significance_z": z,
         "min_tiles": MIN_TILES,
+        "min_tiles_beyond": MIN_TILES_BEYOND,
         "min_dense_windows": MIN_DENSE_WINDOWS,
         "min_ssim": MIN_SSIM,
     }

@@ -362,7 +362,17 @@ def stated_limit(truth: list[dict], vdir: Path, report: dict, index: int = 0) ->
             t["kind"], fp, limit, drop, slide, scratch, t["area_mm2"], float(report.get("max_defect_mm2", 4.0))
         )
         above = above and t["area_mm2"] >= min_area
-        out.append({"above": bool(above), "share_found": round(share, 3)})
+        rec = {"above": bool(above), "share_found": round(share, 3)}
+        if t["kind"] == "bubble" and fp.any():
+            # the part of a slide the photo measures at all (a face it sees at a grazing angle,
+            # or the band along what it sees, measures none): validate reports what it sees
+            seen = fp & (limit < detection.NONE_UM)
+            rec["seen_share"] = round(float(seen.sum() / fp.sum()), 3)
+            if seen.any():
+                ii, jj = np.nonzero(seen)
+                rec["seen_centre_mm"] = [float((jj.mean() + 0.5) / ppm), float((ii.mean() + 0.5) / ppm)]
+                rec["seen_area_mm2"] = float(t["area_mm2"] * seen.sum() / fp.sum())
+        out.append(rec)
     return out
 
 
@@ -390,19 +400,32 @@ def brief(d: dict) -> dict:
     return {k: d.get(k) for k in ("kind", "area_mm2", "centre_mm", "peak_mm", "view")}
 
 
-def match(truth: list[dict], found: list[dict]) -> list[dict]:
-    """Each true defect against the found defect nearest its centre."""
+def match(truth: list[dict], found: list[dict], stated: list[dict] | None = None) -> list[dict]:
+    """Each true defect against the found defect nearest its centre.
+
+    A slide (bubble) is judged against the part of it the photo measures (``stated``'s
+    ``seen_centre_mm`` and ``seen_area_mm2``, where it sees under all of it); the distance to
+    its whole centre and the error against its whole area are kept beside.
+    """
     out = []
-    for t in truth:
-        c = np.asarray(t["centre_mm"], dtype=np.float64)
+    for k, t in enumerate(truth):
+        s = stated[k] if stated is not None and k < len(stated) else {}
+        whole = np.asarray(t["centre_mm"], dtype=np.float64)
+        c = np.asarray(s.get("seen_centre_mm", t["centre_mm"]), dtype=np.float64)
+        area = float(s.get("seen_area_mm2", t["area_mm2"]))
         if not found:
             out.append({"truth": t, "found": None, "distance_mm": None, "area_error": None, "located": False})
             continue
         f = min(found, key=lambda d: np.linalg.norm(np.asarray(d["centre_mm"]) - c))
         dist = float(np.linalg.norm(np.asarray(f["centre_mm"]) - c))
-        err = float(f["area_mm2"] / t["area_mm2"] - 1)
+        err = float(f["area_mm2"] / area - 1)
         ok = dist <= LOCATE_MM and abs(err) <= AREA_SHARE
-        out.append({"truth": t, "found": brief(f), "distance_mm": dist, "area_error": err, "located": ok})
+        rec = {"truth": t, "found": brief(f), "distance_mm": dist, "area_error": err, "located": ok}
+        if "seen_centre_mm" in s:
+            rec["seen_share"] = s["seen_share"]
+            rec["distance_to_whole_mm"] = float(np.linalg.norm(np.asarray(f["centre_mm"]) - whole))
+            rec["area_error_whole"] = float(f["area_mm2"] / t["area_mm2"] - 1)
+        out.append(rec)
     return out
 
 
@@ -436,7 +459,7 @@ def outcome(photo: Photo, entry: dict, truth: list[dict], stated: list[dict] | N
         return "invalid" if below or stated is None else "invalid, above stated limit"
     if v == "PASS":
         return "below stated limit" if below else "escape"
-    if all(m["located"] for m in match(truth, entry.get("defects", []))):
+    if all(m["located"] for m in match(truth, entry.get("defects", []), stated)):
         return "found"
     return "fail, not located, below stated limit" if below else "fail, not located"
 
@@ -515,7 +538,7 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
             for d in entry.get("defects", [])
         ],
         "truth": truth,
-        "match": match(truth, entry.get("defects", [])),
+        "match": match(truth, entry.get("defects", []), stated),
         "false_defects": false_defects(truth, entry.get("defects", []), report.get("max_defect_mm2", 4.0)),
         "detection_limit": find_detection_limit(entry),
         "misregistration_p95_mm": (entry.get("misregistration_mm") or {}).get("p95"),

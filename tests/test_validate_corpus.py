@@ -40,10 +40,6 @@ KNOWN_FAILING = {
     # measured 2026-12-02 on the uncertainty-aware validate (issue 19 in progress)
     "arm-top-perfect-lens-2000x1500-workbench": "soft gradient: INVALID, 'too little texture to measure "
     "misregistration here' (0 tiles, SSIM 0.99): the photo says so rather than a false verdict",
-    "bunny-top-bubble-12mm-1.0-realistic-2000x1500-workbench": "found but not where it is: a quarter of the "
-    "bubble lies over a plain square of the checker, where nothing shows a slide; the region found is 81 mm² of "
-    "113 at 1.1 mm from its centre (the corpus asks 1 mm, 25 %)",
-    "bunny-top-bubble-12mm-1.0-realistic-2000x1500-mitsuba": "as on the workbench renderer: 81 mm² of 113 at 1.1 mm",
     # the 12 Mpx acceptance cases (make bench), measured on the workbench renderer before issue 19's changes
     "face-top-perfect-glossy-lens-4000x3000-workbench": "'the decoration does not match the design (SSIM 0.81, 0 "
     "tiles matched)'; 3 defects > 4 mm², largest 23.7 mm²",

@@ -175,3 +175,29 @@ def test_the_stated_limit_is_a_slide_in_any_direction():
     assert detection.above_limit("scratch", fp, um, drop, **area)[0]
     # all of a 3 mm² dropout found is still under a verdict of 4 mm²
     assert not detection.above_limit("dropout", fp, um, drop, area_mm2=3.0, max_defect_mm2=4.0)[0]
+
+
+def test_a_scratch_found_in_pieces_across_a_checker_is_ink_gone_and_a_glint_is_light():
+    # a checker of 8 px squares (a millimetre at 200 dpi), a line along row 60 blurred by a coarse
+    # photo: its core (rows 59 to 61) takes 0.75 of the step to the film, its flanks 0.4
+    H, W, film = 120, 400, 250.0
+    ii, jj = np.indices((H, W))
+    grey = np.where(((ii // 8) + (jj // 8)) % 2 == 0, 60.0, 200.0).astype(np.float32)
+    pred = np.repeat(grey[..., None], 3, axis=2)
+    share = np.zeros((H, W), np.float32)
+    share[57:64, 20:380] = 0.4
+    share[59:62, 20:380] = 0.75
+    scratch = pred * (1 - share[..., None]) + film * share[..., None]
+    glint = np.where(share[..., None] > 0, np.minimum(0.9 * pred + 60.0 * share[..., None] / 0.75, 255.0), pred)
+    # found in pieces, one per square: at the checker's edges the limit allows for half a
+    # pixel's placement of the edge, and the line is lost there
+    thin = (share > 0) & (np.abs(((jj + 4) % 8) - 4) >= 2)
+    core = share >= 0.5
+    pieces = dense.thin_told(thin, scratch, pred)
+    assert set(np.unique(pieces[thin])) == {3}  # each piece over uniform ink: not told
+    told = dense.thin_told(thin, scratch, pred, core, gap_px=6)
+    assert set(np.unique(told[thin])) == {2}  # one line across the checker: the film shows, ink gone
+    # (its flanks alone keep 0.6 of the ink's contrast: judged on them, the line would be light)
+    assert set(np.unique(dense.thin_told(thin & ~core, scratch, pred, None, gap_px=6)[thin & ~core])) == {1}
+    told = dense.thin_told(thin, glint.astype(np.float32), pred, core, gap_px=6)
+    assert set(np.unique(told[thin])) == {1}  # light added over the ink keeps its variation

@@ -89,6 +89,7 @@ KEPT_TEXTURE = 0.6
 # ... at a contrast of at least this share of the design's (a highlight near clipping compresses it:
 # 0.57 to 1.1 measured)
 KEPT_CONTRAST = 0.4
+MIN_CORE_PX = 10  # a thin line is told light or ink on its core where it holds this many pixels (thin_told)
 # a shift defect's flow must take away this share of the residual over its region (measured: bubbles
 # of 4 to 12 mm on their renders 0.76 to 0.92, the flow over faint dark texture on a perfect part 0.61)
 SHIFT_EXPLAINS = 2.0 / 3.0
@@ -1445,7 +1446,13 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         # one photo cannot tell a highlight that reaches the film's white from ink gone there
         # (a thin line over ink that varies along it is told by that: a glint keeps the ink's
         # variation, a scratch shows the film; only one over uniform ink is left to the lamp)
-        told = thin_told(thin, pho, pred)
+        told = thin_told(thin, pho, pred, alpha >= 0.5, int(round(0.5 * MISSING_GAP_MM * grid.px_per_mm)))
+        # (a line told ink gone stays ink gone where light_or_ink took the region it joins for
+        # light: a scratch across a glossy sheen is one region with it)
+        told_ink = told == 2
+        glossed &= ~told_ink
+        gone |= told_ink
+        colour_bad |= told_ink
         glossed |= told == 1
         sure = sat | glossed
         # the stated limit, honestly: where the surface mirrors the lamp of the photo's sure
@@ -2215,7 +2222,9 @@ def thin_ink_loss(
     return keep[lab], findable, alpha, excess
 
 
-def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarray:
+def thin_told(
+    thin: np.ndarray, photo: np.ndarray, pred: np.ndarray, core: np.ndarray | None = None, gap_px: int = 0
+) -> np.ndarray:
     """Each thin line of film-ward step told as light or as ink gone, where the ink under it varies.
 
     Light added to the ink (a glint along a ridge) keeps the ink's variation along the line:
@@ -2223,12 +2232,21 @@ def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarr
     KEPT_CONTRAST at least), as a highlight over a checker does. Ink that is gone shows the
     film all along it, whatever ink it crosses. Where the ink under the line is uniform (its
     grey levels' spread below LOST_MIN_CONTRAST) nothing tells them apart in one photo.
+    Judged on the line's ``core`` where it holds MIN_CORE_PX: a scratch two photo pixels wide
+    is blurred into its flanks, where the photo keeps most of the ink's variation (a gain of
+    0.4 to 0.6 over a line whose core keeps a quarter), while added light keeps it in its core
+    too.
 
     Parameters
     ----------
     thin : (H, W) bool
         :func:`thin_ink_loss`'s lines.
     photo, pred : (H, W, 3) float32
+    core : (H, W) bool, optional
+        The lines' pixels that take at least half the step to the film.
+    gap_px : int
+        Pieces of line this close are one line (a scratch across a checker is found in pieces,
+        over the dark squares, each over uniform ink; as one it crosses the checker).
 
     Returns
     -------
@@ -2236,12 +2254,20 @@ def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarr
         Per pixel of a line: 1 light, 2 ink gone, 3 not told (uniform ink); 0 off the lines.
     """
     out = np.zeros(thin.shape, np.uint8)
-    n, lab = cv2.connectedComponents(thin.astype(np.uint8), connectivity=8)
+    joined = thin.astype(np.uint8)
+    if gap_px > 0:
+        joined = cv2.dilate(joined, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap_px + 1,) * 2))
+    n, lab = cv2.connectedComponents(joined, connectivity=8)
     if n <= 1:
         return out
-    g_ph = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY)[thin].astype(np.float64)
-    g_pr = cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY)[thin].astype(np.float64)
-    k = lab[thin]
+    use = thin
+    if core is not None:
+        # (a line's core where it has one: MIN_CORE_PX of its pixels; its whole elsewhere)
+        n_core = np.bincount(lab[thin & core], minlength=n)
+        use = thin & (core | (n_core[lab] < MIN_CORE_PX))
+    g_ph = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY)[use].astype(np.float64)
+    g_pr = cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY)[use].astype(np.float64)
+    k = lab[use]
 
     def per(v):
         return np.bincount(k, v, n)
@@ -2258,7 +2284,7 @@ def thin_told(thin: np.ndarray, photo: np.ndarray, pred: np.ndarray) -> np.ndarr
     light = varied & (corr >= KEPT_TEXTURE) & (gain >= KEPT_CONTRAST)
     verdict = np.where(varied, np.where(light, 1, 2), 3).astype(np.uint8)
     verdict[0] = 0
-    out[thin] = verdict[k]
+    out[thin] = verdict[lab[thin]]
     return out
 
 

@@ -1416,7 +1416,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
     ct = colour_test.result()
     alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad = ct[:7]
-    inked, dropout_found, thin, thin_found, thin_excess = ct[7:]
+    inked, dropout_found, thin, thin_found, _ = ct[7:]
     colour = np.where(colour_scored, res, np.nan).astype(np.float32)
     # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
     # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
@@ -1520,11 +1520,6 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
     # (ink that is gone by the raw residual: the shading allowance would explain most of it)
     z_colour = (np.where(missing, res_raw, res) - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
-    # (a scratch by its own test: how far it exceeds what a thin line must, whose limit holds
-    # SIGNIFICANCE_Z of the noise as the colour's does)
-    z_colour = np.where(
-        thin & missing, np.fmax(z_colour, thin_excess / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z), z_colour
-    )
     labels, defects = find_defects(
         shift_bad,
         colour_bad,
@@ -2282,7 +2277,8 @@ def thin_ink_loss(
         Where findable, the share of the step to the film the line takes against its
         surroundings (0 to 1); 0 elsewhere.
     excess : (H, W) float32
-        By how many grey levels the line exceeds what it must (NaN where not findable).
+        By how much the line exceeds what it must, in spreads of the top-hat of the photo's own
+        noise (NaN where not findable): a line's significance beyond SIGNIFICANCE_Z.
     """
     step = film - pred
     size = _length(step)
@@ -2305,11 +2301,11 @@ def thin_ink_loss(
     # the hat's median and spread over the scored print, where lines are a minute share, are
     # that noise's own)
     ref = hat[scored]
+    med, spread = 0.0, 1.0
     if ref.size:
         med = float(np.median(ref))
-        floor = med + SIGNIFICANCE_Z * 1.4826 * float(np.median(np.abs(ref - med)))
-    else:
-        floor = 0.0
+        spread = max(1.4826 * float(np.median(np.abs(ref - med))), NOISE_FLOOR)
+    floor = med + SIGNIFICANCE_Z * spread
     excess = np.where(
         findable, np.minimum(np.minimum(hat - np.maximum(0.5 * size, limit), t - limit), hat - floor), np.nan
     )
@@ -2321,7 +2317,10 @@ def thin_ink_loss(
     span = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
     keep = span >= SCRATCH_MM * px_per_mm
     keep[0] = False
-    return keep[lab], findable, alpha, excess
+    # (its significance in the spreads of the hat itself: the colour's noise is a pixel's, and a
+    # model blurred wider than a slanted photo's sharp direction spreads the hat far more: a
+    # fine checker's squares stood out of it at 4 to 12 noise levels on a perfect part)
+    return keep[lab], findable, alpha, excess / np.float32(spread)
 
 
 def thin_told(

@@ -432,15 +432,17 @@ def match(truth: list[dict], found: list[dict], stated: list[dict] | None = None
     return out
 
 
-def false_defects(truth: list[dict], found: list[dict], max_defect_mm2: float) -> int:
-    """Reported defects over the verdict's area that are none of the true ones (more than 1 mm away from each)."""
+def false_defects(truth: list[dict], found: list[dict], max_defect_mm2: float, stated: list[dict] | None = None) -> int:
+    """Reported defects over the verdict's area that are none of the true ones: more than 1 mm away
+    from each one's centre, and from the centre of the part of it the photo measures (``stated``)."""
+    centres = [np.asarray(t["centre_mm"], dtype=np.float64) for t in truth]
+    centres += [np.asarray(s["seen_centre_mm"], dtype=np.float64) for s in stated or [] if "seen_centre_mm" in s]
     n = 0
     for f in found:
         if f["area_mm2"] <= max_defect_mm2:
             continue
         c = np.asarray(f["centre_mm"], dtype=np.float64)
-        near = [t for t in truth if np.linalg.norm(np.asarray(t["centre_mm"]) - c) <= LOCATE_MM]
-        n += not near
+        n += not any(np.linalg.norm(t - c) <= LOCATE_MM for t in centres)
     return n
 
 
@@ -542,7 +544,7 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
         ],
         "truth": truth,
         "match": match(truth, entry.get("defects", []), stated),
-        "false_defects": false_defects(truth, entry.get("defects", []), report.get("max_defect_mm2", 4.0)),
+        "false_defects": false_defects(truth, entry.get("defects", []), report.get("max_defect_mm2", 4.0), stated),
         "detection_limit": find_detection_limit(entry),
         "misregistration_p95_mm": (entry.get("misregistration_mm") or {}).get("p95"),
         "tiles": entry.get("tiles_matched", entry.get("tiles")),

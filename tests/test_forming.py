@@ -12,6 +12,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from test_films import HAND
 
 from workbench import forming as fm
 from workbench.calibration_forming import Sheet, Spline2D, calibrate_forming, fit_field
@@ -420,17 +421,8 @@ def test_render_forming_moves_the_print_by_the_law_and_records_its_truth(design,
 
 # --- several films: a field per film ----------------------------------------------------------
 
-TWO_FILMS = """
-[[films]]
-name = "logo"
-views = ["logo"]
-outline = "free"
-
-[[films]]
-name = "front"
-views = ["front"]
-outline = "free"
-"""
+# (the default job's two views on a film each, as tests/test_films.py writes them)
+TWO_FILMS = HAND
 
 
 def two_film_job(tmp_path: Path) -> Path:

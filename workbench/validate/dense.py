@@ -1430,7 +1430,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
     ct = colour_test.result()
     alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad = ct[:7]
-    inked, dropout_found, thin, thin_found, _ = ct[7:]
+    inked, dropout_found, thin, thin_found = ct[7:]
     colour = np.where(colour_scored, res, np.nan).astype(np.float32)
     # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
     # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
@@ -1720,8 +1720,6 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
         Where ink that is gone would be found (the detection limit's map).
     thin, thin_found : (H, W) bool
         A scratch's ink gone, and where a scratch would be found (:func:`thin_ink_loss`).
-    thin_excess : (H, W) float32
-        By how many grey levels a scratch's line exceeds what it must (:func:`thin_ink_loss`).
     """
     colour_scored = scored
     # ink missing: the photo matches the bare film's colour, the design does not
@@ -1764,16 +1762,13 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
     # a scratch: ink gone along a line thinner than any shading, highlight or exposure error,
     # judged against its own surroundings, with no tolerance for what is broad
     thin_limit = position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
-    thin, thin_found, thin_alpha, thin_excess = thin_ink_loss(
-        pho, pred, film_pred, colour_scored, px_per_mm, thin_limit
-    )
+    thin, thin_found, thin_alpha = thin_ink_loss(pho, pred, film_pred, colour_scored, px_per_mm, thin_limit)
     gone |= thin
     # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
     alpha = np.maximum(alpha, thin_alpha)
     colour_bad = (colour_scored & (res > colour_limit)) | gone
     return (
         alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad, inked, dropout_found, thin, thin_found,
-        thin_excess,
     )  # fmt: skip
 
 
@@ -2257,7 +2252,7 @@ SCRATCH_MM = 1.5  # ink gone along a line narrower than about half this is a scr
 
 def thin_ink_loss(
     photo: np.ndarray, pred: np.ndarray, film: np.ndarray, scored: np.ndarray, px_per_mm: float, limit: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where a line thinner than a scratch's width steps the photo towards the bare film, over any ink.
 
     t = (photo - pred) · u, u the unit step from the design's colour to the film's: how far
@@ -2290,9 +2285,6 @@ def thin_ink_loss(
     alpha : (H, W) float32
         Where findable, the share of the step to the film the line takes against its
         surroundings (0 to 1); 0 elsewhere.
-    excess : (H, W) float32
-        By how much the line exceeds what it must, in spreads of the top-hat of the photo's own
-        noise (NaN where not findable): a line's significance beyond SIGNIFICANCE_Z.
     """
     step = film - pred
     size = _length(step)
@@ -2331,10 +2323,7 @@ def thin_ink_loss(
     span = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
     keep = span >= SCRATCH_MM * px_per_mm
     keep[0] = False
-    # (its significance in the spreads of the hat itself: the colour's noise is a pixel's, and a
-    # model blurred wider than a slanted photo's sharp direction spreads the hat far more: a
-    # fine checker's squares stood out of it at 4 to 12 noise levels on a perfect part)
-    return keep[lab], findable, alpha, excess / np.float32(spread)
+    return keep[lab], findable, alpha
 
 
 def thin_told(

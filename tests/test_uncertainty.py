@@ -208,7 +208,7 @@ def light_or_ink_of(photo, pred, noise=2.0):
     gone = bad & (alpha > 0.5)
     light = np.ones(pred.shape, np.float32)
     blur = np.full(res.shape, 1.0, np.float32)
-    return bad, dense.light_or_ink(bad, gone, photo, pred, light, alpha, limit, noise, blur)
+    return bad, dense.light_or_ink(bad, gone, photo, pred, light, alpha, limit, noise, blur, film)
 
 
 def test_a_highlight_over_textured_ink_is_light_not_missing_ink():

@@ -1441,7 +1441,9 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     light = np.zeros_like(white)
     white_near = white[near]
     light[near] = np.maximum(white_near, 1.0) / np.maximum(_cmax(white_near), 1.0)[..., None]
-    glossed, gone = light_or_ink(colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur)
+    glossed, gone = light_or_ink(
+        colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur, white
+    )
     # (a region stepped only part of the way towards the film is judged by the colour test
     # that allows shading, like any other colour)
     colour_bad = (colour_scored & (res > colour_limit)) | gone
@@ -2113,6 +2115,7 @@ def light_or_ink(
     colour_limit: np.ndarray,
     noise: float,
     blur_px: np.ndarray,
+    film: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which regions of a colour residual are a highlight, and which show bare film.
 
@@ -2121,7 +2124,10 @@ def light_or_ink(
     the light's colour to the ink's: the photo steps part of the way towards white, and that
     step is light added to the ink (``photo ≈ k · pred + s · light``, :func:`additive_light`).
     A region that never reaches the film's colour over a share ``MISSING_CORE`` of it and
-    that added light explains is a highlight; one that reaches it is missing ink.
+    that added light explains is a highlight; one that reaches it is missing ink. Over
+    coloured ink the two differ in direction too (:func:`step_is_light`): a glint on green
+    ink whitens it, ink gone shows the film's colour through it; a region whose step only
+    light explains is light, however thin or bright.
 
     Parameters
     ----------
@@ -2140,6 +2146,8 @@ def light_or_ink(
     blur_px : (H, W) float32
         The photo's blur on the grid (Gaussian sigma, grid px): a region narrower than about
         twice that never reaches the film's colour, and is not asked to.
+    film : (H, W, 3) float32
+        The bare film's colour as the photo would show it (grey levels).
 
     Returns
     -------
@@ -2177,13 +2185,54 @@ def light_or_ink(
             cc = float(np.corrcoef(pr, ph)[0, 1])
             kept = cc >= KEPT_TEXTURE and ph.std() >= KEPT_CONTRAST * pr.std()
         if not kept and (core >= MISSING_CORE or thin):
-            continue
+            d = (photo[ys, xs] - pred[ys, xs])[region]
+            film_step = (film[ys, xs] - pred[ys, xs])[region]
+            if not step_is_light(d, film_step, light[ys, xs][region], noise):
+                continue
         missing[ys, xs][region] = False
         explained = float(np.mean(fit_res[ys, xs][region] <= colour_limit[ys, xs][region]))
         added = float(np.median(s[ys, xs][region]))
         if explained >= 0.9 and added > SIGNIFICANCE_Z * noise:
             highlight[ys, xs] |= region
     return highlight, missing
+
+
+def step_is_light(step: np.ndarray, film_step: np.ndarray, light: np.ndarray, noise: float) -> bool:
+    """Whether a region's step from the model is light added rather than ink gone, by its direction.
+
+    Ink gone moves a pixel from the ink's colour towards the film's, ``step ≈ a · film_step``;
+    light added moves it along the light's colour, ``step ≈ s · light`` (a, s ≥ 0 per pixel).
+    Over neutral ink under white light the two are one direction and nothing is told (the
+    region stays ink gone); over coloured ink they part. The step is light when the ink's fit
+    leaves a residual beyond the light's by more than the noise at SIGNIFICANCE_Z: its excess
+    energy, √(r_ink² - r_light²) as RMS over the region's pixels, is what the direction tells.
+    (a is not held to 1: a film brighter than the exposure fit's estimate of it is still film.)
+
+    Parameters
+    ----------
+    step : (n, 3) float32
+        The photo minus the model at the region's pixels (grey levels).
+    film_step : (n, 3) float32
+        The bare film's colour minus the model there (grey levels).
+    light : (n, 3) float32
+        The colour of light added there (largest channel 1).
+    noise : float
+        The colour residual's noise (grey levels, largest channel).
+
+    Returns
+    -------
+    bool
+        True when only light explains the step.
+    """
+
+    def rms_of_fit(direction: np.ndarray) -> float:
+        # least squares of step ≈ c · direction per pixel, c ≥ 0; the largest channel's residual
+        c = np.maximum(_csum(step * direction) / np.maximum(_csum(direction * direction), 1e-6), 0.0)
+        r = _cmax(np.abs(step - c[:, None] * direction))
+        return float(np.mean(r * r))
+
+    excess = rms_of_fit(film_step) - rms_of_fit(light)
+    return excess > (SIGNIFICANCE_Z * noise) ** 2
 
 
 def shift_explained(

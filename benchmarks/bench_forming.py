@@ -324,6 +324,7 @@ def synthetic_draws(design: Path, draws: int, sheets=5, random_mm=0.1, noise_mm=
     rng = np.random.default_rng(seed)
     se = random_mm / np.sqrt(sheets)
     out = []
+    n = min(n, len(g))  # (the film's grid holds a point every few mm: at most all of them)
     for _ in range(draws):
         p = g[rng.choice(len(g), n, replace=False)] + rng.uniform(-0.5, 0.5, (n, 2))
         noise = [rng.normal(0, noise_mm, (n, 2)) for _ in range(sheets)]

@@ -131,10 +131,13 @@ class SplineField:
     def __call__(self, p: np.ndarray) -> np.ndarray:
         if not len(np.asarray(p).reshape(-1, 2)):
             return np.zeros((0, 2))
-        Bx, By = self.basis(p)
-        Bx, By = Bx.toarray(), By.toarray()
-        # d_c(p) = Σ_ij Bx_i(x) By_j(y) c_ijc
-        return np.stack([np.einsum("ni,ij,nj->n", Bx, self.coef[..., c], By) for c in range(2)], axis=1)
+        Bx, By = (b.tocsr() for b in self.basis(p))
+        # d(p) = Σ_ij Bx_i(x) By_j(y) c_ij, over the 4 x 4 basis functions not zero at p (each
+        # row of a cubic design matrix holds 4: dense rows cost n · nx · ny, a 300 mm film's
+        # 100 k points a third of a second per call)
+        ix, iy = Bx.indices.reshape(-1, 4), By.indices.reshape(-1, 4)
+        w = Bx.data.reshape(-1, 4)[:, :, None] * By.data.reshape(-1, 4)[:, None, :]
+        return (w[..., None] * self.coef[ix[:, :, None], iy[:, None, :]]).sum(axis=(1, 2))
 
     def to_dict(self) -> dict:
         return {

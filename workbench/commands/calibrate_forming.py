@@ -44,12 +44,13 @@ def run_forming(args) -> int:
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     out = Path(args.output)
     folders = [Path(v) for v in args.validations]
-    sheets = [read_sheet(f) for f in folders]
+    designs: dict = {}  # (each design folder read once)
+    sheets = [read_sheet(f, designs) for f in folders]
     check_same_design(sheets)
     inputs = [*folders, *(f / "validation.json" for f in folders), *(f / "landing.npz" for f in folders)]
     inputs += design_files(sheets[0].design_dir)
     check_outputs(out, out.with_suffix(".png"), inputs=inputs)
-    res = calibrate_forming(sheets, args.placement)
+    res = calibrate_forming(sheets, args.placement, designs)
     info = sheets[0].design
     base = (info.get("forming") or {}).get("base_print") or info["print"]
     material = dict(info.get("material") or {})

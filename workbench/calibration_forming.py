@@ -337,13 +337,13 @@ def fit_field(basis: Spline2D, p, d, sigma, lam: float | None = None):
 
     cv = None
     if lam is None:
-        # every other candidate, then the two beside the best (the error is one valley over
-        # log λ; a factorisation per candidate and fold is nearly all of the time), and after
-        # the outliers go, within a decade of the smoothing chosen with them
+        # every other candidate (the outliers' smoothing needs no more), and without them every
+        # other again, then the two beside the best: the error is one valley over log λ, and a
+        # factorisation per candidate and fold is nearly all of the time
+        i, _ = cross_validate(keep, LAMBDAS[::2])
+        keep, _ = drop_outliers(keep, float(LAMBDAS[i] * scale))
         i, _ = cross_validate(keep, LAMBDAS[::2])
         i, cv = cross_validate(keep, around(i, 1))
-        keep, _ = drop_outliers(keep, float(LAMBDAS[i] * scale))
-        i, cv = cross_validate(keep, around(i, 2))
         lam = float(LAMBDAS[i] * scale)
     keep, c = drop_outliers(keep, lam)
     r = B[keep] @ c - d[keep]

@@ -15,8 +15,9 @@ import pytest
 from test_films import HAND
 
 from workbench import forming as fm
-from workbench.calibration_forming import Sheet, Spline2D, calibrate_forming, fit_field
+from workbench.calibration_forming import OUTLIER_Z, Sheet, Spline2D, calibrate_forming, fit_field
 from workbench.cli import main
+from workbench.validate import landing
 from workbench.validate.landing import fuse, npz_bytes, photo_landing
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -156,12 +157,20 @@ def test_validate_measures_the_landing_of_a_known_law(design, tmp_path):
     assert rep["landing"]["sha256"] == hashlib.sha256(data).hexdigest()
     assert rep["photos"][0]["landing"]["points"] == rep["landing"]["points"] > 500
     z = np.load(out / "landing.npz")
-    q, d = z["fused_q_mm"], z["fused_d_mm"]
+    q, d, sigma = z["fused_q_mm"], z["fused_d_mm"], z["fused_sigma_mm"]
     pr = json.loads((design / "design.json").read_text())["print"]
     law = fm.parse_law(LAW, (pr["width_mm"], pr["height_mm"]))
     err = np.linalg.norm(d - law(q - d), axis=1)
     assert np.median(np.linalg.norm(d, axis=1)) > 0.3  # the law moves the film by millimetres here
-    assert np.median(err) < 0.03 and np.percentile(err, 90) < 0.1
+    # the well-textured blocks (0.05 mm or better) are right to a few hundredths
+    sure = sigma <= landing.MAX_SIGMA_MM
+    assert sure.mean() > 0.5 and np.median(err[sure]) < 0.03 and np.percentile(err[sure], 90) < 0.1
+    # the rest (this photo at the view's size samples the print coarsely: its median sigma is 0.046
+    # mm, and the landing keeps up to twice that) is as right as it says: |error| / sigma of a 2D
+    # Gaussian with that sigma per axis has median 1.18 and 90th percentile 2.15; mismatches far
+    # beyond (the profile drops them at OUTLIER_Z) are few
+    zn = err / sigma
+    assert np.median(zn) < 1.2 and np.percentile(zn, 90) < 2.5 and np.mean(zn > OUTLIER_Z) < 0.05
 
 
 # --- the profile fit ---------------------------------------------------------------------------

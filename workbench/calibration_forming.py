@@ -310,6 +310,7 @@ def fit_field(basis: Spline2D, p, d, sigma, lam: float | None = None):
         return keep, c
 
     def cross_validate(keep, candidates):
+        # candidates: indices into LAMBDAS; returns the best one's index and its RMS
         Bk, wk, dk, pk = B[keep], w[keep], d[keep], p[keep]
         cell = np.floor(pk / CV_BLOCK_MM).astype(np.int64)
         fold = (cell[:, 0] * 7 + cell[:, 1] * 3) % CV_FOLDS
@@ -317,7 +318,7 @@ def fit_field(basis: Spline2D, p, d, sigma, lam: float | None = None):
         G, rhs = _normal(Bk, wk, dk)
         held = [_normal(Bk[fold == f], wk[fold == f], dk[fold == f]) for f in range(CV_FOLDS)]
         errs, rms = [], []
-        for rl in candidates:
+        for rl in LAMBDAS[candidates]:
             e, e2, n = 0.0, 0.0, 0
             for f in range(CV_FOLDS):
                 tr, te = fold != f, fold == f
@@ -330,20 +331,19 @@ def fit_field(basis: Spline2D, p, d, sigma, lam: float | None = None):
             errs.append(e)
             rms.append(np.sqrt(e2 / max(n, 1)))
         best = int(np.argmin(errs))
-        return int(np.flatnonzero(LAMBDAS == candidates[best])[0]), float(rms[best])
+        return int(candidates[best]), float(rms[best])
 
-    def around(i, reach):
-        return LAMBDAS[max(0, i - reach) : i + reach + 1]
+    every_other = np.arange(0, len(LAMBDAS), 2)
 
     cv = None
     if lam is None:
         # every other candidate (the outliers' smoothing needs no more), and without them every
         # other again, then the two beside the best: the error is one valley over log λ, and a
         # factorisation per candidate and fold is nearly all of the time
-        i, _ = cross_validate(keep, LAMBDAS[::2])
+        i, _ = cross_validate(keep, every_other)
         keep, _ = drop_outliers(keep, float(LAMBDAS[i] * scale))
-        i, _ = cross_validate(keep, LAMBDAS[::2])
-        i, cv = cross_validate(keep, around(i, 1))
+        i, _ = cross_validate(keep, every_other)
+        i, cv = cross_validate(keep, np.arange(max(0, i - 1), min(len(LAMBDAS), i + 2)))
         lam = float(LAMBDAS[i] * scale)
     keep, c = drop_outliers(keep, lam)
     r = B[keep] @ c - d[keep]
@@ -728,6 +728,7 @@ def calibrate_forming(sheets: list[Sheet], placement: str = "always", designs: d
         ``films``: per film, :func:`calibrate_film`'s dict; ``warnings``: all films'.
     """
     ref = sheets[0]
+    designs = {} if designs is None else designs  # (read once here, whoever calls)
     frames = design_of(ref.design_dir, designs).film_frames()
     grids = film_grids(ref.design_dir, designs=designs)
     films = [calibrate_film(sheets, k, fr.size_mm, grids[k], placement) for k, fr in enumerate(frames)]

@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/bench_forming.py [--job fixtures/default/job.toml] [--scale 2]
         [--law creep:2,1.5+wave:0.5,0.5,40] [--random-mm 0] [--sheets 2] [--rounds 2]
-        [--renderer workbench|mitsuba] [--work DIR]
+        [--renderer workbench|mitsuba] [--work DIR] [--calibration-film]
+        [--orbit-views "AZ,EL,DIST;..."] [--no-check0]
 
 Designs the job; forms sheets by the known law (``render --forming``, each designed view at
 ``--scale`` times its image size, a little noise, each sheet its own seed), validates each
@@ -11,7 +12,9 @@ profile from ``--sheets`` sheets (``calibrate forming``), designs with it and fo
 sheet of the compensated design. Per round it prints the new sheet's misregistration p95 as
 validate measures it (tiles, mm on the part) and the truth: where each film point lands
 against where the compensated design wants it (print mm, p95 over the film), with the times
-of ``calibrate forming`` and of ``design`` with and without the profile.
+of ``calibrate forming`` and of ``design`` with and without the profile. ``--orbit-views``
+photographs each calibration sheet from those orbit positions too (``render --orbit``): the
+film the designed views do not see.
 """
 
 from __future__ import annotations
@@ -74,20 +77,37 @@ def view_camera(design: Path, name: str, scale: float, out: Path, min_fov_deg: f
     return out
 
 
+ORBIT_SIZE = "2400x1800"  # an orbit photo's pixels (--orbit-views), 40 degrees wide
+
+
 def form_sheet(
-    design: Path, out: Path, law: str, seed: int, scale: float, random_mm: float, renderer: str, min_fov=MIN_FOV_DEG
+    design: Path,
+    out: Path,
+    law: str,
+    seed: int,
+    scale: float,
+    random_mm: float,
+    renderer: str,
+    min_fov=MIN_FOV_DEG,
+    orbits=(),
 ) -> dict:
-    """Photos of one formed sheet from every designed view, each validated in its own folder."""
+    """Photos of one formed sheet from every designed view (and from each ``orbits`` position: (az, el,
+    dist) of ``render --orbit``), each validated in its own folder."""
     truth = None
     out.mkdir(parents=True, exist_ok=True)
-    for name, _ in views(design):
+    shots = [(name, None) for name, _ in views(design)]
+    shots += [(f"orbit{az:g}_{el:g}", (az, el, dist)) for az, el, dist in orbits]
+    for name, orbit in shots:
         photo = out / f"{name}.png"
         if done(photo.with_suffix(".json"), out / name / "validation.json"):
             truth = json.loads(photo.with_suffix(".json").read_text())["forming"]
             continue
-        cam = view_camera(design, name, scale, out / f"{name}-camera.json", min_fov)
+        if orbit is None:
+            where = ["--camera", view_camera(design, name, scale, out / f"{name}-camera.json", min_fov)]
+        else:
+            where = ["--orbit", ",".join(f"{x:g}" for x in orbit), "--size", ORBIT_SIZE, "--fov-deg", "40"]
         extra = ["--renderer", "mitsuba", "--spp", str(SPP)] if renderer == "mitsuba" else ["--noise", "1"]
-        wb("render", design, "--camera", cam, "--forming", law, "--seed", seed,
+        wb("render", design, *where, "--forming", law, "--seed", seed,
            *(["--forming-random-mm", random_mm] if random_mm else []), *extra, "-o", photo)  # fmt: skip
         wb("validate", design, photo, "--camera", photo.with_suffix(".json"), "--out", out / name, "--jobs", "1")
         truth = json.loads(photo.with_suffix(".json").read_text())["forming"]
@@ -151,12 +171,13 @@ def run_loop(
     placement=None,
     seed0=1,
     check0=True,
+    orbits=(),
 ) -> dict:
     """The loop; returns per round (0: uncompensated) the check sheet's figures and the times.
 
     The calibration sheets take the seeds ``seed0``, ``seed0 + 1``, ... (their noise and random
     placement); the check sheets 1000 + the round. ``check0``: form and measure the uncompensated
-    check sheet (round 0).
+    check sheet (round 0). ``orbits``: (az, el, dist) of further photos of each calibration sheet.
     """
     work.mkdir(parents=True, exist_ok=True)
     t_plain = None if done(work / "d0" / "design.json") else wb("design", job, "--out", work / "d0")
@@ -181,7 +202,7 @@ def run_loop(
         folders, truths = [], []
         for k in range(sheets):
             f = work / f"r{rnd}-sheet{k}"
-            truths.append(form_sheet(film, f, law, seed, scale, random_mm, renderer, min_fov))
+            truths.append(form_sheet(film, f, law, seed, scale, random_mm, renderer, min_fov, orbits))
             seed += 1
             folders.append(f)
         prof = work / f"profile{rnd}.json"
@@ -375,6 +396,13 @@ def main() -> None:
         default=MIN_FOV_DEG,
         help=f"a narrower designed view is widened to this about its own axis (default {MIN_FOV_DEG:g}; 0: never)",
     )
+    ap.add_argument(
+        "--orbit-views",
+        metavar="AZ,EL,DIST[;...]",
+        help="the calibration sheets are photographed from these orbit positions too (render --orbit; "
+        f"{ORBIT_SIZE} px, 40 degrees wide): the film the designed views do not see",
+    )
+    ap.add_argument("--no-check0", action="store_true", help="do not form the uncompensated check sheet (round 0)")
     ap.add_argument("--placement", choices=("auto", "always", "never"), help="calibrate forming --placement")
     ap.add_argument("--draws", type=int, help="the random component over this many independent draws (the loop)")
     ap.add_argument("--synthetic-draws", type=int, help="the placement rule over this many draws without photos")
@@ -410,7 +438,8 @@ def main() -> None:
         return
     res = run_loop(
         work, a.job, a.law, a.scale, a.random_mm, a.sheets, a.rounds, a.renderer, a.calibration_film,
-        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg, placement=a.placement,
+        log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg, placement=a.placement, check0=not a.no_check0,
+        orbits=[tuple(float(x) for x in o.split(",")) for o in a.orbit_views.split(";")] if a.orbit_views else (),
     )  # fmt: skip
     print(f"files in {res['work']}")
 

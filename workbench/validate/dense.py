@@ -98,7 +98,11 @@ CREASE_DEG = 10.0
 # of 4 to 12 mm on their renders 0.76 to 0.92, the flow over faint dark texture on a perfect part 0.61)
 SHIFT_EXPLAINS = 2.0 / 3.0
 # texture lost: a local gain below LOST_GAIN of the photo's median where the design's contrast in the
-# exposure window is at least LOST_MIN_CONTRAST grey levels (its standard deviation)
+# exposure window is at least LOST_MIN_CONTRAST grey levels (its standard deviation), and below
+# LOST_GAIN of the light that is there (the photo's local mean over the design's): a shadow dims the
+# design's contrast with its mean, paint over it takes the contrast and leaves its own mean (a
+# Mitsuba photo of the lion's top: a fold at a third of the photo's light, its lilac-to-green edge
+# at gain 0.3 of the photo's and 1 of its own light, was a 5.8 mm² "colour" defect)
 LOST_GAIN = 0.3
 # a colour region whose mean reflected ray lies within this of a sure highlight's faces the same lamp
 # (measured: highlights on flat pale ink 0.6 to 3.7 deg from the photo's clipped or texture-keeping
@@ -1349,7 +1353,14 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # off, which the fit would otherwise absorb into its offset
     determined = contrast >= LOST_MIN_CONTRAST
     g0 = photo_gain(gain, determined, seen & ~sat)
-    lost = texture_lost(gain, determined, seen & ~sat, g0)
+    # (the light that is there: the photo's local mean over the design's, in the fit's window; the
+    # weights cancel in the ratio, and a design darker than a grey level there is taken as one)
+    fw = (seen & ~sat).astype(np.float32)[..., None]
+    sw = cv2.GaussianBlur(fw, (0, 0), EXPOSURE_SIGMA_PX)[..., None]
+    brightness = cv2.GaussianBlur(pho * fw, (0, 0), EXPOSURE_SIGMA_PX) / np.maximum(
+        cv2.GaussianBlur(moved * fw, (0, 0), EXPOSURE_SIGMA_PX), sw + 1e-6
+    )
+    lost = texture_lost(gain, determined, seen & ~sat, g0, brightness)
     # glare: light added to every channel over a broad area, beyond the window's offset
     white = gain * np.float32(255.0) + offset  # the film's white as the photo would show it here
     # (the exposure fit's window is larger than any defect it must find, so a broad glare goes
@@ -1840,7 +1851,13 @@ def photo_gain(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray) -> 
     return out
 
 
-def texture_lost(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray, g0: np.ndarray | None) -> np.ndarray:
+def texture_lost(
+    gain: np.ndarray,
+    determined: np.ndarray,
+    fitted: np.ndarray,
+    g0: np.ndarray | None,
+    brightness: np.ndarray | None = None,
+) -> np.ndarray:
     """Where the photo has lost the design's texture: the local gain collapsed where it is determined.
 
     Parameters
@@ -1853,11 +1870,15 @@ def texture_lost(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray, g
         The pixels the photo shows and the fit may use.
     g0 : (3,) float or None
         The photo's own gain (:func:`photo_gain`); None: nothing determines it.
+    brightness : (H, W, 3) float32, optional
+        The light that is there: the photo's local mean over the design's, per channel, in the
+        exposure fit's window.
 
     Returns
     -------
     (H, W) bool
-        Pixels where every determined channel has a gain below LOST_GAIN of ``g0``.
+        Pixels where every determined channel has a gain below LOST_GAIN of ``g0`` (and of
+        ``brightness``: not a shadow).
     """
     if g0 is None:
         return np.zeros(fitted.shape, bool)
@@ -1865,7 +1886,10 @@ def texture_lost(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray, g
     # whole image's ratio in float64 was a third of a gigabyte of traffic)
     low = fitted.copy()
     for c in range(3):
-        low &= ~determined[..., c] | (gain[..., c] / g0[c] < LOST_GAIN)
+        collapsed = gain[..., c] / g0[c] < LOST_GAIN
+        if brightness is not None:
+            collapsed &= gain[..., c] < LOST_GAIN * brightness[..., c]
+        low &= ~determined[..., c] | collapsed
     return low & (determined[..., 0] | determined[..., 1] | determined[..., 2])
 
 

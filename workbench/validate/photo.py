@@ -355,7 +355,8 @@ def _validate_photo(
     entry["landing"] = (
         None
         if entry["photo_quality"]["problems"]
-        else photo_landing(dr, grid, film_of_face(design.info, len(design.F)), scale)
+        # (the calibration film's pattern is locally unique: its rim is measured too)
+        else photo_landing(dr, grid, film_of_face(design.info, len(design.F)), scale, rim="pattern" in design.info)
     )
     if not entry["photo_quality"]["problems"]:
         entry["detection_maps"] = {

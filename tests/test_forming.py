@@ -12,6 +12,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401  (sp.linalg)
 from test_films import HAND
 
 from workbench import forming as fm
@@ -240,6 +242,34 @@ def test_profile_recovers_a_known_law_and_cross_validation_chooses_its_smoothing
     # a profile through the file format evaluates the same
     back = fm.SplineField.from_dict(json.loads(json.dumps(field.to_dict())), "test")
     assert np.abs(back(g) - field(g)).max() < 1e-6
+
+
+def test_the_normal_equations_of_what_is_kept_are_the_whole_less_what_is_dropped():
+    """The fit's normal equations over the kept points of a fold, made from the whole's by taking the
+    dropped points out, equal those made from the kept points directly, and so does the fit."""
+    from workbench.calibration_forming import CV_FOLDS, Normals, cv_folds
+
+    law, sheets, _ = synthetic_sheets(1, 0.0)
+    p, d, sig = sheets[0]
+    basis = Spline2D.over((-10, -10), (SIZE[0] + 10, SIZE[1] + 10))
+    B, w = basis.design(p), 1.0 / sig**2
+    fold = cv_folds(p)
+    normals = Normals(B, w, fold)
+    keep = np.random.default_rng(5).random(len(p)) > 0.03
+    for f in (None, *range(CV_FOLDS)):
+        on = keep if f is None else keep & (fold == f)
+        direct = (B[on].T @ sp.diags(w[on]) @ B[on]).toarray()
+        assert np.abs(normals.matrix(keep, f).toarray() - direct).max() <= 1e-9 * np.abs(direct).max()
+        assert np.allclose(normals.rhs(keep, d, f), B[on].T @ (w[on, None] * d[on]), rtol=1e-12, atol=1e-9)
+    P = basis.penalty()
+    lam = 1e-3 * float(w.sum()) / P.shape[0]  # (the smallest candidate: this law is not smooth at 3000 points)
+    c = normals.solve(keep, d, P, lam)
+    G = B[keep].T @ sp.diags(w[keep]) @ B[keep]
+    direct = sp.linalg.spsolve((G + lam * P).tocsc(), B[keep].T @ (w[keep, None] * d[keep]))
+    assert np.abs(c - direct).max() < 1e-9
+    # (fitted: nearer the law than the points are, whose noise of 0.01 mm per axis puts their p95 at
+    # 0.0245 mm from it)
+    assert np.percentile(np.linalg.norm(B @ c - law(p), axis=1), 95) < 0.5 * 0.0245
 
 
 def _sheets_on(design: Path, sheets):

@@ -30,11 +30,11 @@ def add_parser(s) -> None:
     f.add_argument(
         "--placement",
         choices=("always", "never", "auto"),
-        default="always",
-        help="the sheets' mean film placement (shift and turn) in the print: always (default: unbiased, it adds "
-        "its standard error to every part); never (the forming station's registration corrects it); auto (when "
-        "the sheets show it beyond their own random placement, F test at 95 %%). Each sheet's own placement is "
-        "never part of the profile",
+        default="auto",
+        help="the sheets' mean film placement (shift and turn) in the print: auto (default: when the sheets show "
+        "it beyond their own random placement, F test at 95 %%; random scatter stays out of the profile); always "
+        "(unbiased, it adds its standard error to every part); never (the forming station's registration corrects "
+        "it). Each sheet's own placement is never part of the profile",
     )
     f.add_argument("-q", "--quiet", action="store_true")
     f.set_defaults(run=run_forming)

@@ -159,6 +159,9 @@ def test_the_stated_limit_is_a_slide_in_any_direction():
     # the better of the pixel's full vector and the window's slide; nothing where neither measures
     assert lim[0, 0] == pytest.approx(0.23) and lim[0, 1] == pytest.approx(0.26)
     assert np.isnan(lim[0, 2]) and lim[0, 3] == pytest.approx(0.29)
+    # a window that answers half a slide finds one of twice its limit; the pixel's own is as before
+    half = detection.shift_limit(0.2, 3.0, weak, window, two_way, measurable, 0.0667, window_gain=0.5)
+    assert half[0, 0] == pytest.approx(0.23) and half[0, 1] == pytest.approx(0.52)
     # a bubble is above the limit where half its footprint finds its slide, ink gone where three
     # quarters do, and what is found exceeds the verdict's area
     fp = np.zeros((10, 10), bool)

@@ -230,3 +230,18 @@ def test_the_pictures_colour_tables_are_matplotlibs(name):
 
     expected = (matplotlib.colormaps[name](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
     assert np.array_equal(colour_table(name), expected)
+
+
+def test_a_photo_that_shows_one_grey_over_the_view_has_no_similarity_and_no_crash():
+    """A view the photo shows as one grey (black where a warp fell off the photo) has no exposure to
+    fit: the similarity is None (not a crash, which cost a perfect 12 Mpx photo its verdict)."""
+    from workbench.validate.score import ViewSurface, score
+
+    H, W = 120, 160
+    jj, ii = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    X = np.stack([jj * 0.5, ii * 0.5, np.zeros_like(jj)], axis=-1)
+    surface = ViewSurface(X, X[..., :2].copy(), np.ones((H, W), bool), np.zeros((H, W), np.int64))
+    design = np.dstack([np.uint8(60 + jj)] * 3).astype(np.uint8)
+    for grey in (0, 128):
+        got = score(design, np.full((H, W, 3), grey, np.uint8), np.ones((H, W), bool), surface, (80.0, 60.0))
+        assert got.ssim is None and len(got.centres) == 0

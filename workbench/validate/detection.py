@@ -75,6 +75,7 @@ def shift_limit(
     two_way: np.ndarray,
     measurable: np.ndarray,
     usable_mm: float,
+    window_gain: float = 1.0,
 ) -> np.ndarray:
     """The smallest slide of the film, in any direction, found at each print pixel, mm on the surface.
 
@@ -96,18 +97,21 @@ def shift_limit(
         (:func:`expected_flow_sigma`) and the window's slide.
     two_way, measurable : (H, W) bool
         Scored pixels the photo resolves whose print texture has two directions; all of them.
+    window_gain : float
+        The share of a slide the window's slide answers: a slide s is found where
+        ``window_gain`` s exceeds the tolerance by ``z`` of the window's uncertainty.
 
     Returns
     -------
     (H, W) float32
         mm; NaN where no slide is found.
     """
-    sigma = np.full(weak_mm.shape, np.inf, np.float32)
+    limit = np.full(weak_mm.shape, np.inf, np.float32)
     full = two_way & (weak_mm <= usable_mm)
-    sigma[full] = weak_mm[full]
+    limit[full] = tolerance_mm + z * weak_mm[full]
     window = measurable & (window_mm <= usable_mm)
-    sigma[window] = np.minimum(sigma[window], window_mm[window])
-    return np.where(np.isfinite(sigma), tolerance_mm + z * sigma, np.nan).astype(np.float32)
+    limit[window] = np.minimum(limit[window], (tolerance_mm + z * window_mm[window]) / window_gain)
+    return np.where(np.isfinite(limit), limit, np.nan).astype(np.float32)
 
 
 def summary(

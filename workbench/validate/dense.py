@@ -49,17 +49,16 @@ TENSOR_SIGMA_PX = 3.0  # window of the structure tensor
 # an edge of 10 grey levels' contrast, the least a designer draws on purpose.
 MIN_EDGE = 4.0
 MIN_TWO_WAY = 4.0  # the same for the smaller eigenvalue: the full vector
-# what the detection limit states of the window's slide (about a millimetre, below), measured on the
-# corpus's slid discs (bubbles of 4 to 12 mm, the window's slide inside the inner 70 % of each against
-# the truth): where the window's texture has two directions (its weaker eigenvalue at least
-# WINDOW_STATED_TWO_WAY of the stronger) the window answers 0.67 to 0.96 of the slide on the
-# workbench renderer at 3000 x 2250 (7 of 8 bubbles; 0.40 on the eighth) and 0.71 to 0.80 on
-# Mitsuba at 2000 x 1500 (5 of 7; 0.25 and 3.4 on the others), median 0.75 of the 15; where its
-# directions are 20 to 84 times apart (a soft edge that turns by a few degrees over the window) it
-# answered -0.06 to 0.42 (3 bubbles), whatever the photo's noise says. Without them the limit stated
-# a 0.5 mm slide found along such an edge, and three bubbles escaped (corpus of 2026-12-04)
+# the share of a slide the window's slide (about a millimetre, below) answers, as the detection limit
+# states it: measured on the corpus's slid discs (bubbles of 4 to 12 mm, the window's slide inside
+# the inner 70 % of each against the truth), where the window's texture has two directions within a
+# factor of 10, 0.67 to 0.96 on the workbench renderer at 3000 x 2250 (7 of 8 bubbles; 0.40 on the
+# eighth) and 0.71 to 0.80 on Mitsuba at 2000 x 1500 (5 of 7; 0.25 and 3.4 on the others), median
+# 0.75 of the 15. (Where its directions are 20 to 84 times apart, a soft edge that turns by a few
+# degrees over the window, it answered -0.06 to 0.42: 3 bubbles; those windows are still stated at
+# this share.) With the noise alone the limit stated bubbles found that the window answered at two
+# thirds of their slide or less, and three escaped at 3000 x 2250 (corpus of 2026-12-04)
 WINDOW_GAIN = 0.75
-WINDOW_STATED_TWO_WAY = 0.1
 # a defect is significant when the misregistration (or colour residual) exceeds the tolerance
 # by more than this many of its standard uncertainties: one-sided 0.13 % per pixel, so a perfect
 # photo's chance exceedances are single pixels, which the defects' opening removes
@@ -744,15 +743,12 @@ def print_texture(ref_gray: np.ndarray, window_px: float, factor: int = 1):
     -------
     l1, l2, l2_wide : (H, W) float32
         Grey levels² per px² (:func:`structure_tensor`).
-    stated_wide : (H, W) bool
-        Where the wide window's texture has two directions enough for the detection limit to
-        count its slide (WINDOW_STATED_TWO_WAY).
     """
     l1, l2, _ = structure_tensor(ref_gray, window_px, direction=False)
     # (scaled as analyse always did: two products, whose roundings a single factor² would change)
     l1, l2 = l1 * factor * factor, l2 * factor * factor
-    l1_wide, l2_wide, _ = structure_tensor(ref_gray, 4 * window_px, direction=False)
-    return l1, l2, l2_wide, l2_wide >= WINDOW_STATED_TWO_WAY * l1_wide
+    _, l2_wide, _ = structure_tensor(ref_gray, 4 * window_px, direction=False)
+    return l1, l2, l2_wide
 
 
 def dense_flow(
@@ -1418,7 +1414,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     usable = tolerance_mm / SIGNIFICANCE_Z
     # (p1, p2 in grey levels² per pixel of the flow's grid: the gates hold for the images the
     # flow compares)
-    p1, p2, l2_wide, stated_wide = texture.result()
+    p1, p2, l2_wide = texture.result()
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
     unresolved, needed_blur = detail.result()
@@ -1434,8 +1430,8 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     wide_sigma = np.nan_to_num(wide_sigma, nan=np.inf).astype(np.float32)
     # the detection limit, stated for a sound part (needed only for the result: beside the rest)
     shift_limit = later.submit(
-        stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px,
-        np.where(stated_wide, wide_sigma, np.float32(np.inf)), measurable & (p2 >= MIN_TWO_WAY), measurable, usable,
+        stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px, wide_sigma,
+        measurable & (p2 >= MIN_TWO_WAY), measurable, usable,
     )  # fmt: skip
     shift = np.full((H, W, 2), np.nan, np.float32)
     np.copyto(shift, m, where=full[..., None])
@@ -1692,8 +1688,7 @@ def stated_shift_limit(
 
     The photo's noise through the texture it resolves (the mismatch and the flow back, which a
     defect itself raises, left out: :func:`workbench.validate.detection.expected_flow_sigma`),
-    and the window's slide's uncertainty ``wide_sigma`` (inf where the window's texture does not
-    have two directions enough: WINDOW_STATED_TWO_WAY), of which the window answers WINDOW_GAIN;
+    and the window's slide's uncertainty ``wide_sigma``, of which the window answers WINDOW_GAIN;
     :func:`workbench.validate.detection.shift_limit` at SIGNIFICANCE_Z + DETECT_Z.
 
     Returns

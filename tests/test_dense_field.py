@@ -162,6 +162,10 @@ def test_the_stated_limit_is_a_slide_in_any_direction():
     # a window that answers half a slide finds one of twice its limit; the pixel's own is as before
     half = detection.shift_limit(0.2, 3.0, weak, window, two_way, measurable, 0.0667, window_gain=0.5)
     assert half[0, 0] == pytest.approx(0.23) and half[0, 1] == pytest.approx(0.52)
+    # a window along a barely turning edge answers a twentieth of a slide: it finds only a large one
+    gain = np.array([[1.0, 0.05, 1.0, 1.0]], np.float32)
+    along = detection.shift_limit(0.2, 3.0, weak, window, two_way, measurable, 0.0667, window_gain=gain)
+    assert along[0, 1] == pytest.approx(0.26 / 0.05) and along[0, 3] == pytest.approx(0.29)
     # a bubble is above the limit where half its footprint finds its slide, ink gone where three
     # quarters do, and what is found exceeds the verdict's area
     fp = np.zeros((10, 10), bool)

@@ -54,11 +54,14 @@ MIN_TWO_WAY = 4.0  # the same for the smaller eigenvalue: the full vector
 # the inner 70 % of each against the truth), where the window's texture has two directions within a
 # factor of 10, 0.67 to 0.96 on the workbench renderer at 3000 x 2250 (7 of 8 bubbles; 0.40 on the
 # eighth) and 0.71 to 0.80 on Mitsuba at 2000 x 1500 (5 of 7; 0.25 and 3.4 on the others), median
-# 0.75 of the 15. (Where its directions are 20 to 84 times apart, a soft edge that turns by a few
-# degrees over the window, it answered -0.06 to 0.42: 3 bubbles; those windows are still stated at
-# this share.) With the noise alone the limit stated bubbles found that the window answered at two
-# thirds of their slide or less, and three escaped at 3000 x 2250 (corpus of 2026-12-04)
+# 0.75 of the 15. Where its directions are 20 to 84 times apart (a soft edge that turns by a few
+# degrees over the window) it answered -0.06, 0.05 and 0.42 (3 bubbles): WINDOW_GAIN_ALONG_EDGE,
+# their median, below WINDOW_TWO_WAY_STATED. With the noise alone the limit stated bubbles found
+# that the window answered at two thirds of their slide or less, and three escaped at 3000 x 2250
+# (corpus of 2026-12-04)
 WINDOW_GAIN = 0.75
+WINDOW_GAIN_ALONG_EDGE = 0.05
+WINDOW_TWO_WAY_STATED = 0.1  # the window's weaker eigenvalue over its stronger
 # a defect is significant when the misregistration (or colour residual) exceeds the tolerance
 # by more than this many of its standard uncertainties: one-sided 0.13 % per pixel, so a perfect
 # photo's chance exceedances are single pixels, which the defects' opening removes
@@ -743,12 +746,16 @@ def print_texture(ref_gray: np.ndarray, window_px: float, factor: int = 1):
     -------
     l1, l2, l2_wide : (H, W) float32
         Grey levels² per px² (:func:`structure_tensor`).
+    window_gain : (H, W) float
+        The share of a slide the wide window answers, as the detection limit states it:
+        WINDOW_GAIN where its texture has two directions within WINDOW_TWO_WAY_STATED,
+        WINDOW_GAIN_ALONG_EDGE where not.
     """
     l1, l2, _ = structure_tensor(ref_gray, window_px, direction=False)
     # (scaled as analyse always did: two products, whose roundings a single factor² would change)
     l1, l2 = l1 * factor * factor, l2 * factor * factor
-    _, l2_wide, _ = structure_tensor(ref_gray, 4 * window_px, direction=False)
-    return l1, l2, l2_wide
+    l1_wide, l2_wide, _ = structure_tensor(ref_gray, 4 * window_px, direction=False)
+    return l1, l2, l2_wide, np.where(l2_wide >= WINDOW_TWO_WAY_STATED * l1_wide, WINDOW_GAIN, WINDOW_GAIN_ALONG_EDGE)
 
 
 def dense_flow(
@@ -1414,7 +1421,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     usable = tolerance_mm / SIGNIFICANCE_Z
     # (p1, p2 in grey levels² per pixel of the flow's grid: the gates hold for the images the
     # flow compares)
-    p1, p2, l2_wide = texture.result()
+    p1, p2, l2_wide, window_gain = texture.result()
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
     unresolved, needed_blur = detail.result()
@@ -1431,7 +1438,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # the detection limit, stated for a sound part (needed only for the result: beside the rest)
     shift_limit = later.submit(
         stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px, wide_sigma,
-        measurable & (p2 >= MIN_TWO_WAY), measurable, usable,
+        measurable & (p2 >= MIN_TWO_WAY), measurable, usable, window_gain,
     )  # fmt: skip
     shift = np.full((H, W, 2), np.nan, np.float32)
     np.copyto(shift, m, where=full[..., None])
@@ -1682,13 +1689,14 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
 
 
 def stated_shift_limit(
-    tolerance_mm, noise, l1, l2, n_eff, floor, mm_per_px, wide_sigma, two_way, measurable, usable
+    tolerance_mm, noise, l1, l2, n_eff, floor, mm_per_px, wide_sigma, two_way, measurable, usable, window_gain
 ) -> np.ndarray:
     """The detection limit's smallest slide found at each pixel, stated for a sound part (:func:`analyse`).
 
     The photo's noise through the texture it resolves (the mismatch and the flow back, which a
     defect itself raises, left out: :func:`workbench.validate.detection.expected_flow_sigma`),
-    and the window's slide's uncertainty ``wide_sigma``, of which the window answers WINDOW_GAIN;
+    and the window's slide's uncertainty ``wide_sigma``, of which the window answers ``window_gain``
+    (:func:`print_texture`);
     :func:`workbench.validate.detection.shift_limit` at SIGNIFICANCE_Z + DETECT_Z.
 
     Returns
@@ -1699,7 +1707,7 @@ def stated_shift_limit(
     weak_e, _ = detection.expected_flow_sigma(noise, l1, l2, n_eff, floor)
     return detection.shift_limit(
         tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_e * mm_per_px, wide_sigma, two_way, measurable, usable,
-        WINDOW_GAIN,
+        window_gain,
     )  # fmt: skip
 
 

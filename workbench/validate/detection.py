@@ -75,7 +75,7 @@ def shift_limit(
     two_way: np.ndarray,
     measurable: np.ndarray,
     usable_mm: float,
-    window_gain: float = 1.0,
+    window_gain: float | np.ndarray = 1.0,
 ) -> np.ndarray:
     """The smallest slide of the film, in any direction, found at each print pixel, mm on the surface.
 
@@ -97,7 +97,7 @@ def shift_limit(
         (:func:`expected_flow_sigma`) and the window's slide.
     two_way, measurable : (H, W) bool
         Scored pixels the photo resolves whose print texture has two directions; all of them.
-    window_gain : float
+    window_gain : float or (H, W) float
         The share of a slide the window's slide answers: a slide s is found where
         ``window_gain`` s exceeds the tolerance by ``z`` of the window's uncertainty.
 
@@ -110,7 +110,8 @@ def shift_limit(
     full = two_way & (weak_mm <= usable_mm)
     limit[full] = tolerance_mm + z * weak_mm[full]
     window = measurable & (window_mm <= usable_mm)
-    limit[window] = np.minimum(limit[window], (tolerance_mm + z * window_mm[window]) / window_gain)
+    gain = np.broadcast_to(np.asarray(window_gain, np.float32), weak_mm.shape)
+    limit[window] = np.minimum(limit[window], (tolerance_mm + z * window_mm[window]) / gain[window])
     return np.where(np.isfinite(limit), limit, np.nan).astype(np.float32)
 
 

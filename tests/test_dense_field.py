@@ -166,6 +166,9 @@ def test_the_stated_limit_is_a_slide_in_any_direction():
     gain = np.array([[1.0, 0.05, 1.0, 1.0]], np.float32)
     along = detection.shift_limit(0.2, 3.0, weak, window, two_way, measurable, 0.0667, window_gain=gain)
     assert along[0, 1] == pytest.approx(0.26 / 0.05) and along[0, 3] == pytest.approx(0.29)
+    # which share a window gets: its texture's two directions within a factor of 10, or not
+    got = dense.window_gain(np.array([[4.0, 4.0]], np.float32), np.array([[1.0, 0.2]], np.float32))
+    assert got[0, 0] == pytest.approx(dense.WINDOW_GAIN) and got[0, 1] == pytest.approx(dense.WINDOW_GAIN_ALONG_EDGE)
     # a bubble is above the limit where half its footprint finds its slide, ink gone where three
     # quarters do, and what is found exceeds the verdict's area
     fp = np.zeros((10, 10), bool)

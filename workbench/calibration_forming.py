@@ -268,16 +268,16 @@ class Spline2D:
         return fm.SplineField(self.tx.copy(), self.ty.copy(), coef.reshape(nx, ny, 2))
 
 
-def _normal(B, w, d):
-    """The weighted normal equations' matrix Bᵀ W B (csr) and right-hand side Bᵀ W d (m, 2)."""
-    return (B.T @ sp.diags(w) @ B).tocsr(), B.T @ (w[:, None] * d)
+def _gram(B, w) -> sp.csr_matrix:
+    """The weighted normal equations' matrix Bᵀ W B."""
+    return (B.T @ sp.diags(w) @ B).tocsr()
 
 
-def _solve_normal(G, rhs, P, lam):
+def _factor(G, P, lam):
+    """The factorisation of the penalised normal equations G + λ P."""
     from scipy.sparse.linalg import splu
 
-    lu = splu((G + lam * P).tocsc(), permc_spec="MMD_AT_PLUS_A")
-    return lu.solve(np.ascontiguousarray(rhs))
+    return splu((G + lam * P).tocsc(), permc_spec="MMD_AT_PLUS_A")
 
 
 class Normals:
@@ -285,9 +285,10 @@ class Normals:
 
     A fit drops outliers (a few points), alternates with the sheets' placements (new displacements,
     the same points and weights) and cross-validates over folds: the matrix Bᵀ W B over the kept
-    points of a fold is that fold's whole less its dropped points', so each costs a sparse product
-    over the dropped points only, and each factorisation of Bᵀ W B + λ P is made once per kept set
-    and smoothing. On the face mask's two sheets of 1.2 M points this is most of the time saved.
+    points (of a fold) is the whole's (the fold's) less its dropped points', so each costs a sparse
+    product over the dropped points only, and each factorisation of Bᵀ W B + λ P is made once per
+    kept set and smoothing. On the face mask's two sheets of 1.2 M points this is most of the time
+    saved.
 
     Parameters
     ----------
@@ -302,20 +303,20 @@ class Normals:
     def __init__(self, B: sp.csr_matrix, w: np.ndarray, fold: np.ndarray):
         self.B, self.w, self.fold = B, w, fold
         self.BT = B.T.tocsr()
-        self._folds = [(B[fold == f].T @ sp.diags(w[fold == f]) @ B[fold == f]).tocsr() for f in range(CV_FOLDS)]
-        self.whole = sum(self._folds[1:], self._folds[0])
+        self.whole = _gram(B, w)
+        # (the folds' own are made when cross-validation first asks: a refit at a known smoothing does not)
+        self._folds: list | None = None
         self._lu: dict = {}
 
     def _less(self, G, drop):
-        if not drop.any():
-            return G
-        Bd = self.B[drop]
-        return (G - Bd.T @ sp.diags(self.w[drop]) @ Bd).tocsr()
+        return (G - _gram(self.B[drop], self.w[drop])).tocsr() if drop.any() else G
 
     def matrix(self, keep: np.ndarray, fold: int | None = None) -> sp.csr_matrix:
         """Bᵀ W B over the kept points (of one fold when ``fold`` is given)."""
         if fold is None:
             return self._less(self.whole, ~keep)
+        if self._folds is None:
+            self._folds = [_gram(self.B[self.fold == f], self.w[self.fold == f]) for f in range(CV_FOLDS)]
         return self._less(self._folds[fold], ~keep & (self.fold == fold))
 
     def rhs(self, keep: np.ndarray, d: np.ndarray, fold: int | None = None) -> np.ndarray:
@@ -325,14 +326,12 @@ class Normals:
 
     def solve(self, keep: np.ndarray, d: np.ndarray, P: sp.csr_matrix, lam: float) -> np.ndarray:
         """The penalised fit's coefficients (m, 2) to the kept points' displacements ``d`` (n, 2)."""
-        from scipy.sparse.linalg import splu
-
         key = (hashlib.sha1(np.packbits(keep).tobytes()).hexdigest(), float(lam))
         lu = self._lu.get(key)
         if lu is None:
             if len(self._lu) > 8:  # (kept sets and smoothings go by; the newest are reused)
                 self._lu.clear()
-            lu = self._lu[key] = splu((self.matrix(keep) + lam * P).tocsc(), permc_spec="MMD_AT_PLUS_A")
+            lu = self._lu[key] = _factor(self.matrix(keep), P, lam)
         return lu.solve(np.ascontiguousarray(self.rhs(keep, d)))
 
 
@@ -357,10 +356,9 @@ def fit_field(basis: Spline2D, p, d, sigma, lam: float | None = None, normals: N
         ``cv_rms_mm``, ``fit_rms_mm``, ``points``, ``outliers``, ``keep`` (n,) bool.
     """
     s = np.maximum(sigma, MIN_SIGMA_MM)
-    w = 1.0 / s**2
     if normals is None:
-        normals = Normals(basis.design(p), w, cv_folds(p))
-    B, fold = normals.B, normals.fold
+        normals = Normals(basis.design(p), 1.0 / s**2, cv_folds(p))
+    B, w, fold = normals.B, normals.w, normals.fold
     P = basis.penalty()
     scale = float(w.sum()) / max(P.shape[0], 1)  # λ relative to the data's total weight per coefficient
     keep = np.ones(len(p), bool)
@@ -381,14 +379,14 @@ def fit_field(basis: Spline2D, p, d, sigma, lam: float | None = None, normals: N
         # candidates: indices into LAMBDAS; returns the best one's index and its RMS. A fold's training
         # equations are the whole's less its own: made once, not once per smoothing
         G, rhs = normals.matrix(keep), normals.rhs(keep, d)
-        held = [(normals.matrix(keep, f), normals.rhs(keep, d, f)) for f in range(CV_FOLDS)]
         tests = [keep & (fold == f) for f in range(CV_FOLDS)]
         folds = [f for f in range(CV_FOLDS) if tests[f].any() and (keep & (fold != f)).sum() >= 16]
+        train = {f: (G - normals.matrix(keep, f), rhs - normals.rhs(keep, d, f)) for f in folds}
         Bt = [B[tests[f]] for f in range(CV_FOLDS)]
 
         def held_out(job):
             rl, f = job
-            c = _solve_normal(G - held[f][0], rhs - held[f][1], P, rl * scale)
+            c = _factor(train[f][0], P, rl * scale).solve(np.ascontiguousarray(train[f][1]))
             r = Bt[f] @ c - d[tests[f]]
             return float((w[tests[f]][:, None] * r * r).sum()), float((r * r).sum()), int(tests[f].sum())
 

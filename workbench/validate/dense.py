@@ -726,7 +726,7 @@ def median_flow(flow: np.ndarray, px_per_mm: float) -> np.ndarray:
 
 
 def print_texture(ref_gray: np.ndarray, window_px: float, factor: int = 1):
-    """The print's structure tensor eigenvalues over the flow's window (l1, l2) and over four times it (l2 only).
+    """The print's structure tensor eigenvalues over the flow's window (l1, l2) and over four times it.
 
     What :func:`analyse` asks of the print's own texture, apart so that it can run beside the
     flow (it needs neither the flow nor the photo).
@@ -744,18 +744,31 @@ def print_texture(ref_gray: np.ndarray, window_px: float, factor: int = 1):
 
     Returns
     -------
-    l1, l2, l2_wide : (H, W) float32
+    l1, l2, l1_wide, l2_wide : (H, W) float32
         Grey levels² per px² (:func:`structure_tensor`).
-    window_gain : (H, W) float
-        The share of a slide the wide window answers, as the detection limit states it:
-        WINDOW_GAIN where its texture has two directions within WINDOW_TWO_WAY_STATED,
-        WINDOW_GAIN_ALONG_EDGE where not.
     """
     l1, l2, _ = structure_tensor(ref_gray, window_px, direction=False)
     # (scaled as analyse always did: two products, whose roundings a single factor² would change)
     l1, l2 = l1 * factor * factor, l2 * factor * factor
     l1_wide, l2_wide, _ = structure_tensor(ref_gray, 4 * window_px, direction=False)
-    return l1, l2, l2_wide, np.where(l2_wide >= WINDOW_TWO_WAY_STATED * l1_wide, WINDOW_GAIN, WINDOW_GAIN_ALONG_EDGE)
+    return l1, l2, l1_wide, l2_wide
+
+
+def window_gain(l1_wide: np.ndarray, l2_wide: np.ndarray) -> np.ndarray:
+    """The share of a slide the wide window's slide answers, as the detection limit states it.
+
+    Parameters
+    ----------
+    l1_wide, l2_wide : (H, W) float32
+        The wide window's structure tensor eigenvalues (:func:`print_texture`).
+
+    Returns
+    -------
+    (H, W) float32
+        WINDOW_GAIN where the window's texture has two directions within WINDOW_TWO_WAY_STATED,
+        WINDOW_GAIN_ALONG_EDGE where not.
+    """
+    return np.where(l2_wide >= WINDOW_TWO_WAY_STATED * l1_wide, WINDOW_GAIN, WINDOW_GAIN_ALONG_EDGE).astype(np.float32)
 
 
 def dense_flow(
@@ -1421,7 +1434,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     usable = tolerance_mm / SIGNIFICANCE_Z
     # (p1, p2 in grey levels² per pixel of the flow's grid: the gates hold for the images the
     # flow compares)
-    p1, p2, l2_wide, window_gain = texture.result()
+    p1, p2, l1_wide, l2_wide = texture.result()
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
     unresolved, needed_blur = detail.result()
@@ -1438,7 +1451,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # the detection limit, stated for a sound part (needed only for the result: beside the rest)
     shift_limit = later.submit(
         stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px, wide_sigma,
-        measurable & (p2 >= MIN_TWO_WAY), measurable, usable, window_gain,
+        measurable & (p2 >= MIN_TWO_WAY), measurable, usable, l1_wide, l2_wide,
     )  # fmt: skip
     shift = np.full((H, W, 2), np.nan, np.float32)
     np.copyto(shift, m, where=full[..., None])
@@ -1689,14 +1702,14 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
 
 
 def stated_shift_limit(
-    tolerance_mm, noise, l1, l2, n_eff, floor, mm_per_px, wide_sigma, two_way, measurable, usable, window_gain
+    tolerance_mm, noise, l1, l2, n_eff, floor, mm_per_px, wide_sigma, two_way, measurable, usable, l1_wide, l2_wide
 ) -> np.ndarray:
     """The detection limit's smallest slide found at each pixel, stated for a sound part (:func:`analyse`).
 
     The photo's noise through the texture it resolves (the mismatch and the flow back, which a
     defect itself raises, left out: :func:`workbench.validate.detection.expected_flow_sigma`),
-    and the window's slide's uncertainty ``wide_sigma``, of which the window answers ``window_gain``
-    (:func:`print_texture`);
+    and the window's slide's uncertainty ``wide_sigma``, of which the window answers
+    :func:`window_gain` of its eigenvalues ``l1_wide``, ``l2_wide``;
     :func:`workbench.validate.detection.shift_limit` at SIGNIFICANCE_Z + DETECT_Z.
 
     Returns
@@ -1707,7 +1720,7 @@ def stated_shift_limit(
     weak_e, _ = detection.expected_flow_sigma(noise, l1, l2, n_eff, floor)
     return detection.shift_limit(
         tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_e * mm_per_px, wide_sigma, two_way, measurable, usable,
-        window_gain,
+        window_gain(l1_wide, l2_wide),
     )  # fmt: skip
 
 

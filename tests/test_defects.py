@@ -22,6 +22,7 @@ from conftest import ROOT
 from workbench.cli import main
 from workbench.design_dir import Design
 from workbench.render.defects import Defect, apply_defects
+from workbench.validate import dense
 
 ORBIT = "--orbit=10,55,330"
 LOOK = ["--realistic", "--gloss", "0.5", "--distortion=-0.1,0,0,0,0"]
@@ -132,6 +133,8 @@ def test_each_defect_is_found_located_and_sized(four_defects):
         assert abs(area_err) <= 0.25, (t, f)
         assert f["kind"] == kind and f["area_mm2"] > report["max_defect_mm2"]
         assert f["view"] == "logo"
+        # each fails the photo on its own: beyond chance at the stated significance
+        assert f["significance_z"] >= dense.SIGNIFICANCE_Z, (t, f)
     # the bubbles' misregistration is their slide
     bubbles = sorted((f for _, f, _, _ in match(truth[:2], e["defects"])), key=lambda f: -f["area_mm2"])
     assert bubbles[0]["peak_mm"] == pytest.approx(1.0, abs=0.15) and bubbles[1]["peak_mm"] == pytest.approx(

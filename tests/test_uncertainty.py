@@ -269,6 +269,60 @@ def test_a_glint_over_coloured_ink_is_light_and_a_scratch_there_is_not():
     assert bad.any() and not highlight.any()
 
 
+def test_the_films_colour_is_the_lamps_not_the_fits_extrapolation_over_dark_ink():
+    # the cow's 10 mm² dropout at 12 Mpx: bare film (166, 167, 165) in a disc over dark green
+    # ink; the exposure fit's white, extrapolated from the ink's level to full scale, came out
+    # yellow there (188, 174, 137), so the step to it looked less like the film than like
+    # light added, and the dropout passed as a highlight. One lamp lights the film: its colour
+    # is taken where the design is near the film's own, its brightness stays local
+    pred = np.full((160, 160, 3), (52.0, 65.0, 50.0), np.float32)
+    pred[:, :60] = 240.0  # pale ink beside the green: there the fit's white is short work
+    ii, jj = np.indices(pred.shape[:2])
+    disc = np.hypot(ii - 80.0, jj - 110.0) < 14
+    photo = pred.copy()
+    photo[disc] = (166.0, 167.0, 165.0)
+    photo = cv2.GaussianBlur(photo, (0, 0), 1.0)
+    white = np.full(pred.shape, 170.0, np.float32)
+    white[:, 60:] = (188.0, 174.0, 137.0)
+    film = dense.film_colour(white, pred, np.ones(pred.shape[:2], bool))
+    assert np.abs(film[:, :60] - 170.0).max() < 0.5  # where the fit was right, unchanged
+    assert np.abs(film[80, 110] - film[80, 110].mean()).max() < 0.5  # the lamp's grey over the ink
+    # and its brightness the fit's there, the channels weighted by how well the ink determines
+    # them: within 3 % of the bare film's in the photo
+    assert film[80, 110].mean() == pytest.approx(166.1, rel=0.03)
+
+    def told(film):
+        step = film - pred
+        alpha = np.clip(((photo - pred) * step).sum(axis=2) / (step * step).sum(axis=2), 0.0, 1.0)
+        limit = np.full(disc.shape, dense.COLOUR_TOL + 6.0, np.float32)
+        bad = np.abs(photo - pred).max(axis=2) > limit
+        light = film / film.max(axis=2, keepdims=True)
+        blur = np.full(disc.shape, 1.0, np.float32)
+        return dense.light_or_ink(bad, bad & (alpha > 0.5), photo, pred, light, alpha, limit, 2.0, blur, film)
+
+    highlight, missing = told(white)
+    assert highlight[disc].mean() > 0.9  # the fit's own white: the dropout taken for light
+    highlight, missing = told(film)
+    assert not highlight.any() and missing[disc].mean() > 0.9
+    # a design with nothing near the film's colour keeps the fit's white (nothing knows better)
+    assert dense.film_colour(white, np.full_like(pred, 100.0), np.ones(disc.shape, bool)) is white
+
+
+def test_a_thin_line_of_ink_gone_is_judged_without_the_broad_allowance():
+    # pale ink (190) and the film (250): a 0.5 mm scratch blurred to 60 % of the step is 36 grey
+    # levels, under the colour test's broad allowance for shading and exposure (COLOUR_TOL) but
+    # far beyond the noise; as a thin line it is significant, as a broad region it is not
+    noise = 2.0
+    res = np.full((40, 40), 36.0, np.float32)
+    limit = np.full(res.shape, dense.COLOUR_TOL + dense.SIGNIFICANCE_Z * noise, np.float32)
+    everywhere = np.ones(res.shape, bool)
+    thin = dense.colour_z(res, res, everywhere, everywhere, limit, noise)
+    broad = dense.colour_z(res, res, everywhere, ~everywhere, limit, noise)
+    assert thin.min() == pytest.approx(36.0 / noise)  # its excess over no allowance, in σ
+    assert broad.max() == pytest.approx((36.0 - dense.COLOUR_TOL) / noise)
+    assert broad.max() < dense.SIGNIFICANCE_Z < thin.min()
+
+
 def test_a_shift_defect_must_explain_the_photo():
     # the print moved by 2 px over a textured patch: the flow of that motion takes away nearly
     # all the residual; the same flow where nothing moved (a flow following shading) takes away

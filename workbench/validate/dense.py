@@ -102,6 +102,11 @@ KEPT_TEXTURE = 0.6
 # ... at a contrast of at least this share of the design's (a highlight near clipping compresses it:
 # 0.57 to 1.1 measured)
 KEPT_CONTRAST = 0.4
+# the film's colour is taken where the design is this near it in every channel (a short
+# extrapolation of the exposure fit), from at least this many pixels (a median of chromaticity
+# settles to a grey level within a few hundred; fewer leave the fit's own white)
+FILM_NEAR = 0.75
+MIN_FILM_PX = 500
 MIN_CORE_PX = 10  # a thin line is told light or ink on its core where it holds this many pixels (thin_told)
 # a fold: the surface's normal turned this far from its mean over 0.75 mm (half the fold's
 # dihedral angle; smooth curvature turns it under a degree there): light along it is told from ink by
@@ -1479,11 +1484,12 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # (the light's colour only where light_or_ink asks: at the failed pixels, which it closes by
     # a pixel; the whole image's took a twentieth of a second)
     near = cv2.dilate(colour_bad.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    light = np.zeros_like(white)
-    white_near = white[near]
-    light[near] = np.maximum(white_near, 1.0) / np.maximum(_cmax(white_near), 1.0)[..., None]
+    film = film_colour(white, moved, weight > 0)
+    light = np.zeros_like(film)
+    film_near = film[near]
+    light[near] = np.maximum(film_near, 1.0) / np.maximum(_cmax(film_near), 1.0)[..., None]
     glossed, gone = light_or_ink(
-        colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur, white
+        colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur, film
     )
     # (a region stepped only part of the way towards the film is judged by the colour test
     # that allows shading, like any other colour)
@@ -1575,8 +1581,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     z_region = np.fmax(z_shift, z_wide)
     # (sized by the flow's own vector, whose edges are sharp: the window's blurs a bubble's rim)
     m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
-    # (ink that is gone by the raw residual: the shading allowance would explain most of it)
-    z_colour = (np.where(missing, res_raw, res) - colour_limit) / max(colour_noise, NOISE_FLOOR) + SIGNIFICANCE_Z
+    z_colour = colour_z(res, res_raw, missing, thin & missing, colour_limit, colour_noise)
     labels, defects = find_defects(
         shift_bad,
         colour_bad,
@@ -1817,6 +1822,44 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
     )  # fmt: skip
 
 
+def colour_z(
+    res: np.ndarray,
+    res_raw: np.ndarray,
+    missing: np.ndarray,
+    thin: np.ndarray,
+    colour_limit: np.ndarray,
+    noise: float,
+) -> np.ndarray:
+    """Per pixel, by how many standard uncertainties the colour residual exceeds its tolerance.
+
+    z = (r - t) / σ, with t the tolerance (the colour limit less its SIGNIFICANCE_Z · σ, so
+    a pixel at the limit has z = SIGNIFICANCE_Z). Ink that is gone is judged by the raw
+    residual (the colour test's shading allowance would explain most of it away); a
+    scratch's line against the thin test's own tolerance, which holds no COLOUR_TOL: a line
+    thinner than any shading or exposure error needs no allowance for them (with it, a
+    0.5 mm scratch found exactly at 4000 x 3000, whose blurred core steps 60 % of the way to
+    the film, came out at z 2.76 and passed).
+
+    Parameters
+    ----------
+    res, res_raw : (H, W) float32
+        The colour residual with the shading allowance, and without (grey levels).
+    missing, thin : (H, W) bool
+        Ink that is gone, and the part of it on a scratch's thin line.
+    colour_limit : (H, W) float32
+        The colour test's limit (grey levels).
+    noise : float
+        The colour residual's noise σ (grey levels).
+
+    Returns
+    -------
+    (H, W) float32
+    """
+    r = np.where(missing, res_raw, res)
+    limit = colour_limit - np.where(thin, np.float32(COLOUR_TOL), np.float32(0))
+    return ((r - limit) / max(noise, NOISE_FLOOR) + SIGNIFICANCE_Z).astype(np.float32)
+
+
 def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
     """Per pixel, the photo as the model under a gain of its own plus light added.
 
@@ -1881,6 +1924,46 @@ def photo_gain(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray) -> 
             return None
         out[c] = max(float(np.percentile(gain[..., c][m], 75)), 1e-3)
     return out
+
+
+def film_colour(white: np.ndarray, design: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+    """The bare film's colour as the photo shows it: one colour of light, at each pixel's brightness.
+
+    The exposure fit's white (``gain · 255 + offset``) extrapolates each channel from the
+    ink's level to the film's: over dark ink that multiplies the gain's error several times,
+    a different error per channel (over the cow's dark green ink the film came out yellow,
+    188, 174, 137, where the photo of ink gone showed it grey, 166, 167, 165). One lamp
+    lights the whole film, so its colour (the film's chromaticity, the camera's white
+    balance included) is one: the median of the fitted white's chromaticity where the
+    design is near the film's own colour (every channel at least FILM_NEAR of full scale:
+    a short extrapolation). The brightness stays local (shading, vignetting): the scalar b
+    of ``white ≈ b · colour`` by least squares, each channel weighted by the square of the
+    design's level there (a channel's gain is determined in proportion to its signal).
+
+    Parameters
+    ----------
+    white : (H, W, 3) float32
+        The exposure fit's film white, grey levels.
+    design : (H, W, 3) float32
+        The design as the fit saw it (moved and blurred like the photo), grey levels.
+    fitted : (H, W) bool
+        Pixels the exposure fit used.
+
+    Returns
+    -------
+    (H, W, 3) float32
+        The film's colour, grey levels; ``white`` itself where fewer than MIN_FILM_PX pixels
+        show the design near the film's colour (the light's colour is then not known better).
+    """
+    near = fitted & (_cmin(design) >= FILM_NEAR * 255.0)
+    if np.count_nonzero(near) < MIN_FILM_PX:
+        return white
+    w_near = white[near]
+    colour = np.median(w_near / np.maximum(_cmax(w_near), 1e-3)[:, None], axis=0).astype(np.float32)
+    colour /= max(float(colour.max()), 1e-3)
+    w = design * design
+    b = _csum(w * white * colour) / np.maximum(_csum(w * colour * colour), 1e-6)
+    return (b[..., None] * colour).astype(np.float32)
 
 
 def texture_lost(

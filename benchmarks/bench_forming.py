@@ -95,9 +95,13 @@ def form_sheet(
     dist) of ``render --orbit``), each validated in its own folder."""
     truth = None
     out.mkdir(parents=True, exist_ok=True)
-    shots = [(name, None) for name, _ in views(design)]
-    shots += [(f"orbit{az:g}_{el:g}", (az, el, dist)) for az, el, dist in orbits]
-    for name, orbit in shots:
+    shots = [(name, None, None) for name, _ in views(design)]
+    for o in orbits:
+        az, el, dist = o[:3]
+        held = o[3:] or None  # the part held turned by rx, ry, rz and moved by dx, dy, dz (a stand)
+        tag = "" if held is None else "_held" + "_".join(f"{x:g}" for x in held)
+        shots.append((f"orbit{az:g}_{el:g}{tag}", (az, el, dist), held))
+    for name, orbit, held in shots:
         photo = out / f"{name}.png"
         if done(photo.with_suffix(".json"), out / name / "validation.json"):
             truth = json.loads(photo.with_suffix(".json").read_text())["forming"]
@@ -107,9 +111,14 @@ def form_sheet(
         else:
             where = ["--orbit", ",".join(f"{x:g}" for x in orbit), "--size", ORBIT_SIZE, "--fov-deg", "40"]
         extra = ["--renderer", "mitsuba", "--spp", str(SPP)] if renderer == "mitsuba" else ["--noise", "1"]
+        hold = []
+        if held is not None:
+            hold = ["--part-rotation-deg", ",".join(f"{x:g}" for x in held[:3])]
+            hold += ["--part-offset-mm", ",".join(f"{x:g}" for x in held[3:6])]
         wb("render", design, *where, "--forming", law, "--seed", seed,
-           *(["--forming-random-mm", random_mm] if random_mm else []), *extra, "-o", photo)  # fmt: skip
-        wb("validate", design, photo, "--camera", photo.with_suffix(".json"), "--out", out / name, "--jobs", "1")
+           *(["--forming-random-mm", random_mm] if random_mm else []), *extra, *hold, "-o", photo)  # fmt: skip
+        wb("validate", design, photo, "--camera", photo.with_suffix(".json"), "--out", out / name, "--jobs", "1",
+           *hold)  # fmt: skip
         truth = json.loads(photo.with_suffix(".json").read_text())["forming"]
     return truth
 
@@ -398,9 +407,11 @@ def main() -> None:
     )
     ap.add_argument(
         "--orbit-views",
-        metavar="AZ,EL,DIST[;...]",
+        metavar="AZ,EL,DIST[@RX,RY,RZ,DX,DY,DZ][;...]",
         help="the calibration sheets are photographed from these orbit positions too (render --orbit; "
-        f"{ORBIT_SIZE} px, 40 degrees wide): the film the designed views do not see",
+        f"{ORBIT_SIZE} px, 40 degrees wide): the film the designed views do not see; after @, the part held on a "
+        "stand turned by RX, RY, RZ degrees and moved by DX, DY, DZ mm (render and validate --part-rotation-deg, "
+        "--part-offset-mm): film the plate hides",
     )
     ap.add_argument("--no-check0", action="store_true", help="do not form the uncompensated check sheet (round 0)")
     ap.add_argument("--placement", choices=("auto", "always", "never"), help="calibrate forming --placement")
@@ -439,9 +450,21 @@ def main() -> None:
     res = run_loop(
         work, a.job, a.law, a.scale, a.random_mm, a.sheets, a.rounds, a.renderer, a.calibration_film,
         log=lambda m: print(m, flush=True), min_fov=a.min_fov_deg, placement=a.placement, check0=not a.no_check0,
-        orbits=[tuple(float(x) for x in o.split(",")) for o in a.orbit_views.split(";")] if a.orbit_views else (),
+        orbits=[orbit_view(o) for o in a.orbit_views.split(";")] if a.orbit_views else (),
     )  # fmt: skip
     print(f"files in {res['work']}")
+
+
+def orbit_view(text: str) -> tuple[float, ...]:
+    """``AZ,EL,DIST`` or ``AZ,EL,DIST@RX,RY,RZ,DX,DY,DZ`` (the part held on a stand, turned and moved so)."""
+    where, _, held = text.partition("@")
+    out = tuple(float(x) for x in where.split(","))
+    if held:
+        h = tuple(float(x) for x in held.split(","))
+        if len(h) != 6:
+            raise SystemExit(f"--orbit-views {text}: after @, RX,RY,RZ,DX,DY,DZ (6 numbers)")
+        out += h
+    return out
 
 
 if __name__ == "__main__":

@@ -217,6 +217,33 @@ def test_a_part_seated_beyond_the_limit_is_a_warning_not_a_film_fault(design, tm
     assert "not set in its outline" in report["part"]["seating"]["warning"]
 
 
+def test_a_part_held_on_a_stand_is_judged_where_the_stand_holds_it(design, tmp_path):
+    # a stand tilts the part 20 degrees about x (film the plate hides comes into view), lifted
+    # clear of the plate; it is set down on the stand 1 mm off and turned 0.6 degrees
+    c = S.part_centre(design.V)
+    R0, t0 = S.part_motion((0, 0, 0), (20, 0, 0), c)
+    lift = float(design.V[:, 2].min() - (design.V @ R0.T + t0)[:, 2].min()) + 1.0
+    hold = ["--part-rotation-deg", "20,0,0", "--part-offset-mm", f"0,0,{lift:.3f}"]
+    moved = ["--part-rotation-deg", "20,0,0.6", "--part-offset-mm", f"1.0,-0.8,{lift:.3f}"]
+    p = render(design, tmp_path / "held.png", *moved)
+    status, report = validate(design, [p], tmp_path / "out", *hold)
+    e = report["photos"][0]
+    assert status == 0 and e["verdict"] == "PASS", e["reason"]
+    assert report["part_held"]["rotation_deg"] == [20.0, 0.0, 0.0]
+    assert np.hypot(*e["film_offset_mm"]) <= 0.05
+    # the seating is the motion from where the stand holds the part: composed, the truth
+    Rh, th = np.asarray(report["part_held"]["R"]), np.asarray(report["part_held"]["t_mm"])
+    Rs, ts = np.asarray(e["seating"]["R"]), np.asarray(e["seating"]["t_mm"])
+    truth = json.loads(p.with_suffix(".json").read_text())["part_pose"]
+    seated = (design.V @ Rh.T + th) @ Rs.T + ts
+    true = design.V @ np.asarray(truth["R"]).T + np.asarray(truth["t_mm"])
+    assert np.linalg.norm(seated - true, axis=1).max() <= 0.05
+    assert e["seating"]["warning"] is None  # a millimetre off the stand, not 20 degrees off the plate
+    # the same photo judged as if the part lay on the plate: the film cannot pass
+    status, report = validate(design, [p], tmp_path / "flat")
+    assert report["photos"][0]["verdict"] != "PASS"
+
+
 def test_the_photos_of_one_part_give_one_seating(design, tmp_path):
     extra = ("--part-offset-mm=-1.0,1.2", "--part-rotation-deg", "0,0,0.5")
     a = render(design, tmp_path / "a.png", *extra)

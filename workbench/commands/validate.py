@@ -24,7 +24,7 @@ from workbench.camera import load_camera_profile
 from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
-from workbench.options import Number
+from workbench.options import Number, parse_numbers
 from workbench.validate import dense, detection, landing, pictures
 from workbench.validate.part import part_summary
 from workbench.validate.photo import print_grid_of, sha256, validate_photo
@@ -103,6 +103,18 @@ def add_parser(sub) -> None:
         "in its outline (not a film fault; default 2)",
     )
     p.add_argument(
+        "--part-rotation-deg",
+        metavar="RX,RY,RZ",
+        help="the fixture holds the part turned by RX, RY, RZ degrees about its centre (a stand that tilts it, so that "
+        "photos see film the plate hides: a calibration film's rim); render's motion, R = Rz Ry Rx. The seating "
+        "measures the part from there, with the stand's contact as its prior",
+    )
+    p.add_argument(
+        "--part-offset-mm",
+        metavar="X,Y[,Z]",
+        help="... and its centre moved by X, Y, Z mm (mesh frame) from where the design puts it (default 0,0,0)",
+    )
+    p.add_argument(
         "--jobs",
         action=Number,
         lo=0,
@@ -142,6 +154,35 @@ def _one_thread() -> None:
 
     cv2.setNumThreads(1)
     numba.set_num_threads(1)
+
+
+def held_pose(args, design: Design) -> dict | None:
+    """How the fixture holds the part (``--part-rotation-deg``, ``--part-offset-mm``), None when as designed.
+
+    Returns ``{"rotation_deg", "offset_mm", "R", "t_mm", "centre_mm"}``: the design mesh's points
+    are held at ``R X + t`` (mesh frame, mm), render's ``part_pose`` convention.
+    """
+    from workbench.validate.seating import part_centre, part_motion
+
+    if args.part_rotation_deg is None and args.part_offset_mm is None:
+        return None
+    rot = (0.0, 0.0, 0.0)
+    if args.part_rotation_deg is not None:
+        rot = parse_numbers(args.part_rotation_deg, 3, "--part-rotation-deg", lo=-360, hi=360, unit="degrees")
+    off = (0.0, 0.0, 0.0)
+    if args.part_offset_mm is not None:
+        n = 3 if len(str(args.part_offset_mm).split(",")) == 3 else 2
+        vals = parse_numbers(args.part_offset_mm, n, "--part-offset-mm", lo=-1000, hi=1000, unit="mm")
+        off = (*vals, 0.0) if n == 2 else tuple(vals)
+    c = part_centre(design.V)
+    R, t = part_motion(off, rot, c)
+    return {
+        "rotation_deg": [float(x) for x in rot],
+        "offset_mm": [float(x) for x in off],
+        "R": R.tolist(),
+        "t_mm": t.tolist(),
+        "centre_mm": c.tolist(),
+    }
 
 
 def _init_worker(design_dir: str, camera: str) -> None:
@@ -249,25 +290,43 @@ def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None, dict
     )  # fmt: skip
 
 
-def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat=("on", 2.0), colour=None):
+def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat=("on", 2.0, None), colour=None):
     """:func:`validate_photo`, timed; ``colour``: (max_delta_e, the soft proof's output profile bytes or None)."""
     max_delta_e, proof = colour or (MAX_DELTA_E, None)
     t0 = time.perf_counter()
     entry, pics, state, pages = validate_photo(
-        path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat[0], seat[1], max_delta_e, proof
+        path,
+        design,
+        profile,
+        view,
+        tolerance_mm,
+        cache,
+        stem,
+        max_defect_mm2,
+        seat[0],
+        seat[1],
+        max_delta_e,
+        proof,
+        held=seat[2] if len(seat) > 2 else None,
     )
     entry["seconds"] = round(time.perf_counter() - t0, 3)
     return entry, pics, state, pages
 
 
-def part_seating(entries: list[dict], design: Design, mode: str, max_seating_mm: float) -> dict | None:
-    """The part's seating from all its photos (each photo's own stays in its entry); drops their normal matrices."""
-    from workbench.validate.seating import fuse, seating_entry
+def part_seating(
+    entries: list[dict], design: Design, mode: str, max_seating_mm: float, held: dict | None = None
+) -> dict | None:
+    """The part's seating from all its photos (each photo's own stays in its entry); drops their normal matrices.
+
+    ``held``: where the fixture holds the part (:func:`held_pose`); the seating is the motion from there.
+    """
+    from workbench.validate.seating import fuse, held_vertices, seating_entry
 
     if mode == "off":
         return {"mode": "off"}
+    V = held_vertices(design.V, held)
     seatings = [e.get("seating") for e in entries]
-    fused = fuse(seatings, design.V)
+    fused = fuse(seatings, V)
     for s in seatings:
         if s:
             s.pop("_H", None)
@@ -275,7 +334,7 @@ def part_seating(entries: list[dict], design: Design, mode: str, max_seating_mm:
     if fused is None:
         return None
     seat, n = fused
-    out = {"source": f"all photos of the part ({n})", **seating_entry(seat, design.V, max_seating_mm)}
+    out = {"source": f"all photos of the part ({n})", **seating_entry(seat, V, max_seating_mm)}
     out.pop("contour_samples", None)
     out.pop("contour_rms_px", None)
     return out
@@ -322,6 +381,7 @@ def run(args) -> int:
     design = Design(Path(args.design))
     if design.owner is None:
         raise WorkbenchError(f"{design.dir / 'owner.png'}: missing or unreadable; rerun workbench design")
+    held = held_pose(args, design)
     names = [v["name"] for v in design.info["views"]]
     if args.view is not None and args.view not in names:
         raise WorkbenchError(f"no view named {args.view!r} in {design.dir / 'design.json'} (views: {', '.join(names)})")
@@ -337,7 +397,7 @@ def run(args) -> int:
     check_outputs(out / "validation.json", out / "qa_report.pdf", inputs=inputs)
     proof = read_output_profile(output_profile) if output_profile else None
     stems = output_stems(photos)
-    seat = (args.seating, args.max_seating_mm)
+    seat = (args.seating, args.max_seating_mm, held)
     judge = (args.view, args.tolerance_mm, args.max_defect_mm2, seat, (args.max_delta_e, proof))
     work = [(p, stem, *judge) for p, stem in zip(photos, stems, strict=True)]
     if jobs > 1:
@@ -363,7 +423,7 @@ def run(args) -> int:
     if grid is None and scored:
         grid = dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
     part, combined, part_defects = part_summary(states, grid, names, entries)
-    part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm)
+    part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm, held)
     if combined is not None:
         files[out / "coverage_print.png"] = pictures.coverage_figure(
             combined,
@@ -392,6 +452,9 @@ def run(args) -> int:
         "part": part,
         "photos": entries,
     }
+    if held is not None:
+        # (only when given: a report of a part held as designed keeps its bytes)
+        report["part_held"] = held
     files.update(landing.add_to_report(report, entries, out))
     files.update(detection.add_to_report(report, entries, out))
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()

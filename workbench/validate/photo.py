@@ -58,15 +58,20 @@ def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def markers_under_the_part(pose, design: Design, face: np.ndarray | None = None) -> list[int]:
+def markers_under_the_part(pose, design: Design, face: np.ndarray | None = None, board=None) -> list[int]:
     """Markers seen where the part, if it sat where the fixture says, would hide them.
 
-    ``face``: the part's face buffer in the undistorted photo camera, when the caller has it.
+    ``face``: the part's face buffer in the undistorted photo camera, when the caller has it
+    (seen through ``pose.camera``, the camera composed with the part's motion). ``board``: the
+    board-posed camera, through which the markers are seen (default ``pose.camera``: the part
+    as designed).
     """
     cam = Camera(pose.camera.K, pose.camera.R, pose.camera.t, pose.camera.width, pose.camera.height)
     if face is None:
         xy, z = cam.project(design.V)
         face, _ = depth_buffer(xy, z, design.F, cam.width, cam.height)
+    if board is not None:
+        cam = Camera(board.K, board.R, board.t, board.width, board.height)
     fx = design.fixture
     mesh = np.asarray(fx["markers"]["corners_mesh_mm"])
     index = {int(i): k for k, i in enumerate(fx["markers"]["ids"])}
@@ -144,6 +149,7 @@ def validate_photo(
     max_seating_mm: float = 2.0,
     max_delta_e: float = MAX_DELTA_E,
     output_profile: bytes | None = None,
+    held: dict | None = None,
 ) -> tuple[dict, dict, np.ndarray | None, dict]:
     """Score one photo; never raises for a bad photo (its verdict says why).
 
@@ -152,6 +158,8 @@ def validate_photo(
     ``seating``: ``"on"`` measures the part's motion on its plate from this photo
     (:mod:`workbench.validate.seating`) and judges the film on the part where it sits, ``"off"``
     takes the part where the fixture puts it, an ``(R, t)`` pair is a motion measured already.
+    ``held``: where the fixture holds the part (``R``, ``t_mm``: a stand that tilts it;
+    ``validate --part-rotation-deg``); the seating is measured from there. None: as designed.
 
     Returns
     -------
@@ -180,7 +188,7 @@ def validate_photo(
     try:
         return _validate_photo(
             path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,
-            max_delta_e, output_profile, entry, side,
+            max_delta_e, output_profile, entry, side, held,
         )  # fmt: skip
     finally:
         # (a job still running, the print grid of a photo that is not scored, finishes on its
@@ -190,7 +198,7 @@ def validate_photo(
 
 def _validate_photo(
     path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,
-    max_delta_e, output_profile, entry, side,
+    max_delta_e, output_profile, entry, side, held=None,
 ):  # fmt: skip
     """:func:`validate_photo`, with ``side`` the executor of the work that can go beside the photo's own."""
     files: dict = {}
@@ -233,14 +241,19 @@ def _validate_photo(
         )
         return entry, files, None, {}
     clock.append(time.perf_counter())  # pose
+    from workbench.validate.seating import seat_photo, seated_camera
+
+    board = pose.camera  # (the fixture's markers are where the board camera sees them, whatever the part does)
+    # the part's motion: where the fixture holds it (a stand; as designed by default), then its own
+    # seating from there; the camera composed with it sees the design where the part is
+    R, t = np.eye(3), np.zeros(3)
+    if held is not None:
+        R, t = np.asarray(held["R"], dtype=np.float64), np.asarray(held["t_mm"], dtype=np.float64)
     if seating == "off":
         entry["seating"] = {"mode": "off"}
     else:
-        # the part's own pose on the plate: the camera composed with it sees the design where the part is
-        from workbench.validate.seating import seat_photo, seated_camera
-
         seat, entry["seating"] = seat_photo(
-            photo, pose.camera, design, cache, max_seating_mm, None if isinstance(seating, str) else seating
+            photo, board, design, cache, max_seating_mm, None if isinstance(seating, str) else seating, held
         )
         # a motion within what the seating can measure is not applied: its own error (0.005 to
         # 0.06 mm a vertex on real meshes, measured) would move the film measured on a part that
@@ -250,7 +263,10 @@ def _validate_photo(
         entry["seating"]["min_applied_mm"] = round(least, 4)
         entry["seating"]["applied"] = bool(entry["seating"]["largest_vertex_motion_mm"] >= least)
         if entry["seating"]["applied"]:
-            pose.camera = seated_camera(pose.camera, seat.R, seat.t)
+            # X_photo = Rs (R X + t) + ts
+            R, t = seat.R @ R, seat.R @ t + seat.t
+    if held is not None or (seating != "off" and entry["seating"]["applied"]):
+        pose.camera = seated_camera(board, R, t)
     clock.append(time.perf_counter())  # seating
     views = design.info["views"]
     if view_name is None:
@@ -263,7 +279,7 @@ def _validate_photo(
         cache[vi] = side.submit(_view, design, vi)
     # one z-buffer of the part in the photo: for this check and for both warps
     face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
-    hidden = markers_under_the_part(pose, design, face_buffer)
+    hidden = markers_under_the_part(pose, design, face_buffer, board)
     if hidden:
         entry["reason"] = (
             f"the object is not where the fixture says: marker {hidden[0]} is visible where the part "

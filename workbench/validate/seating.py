@@ -971,14 +971,38 @@ def seating_text(s: dict | None) -> str:
     return line
 
 
+def held_vertices(V: np.ndarray, held: dict | None) -> np.ndarray:
+    """The design's vertices where the fixture holds the part: ``R V + t`` of ``held`` (its ``R``, ``t_mm``).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+        Design vertices, mm (mesh frame).
+    held : dict or None
+        ``{"R": (3, 3), "t_mm": (3,)}``; None: as designed.
+
+    Returns
+    -------
+    (n, 3) float
+    """
+    if held is None:
+        return V
+    return V @ np.asarray(held["R"], dtype=np.float64).T + np.asarray(held["t_mm"], dtype=np.float64)
+
+
 def seat_photo(photo_rgb: np.ndarray, camera: Camera, design, cache: dict, max_seating_mm: float,
-               given: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[Seating, dict]:  # fmt: skip
+               given: tuple[np.ndarray, np.ndarray] | None = None,
+               held: dict | None = None) -> tuple[Seating, dict]:  # fmt: skip
     """The seating of the part in one photo of ``design`` (a :class:`workbench.design_dir.Design`).
 
     ``given``: a motion measured already (from all photos of the part): it is used as it is.
+    ``held``: where the fixture holds the part (validate ``--part-rotation-deg``,
+    ``--part-offset-mm``: ``R``, ``t_mm``); the seating is the motion from there, with the
+    stand's contact as the prior, and ``camera`` the board's.
     Returns the seating and its ``seating`` entry (with ``"_H"``, the normal matrix, for the
     part's joint estimate; the caller removes it).
     """
+    V = held_vertices(design.V, held)
     p = design.info["print"]
     if "seating print" not in cache:
         rgb = design.rgb
@@ -990,14 +1014,14 @@ def seat_photo(photo_rgb: np.ndarray, camera: Camera, design, cache: dict, max_s
             rgb, _ = bleed_beyond_outline(design.rgb, design.alpha > 0, 2.0 * p["dpi"] / 25.4)
         cache["seating print"] = print_reference(design.flat, p["height_mm"], rgb, p["dpi"])
     if given is not None:
-        seat = Seating(np.asarray(given[0]), np.asarray(given[1]), part_centre(design.V))
-        entry = seating_entry(seat, design.V, max_seating_mm)
+        seat = Seating(np.asarray(given[0]), np.asarray(given[1]), part_centre(V))
+        entry = seating_entry(seat, V, max_seating_mm)
         entry["source"] = "all photos of the part"
         return seat, entry
-    data = prepare(photo_rgb, camera, design.fixture, design.V, cache)
+    data = prepare(photo_rgb, camera, design.fixture, V, cache)
     uv, prgb = cache["seating print"]
-    seat = estimate_seating([data], design.V, design.F, print_uv_px=uv, print_rgb=prgb)
-    entry = seating_entry(seat, design.V, max_seating_mm)
+    seat = estimate_seating([data], V, design.F, print_uv_px=uv, print_rgb=prgb)
+    entry = seating_entry(seat, V, max_seating_mm)
     entry["source"] = "this photo"
     entry["_H"] = None if seat.H is None else seat.H.tolist()
     entry["_rho"] = seat.rho

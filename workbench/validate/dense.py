@@ -107,6 +107,7 @@ KEPT_CONTRAST = 0.4
 # settles to a grey level within a few hundred; fewer leave the fit's own white)
 FILM_NEAR = 0.75
 MIN_FILM_PX = 500
+MAX_FILM_SAMPLES = 100_000
 MIN_CORE_PX = 10  # a thin line is told light or ink on its core where it holds this many pixels (thin_told)
 # a fold: the surface's normal turned this far from its mean over 0.75 mm (half the fold's
 # dihedral angle; smooth curvature turns it under a degree there): light along it is told from ink by
@@ -1484,7 +1485,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # (the light's colour only where light_or_ink asks: at the failed pixels, which it closes by
     # a pixel; the whole image's took a twentieth of a second)
     near = cv2.dilate(colour_bad.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    film = film_colour(white, moved, weight > 0)
+    film = film_colour(white, moved, weight > 0, near)
     light = np.zeros_like(film)
     film_near = film[near]
     light[near] = np.maximum(film_near, 1.0) / np.maximum(_cmax(film_near), 1.0)[..., None]
@@ -1933,7 +1934,7 @@ def photo_gain(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray) -> 
     return out
 
 
-def film_colour(white: np.ndarray, design: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+def film_colour(white: np.ndarray, design: np.ndarray, fitted: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
     """The bare film's colour as the photo shows it: one colour of light, at each pixel's brightness.
 
     The exposure fit's white (``gain · 255 + offset``) extrapolates each channel from the
@@ -1943,9 +1944,10 @@ def film_colour(white: np.ndarray, design: np.ndarray, fitted: np.ndarray) -> np
     lights the whole film, so its colour (the film's chromaticity, the camera's white
     balance included) is one: the median of the fitted white's chromaticity where the
     design is near the film's own colour (every channel at least FILM_NEAR of full scale:
-    a short extrapolation). The brightness stays local (shading, vignetting): the scalar b
-    of ``white ≈ b · colour`` by least squares, each channel weighted by the square of the
-    design's level there (a channel's gain is determined in proportion to its signal).
+    a short extrapolation; up to 4 MAX_FILM_SAMPLES pixels, evenly spread, are looked at). The
+    brightness stays local (shading, vignetting): the scalar b of ``white ≈ b · colour`` by
+    least squares, each channel weighted by the square of the design's level there (a
+    channel's gain is determined in proportion to its signal).
 
     Parameters
     ----------
@@ -1955,6 +1957,8 @@ def film_colour(white: np.ndarray, design: np.ndarray, fitted: np.ndarray) -> np
         The design as the fit saw it (moved and blurred like the photo), grey levels.
     fitted : (H, W) bool
         Pixels the exposure fit used.
+    at : (H, W) bool, optional
+        The pixels whose film colour is asked (default all); ``white`` is kept elsewhere.
 
     Returns
     -------
@@ -1962,15 +1966,21 @@ def film_colour(white: np.ndarray, design: np.ndarray, fitted: np.ndarray) -> np
         The film's colour, grey levels; ``white`` itself where fewer than MIN_FILM_PX pixels
         show the design near the film's colour (the light's colour is then not known better).
     """
-    near = fitted & (_cmin(design) >= FILM_NEAR * 255.0)
-    if np.count_nonzero(near) < MIN_FILM_PX:
+    # (every k-th pixel, for at most 4 MAX_FILM_SAMPLES looked at: the film's colour is one number)
+    k = max(1, fitted.size // (4 * MAX_FILM_SAMPLES))
+    d = design.reshape(-1, 3)[::k]
+    near = np.flatnonzero(fitted.reshape(-1)[::k] & (_cmin(d) >= FILM_NEAR * 255.0))
+    if len(near) < MIN_FILM_PX:
         return white
-    w_near = white[near]
+    w_near = white.reshape(-1, 3)[::k][near]
     colour = np.median(w_near / np.maximum(_cmax(w_near), 1e-3)[:, None], axis=0).astype(np.float32)
     colour /= max(float(colour.max()), 1e-3)
-    w = design * design
-    b = _csum(w * white * colour) / np.maximum(_csum(w * colour * colour), 1e-6)
-    return (b[..., None] * colour).astype(np.float32)
+    sel = np.ones(white.shape[:2], bool) if at is None else at
+    w = design[sel] ** 2
+    b = _csum(w * white[sel] * colour) / np.maximum(_csum(w * colour * colour), 1e-6)
+    out = white.copy()
+    out[sel] = b[:, None] * colour
+    return out
 
 
 def texture_lost(

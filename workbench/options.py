@@ -91,6 +91,22 @@ def parse_numbers(text: str, n: int, what: str, sep: str = ",", **limits) -> tup
     return tuple(parse_number(p, what, **limits) for p in parts)
 
 
+def parse_part_offset(text: str | None) -> tuple | None:
+    """``--part-offset-mm X,Y`` or ``X,Y,Z`` (mm; Z 0 when not given), as render and validate take it."""
+    if text is None:
+        return None
+    n = 3 if len(str(text).split(",")) == 3 else 2
+    vals = parse_numbers(text, n, "--part-offset-mm", lo=-1000, hi=1000, unit="mm")
+    return tuple(vals) + (0.0,) * (3 - n)
+
+
+def parse_part_rotation(text: str | None) -> tuple | None:
+    """``--part-rotation-deg RX,RY,RZ`` (degrees), as render and validate take it."""
+    if text is None:
+        return None
+    return parse_numbers(text, 3, "--part-rotation-deg", lo=-360, hi=360, unit="degrees")
+
+
 class Number(argparse.Action):
     """``add_argument(..., action=Number, lo=, hi=, integer=, lo_open=, hi_open=, unit=)``: a checked number."""
 

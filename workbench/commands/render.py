@@ -18,7 +18,7 @@ from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_bytes
 from workbench.jsonfile import recorded_path
-from workbench.options import Number, parse_number, parse_numbers
+from workbench.options import Number, parse_number, parse_numbers, parse_part_offset, parse_part_rotation
 from workbench.render.defects import Defect
 from workbench.render.imperfections import REALISTIC, Imperfections
 from workbench.render.photo import render_photo
@@ -197,18 +197,7 @@ LIMITS = {
     "--light": {"lo": -1e6, "hi": 1e6},
     "--colour-shift-lab": {"lo": -50, "hi": 50},
     "--white-balance": {"lo": 0.1, "hi": 10},
-    "--part-offset-mm": {"lo": -1000, "hi": 1000, "unit": "mm"},
-    "--part-rotation-deg": {"lo": -360, "hi": 360, "unit": "degrees"},
 }
-
-
-def _part_offset(text: str | None) -> tuple | None:
-    """``X,Y`` or ``X,Y,Z`` mm (Z 0 when not given)."""
-    if text is None:
-        return None
-    n = len(str(text).split(","))
-    vals = _floats(text, 3 if n == 3 else 2, "--part-offset-mm")
-    return tuple(vals) + (0.0,) * (3 - len(vals))
 
 
 def _floats(text: str | None, n: int, flag: str) -> tuple | None:
@@ -280,8 +269,8 @@ def imperfections_from(args) -> Imperfections:
         "jpeg_quality": args.jpeg_quality,
         "colour_shift_lab": _floats(args.colour_shift_lab, 3, "--colour-shift-lab"),
         "white_balance": _floats(args.white_balance, 3, "--white-balance"),
-        "part_offset_mm": _part_offset(args.part_offset_mm),
-        "part_rotation_deg": _floats(args.part_rotation_deg, 3, "--part-rotation-deg"),
+        "part_offset_mm": parse_part_offset(args.part_offset_mm),
+        "part_rotation_deg": parse_part_rotation(args.part_rotation_deg),
     }
     kw.update({k: v for k, v in pairs.items() if v is not None})
     kw["seed"] = args.seed
@@ -473,17 +462,9 @@ def truth(
 
 def part_pose(imp: Imperfections, design: Design) -> dict:
     """Where the part sits on its plate: ``X_photo = R X_design + t`` (mesh frame, mm), and the motion's terms."""
-    from workbench.validate.seating import part_centre, part_motion
+    from workbench.validate.seating import motion_entry
 
-    c = part_centre(design.V)
-    R, t = part_motion(imp.part_offset_mm, imp.part_rotation_deg, c)
-    return {
-        "R": R.tolist(),
-        "t_mm": t.tolist(),
-        "offset_mm": list(imp.part_offset_mm),
-        "rotation_deg": list(imp.part_rotation_deg),
-        "centre_mm": c.tolist(),
-    }
+    return motion_entry(imp.part_offset_mm, imp.part_rotation_deg, design.V)
 
 
 def encode(rgb: np.ndarray, path: Path, imp: Imperfections) -> bytes:

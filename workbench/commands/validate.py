@@ -24,7 +24,7 @@ from workbench.camera import load_camera_profile
 from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
-from workbench.options import Number, parse_numbers
+from workbench.options import Number, parse_part_offset, parse_part_rotation
 from workbench.validate import dense, detection, landing, pictures
 from workbench.validate.part import part_summary
 from workbench.validate.photo import print_grid_of, sha256, validate_photo
@@ -159,30 +159,16 @@ def _one_thread() -> None:
 def held_pose(args, design: Design) -> dict | None:
     """How the fixture holds the part (``--part-rotation-deg``, ``--part-offset-mm``), None when as designed.
 
-    Returns ``{"rotation_deg", "offset_mm", "R", "t_mm", "centre_mm"}``: the design mesh's points
-    are held at ``R X + t`` (mesh frame, mm), render's ``part_pose`` convention.
+    Returns render's ``part_pose`` of that motion (:func:`workbench.validate.seating.motion_entry`):
+    the design mesh's points are held at ``R X + t`` (mesh frame, mm).
     """
-    from workbench.validate.seating import part_centre, part_motion
+    from workbench.validate.seating import motion_entry
 
     if args.part_rotation_deg is None and args.part_offset_mm is None:
         return None
-    rot = (0.0, 0.0, 0.0)
-    if args.part_rotation_deg is not None:
-        rot = parse_numbers(args.part_rotation_deg, 3, "--part-rotation-deg", lo=-360, hi=360, unit="degrees")
-    off = (0.0, 0.0, 0.0)
-    if args.part_offset_mm is not None:
-        n = 3 if len(str(args.part_offset_mm).split(",")) == 3 else 2
-        vals = parse_numbers(args.part_offset_mm, n, "--part-offset-mm", lo=-1000, hi=1000, unit="mm")
-        off = (*vals, 0.0) if n == 2 else tuple(vals)
-    c = part_centre(design.V)
-    R, t = part_motion(off, rot, c)
-    return {
-        "rotation_deg": [float(x) for x in rot],
-        "offset_mm": [float(x) for x in off],
-        "R": R.tolist(),
-        "t_mm": t.tolist(),
-        "centre_mm": c.tolist(),
-    }
+    off = parse_part_offset(args.part_offset_mm) or (0.0, 0.0, 0.0)
+    rot = parse_part_rotation(args.part_rotation_deg) or (0.0, 0.0, 0.0)
+    return motion_entry(off, rot, design.V)
 
 
 def _init_worker(design_dir: str, camera: str) -> None:
@@ -295,20 +281,9 @@ def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm
     max_delta_e, proof = colour or (MAX_DELTA_E, None)
     t0 = time.perf_counter()
     entry, pics, state, pages = validate_photo(
-        path,
-        design,
-        profile,
-        view,
-        tolerance_mm,
-        cache,
-        stem,
-        max_defect_mm2,
-        seat[0],
-        seat[1],
-        max_delta_e,
-        proof,
-        held=seat[2] if len(seat) > 2 else None,
-    )
+        path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat[0], seat[1], max_delta_e, proof,
+        held=seat[2],
+    )  # fmt: skip
     entry["seconds"] = round(time.perf_counter() - t0, 3)
     return entry, pics, state, pages
 

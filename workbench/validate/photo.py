@@ -246,8 +246,8 @@ def _validate_photo(
     board = pose.camera  # (the fixture's markers are where the board camera sees them, whatever the part does)
     # the part's motion: where the fixture holds it (a stand; as designed by default), then its own
     # seating from there; the camera composed with it sees the design where the part is
-    R, t = np.eye(3), np.zeros(3)
-    if held is not None:
+    R, t, moved = np.eye(3), np.zeros(3), held is not None
+    if moved:
         R, t = np.asarray(held["R"], dtype=np.float64), np.asarray(held["t_mm"], dtype=np.float64)
     if seating == "off":
         entry["seating"] = {"mode": "off"}
@@ -264,8 +264,8 @@ def _validate_photo(
         entry["seating"]["applied"] = bool(entry["seating"]["largest_vertex_motion_mm"] >= least)
         if entry["seating"]["applied"]:
             # X_photo = Rs (R X + t) + ts
-            R, t = seat.R @ R, seat.R @ t + seat.t
-    if held is not None or (seating != "off" and entry["seating"]["applied"]):
+            R, t, moved = seat.R @ R, seat.R @ t + seat.t, True
+    if moved:
         pose.camera = seated_camera(board, R, t)
     clock.append(time.perf_counter())  # seating
     views = design.info["views"]

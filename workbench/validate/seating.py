@@ -170,6 +170,34 @@ def part_motion(offset_mm, rotation_deg, centre) -> tuple[np.ndarray, np.ndarray
     return R, c + off - R @ c
 
 
+def motion_entry(offset_mm, rotation_deg, V: np.ndarray) -> dict:
+    """A motion of the part about its centre as files record it (render's ``part_pose``, validate's ``part_held``).
+
+    Parameters
+    ----------
+    offset_mm : (3,) float
+        How far the part's centre moves, mm (mesh frame).
+    rotation_deg : (3,) float
+        Its turn about the centre, degrees (R = Rz Ry Rx).
+    V : (n, 3) float
+        Design vertices, mm: the centre is their bounding box's.
+
+    Returns
+    -------
+    dict
+        ``R`` (3 x 3), ``t_mm`` (``X_moved = R X + t``), ``offset_mm``, ``rotation_deg``, ``centre_mm``.
+    """
+    c = part_centre(V)
+    R, t = part_motion(offset_mm, rotation_deg, c)
+    return {
+        "R": R.tolist(),
+        "t_mm": t.tolist(),
+        "offset_mm": [float(x) for x in offset_mm],
+        "rotation_deg": [float(x) for x in rotation_deg],
+        "centre_mm": c.tolist(),
+    }
+
+
 def motion_parameters(R: np.ndarray, t: np.ndarray, centre) -> tuple[np.ndarray, np.ndarray]:
     """``(offset_mm, rotation_deg)`` of a motion ``(R, t)`` about ``centre``: the inverse of :func:`part_motion`."""
     c = np.asarray(centre, dtype=np.float64)

@@ -295,6 +295,29 @@ def test_a_glint_brighter_than_the_bare_film_is_light_and_ink_gone_to_the_film_i
     assert missing[band].mean() > 0.75 and not highlight.any()
 
 
+def test_text_washed_out_where_a_glint_clips_is_light_and_a_scratch_beside_it_is_not():
+    # a glossy elephant at 6000 x 4000: under a broad glint that clips, strokes of small text
+    # washed out to white were told "ink gone" (a 9.9 mm² missing beside a bubble); a clipped
+    # pixel's colour is not known, and the glint beside it is the light that clipped it
+    photo = np.full((120, 160, 3), 200.0, np.float32)
+    light = np.zeros(photo.shape[:2], bool)
+    light[20:60, 20:70] = True
+    photo[light] = 255.0
+    lines = np.zeros(photo.shape[:2], bool)
+    lines[40:43, 70:90] = True  # a stroke washed out, clipped, touching the glint
+    photo[40:43, 70:90] = 252.0
+    lines[80:83, 20:70] = True  # a scratch showing the film (200), touching nothing
+    lines[59:62, 100:150] = True  # a clipped line that touches no light
+    photo[59:62, 100:150] = 255.0
+    lines[60:63, 30:60] = True  # a scratch of bare film that touches the glint
+    took = dense.clipped_beside_light(lines, photo, light)
+    assert took[40:43, 70:90].all()
+    assert not took[80:83].any() and not took[59:62, 100:].any() and not took[60:63, 30:60].any()
+    # half clipped or more: a line 40 % clipped stays ink gone
+    photo[40:43, 78:90] = 200.0
+    assert not dense.clipped_beside_light(lines, photo, light).any()
+
+
 def test_the_films_colour_is_the_lamps_not_the_fits_extrapolation_over_dark_ink():
     # the cow's 10 mm² dropout at 12 Mpx: bare film (166, 167, 165) in a disc over dark green
     # ink; the exposure fit's white, extrapolated from the ink's level to full scale, came out

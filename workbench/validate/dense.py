@@ -2396,9 +2396,11 @@ def clipped_beside_light(regions: np.ndarray, photo: np.ndarray, light: np.ndarr
         return np.zeros(regions.shape, bool)
     n, lab = cv2.connectedComponents(regions.astype(np.uint8), connectivity=8)
     size = np.bincount(lab.ravel(), minlength=n)
-    clipped = np.bincount(lab[regions & (_cmax(photo) >= SATURATED)], minlength=n)
+    # (the brightest channel at the regions' pixels only: they are a few lines of the grid)
+    at = lab[regions]
+    clipped = np.bincount(at[_cmax(photo[regions]) >= SATURATED], minlength=n)
     near = cv2.dilate(light.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    touches = np.bincount(lab[near & regions], minlength=n) > 0
+    touches = np.bincount(at[near[regions]], minlength=n) > 0
     keep = touches & (clipped >= CLIPPED_SHARE * size)
     keep[0] = False
     return keep[lab]

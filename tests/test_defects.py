@@ -177,6 +177,35 @@ def test_the_dense_field_agrees_with_the_tiles_on_a_moved_film(design, tmp_path)
     assert e["verdict"] == "FAIL"
 
 
+@pytest.mark.parametrize("renderer", RENDERERS)
+def test_a_misplaced_film_is_a_placement_fail_and_a_bubble_on_it_is_still_found(design, tmp_path, renderer):
+    # the film 0.8 mm off (and 0.3 up): one placement, measured to 0.02 mm, with the move that
+    # corrects it in the reason, and no "shift" over the whole film; with a 12 mm bubble slid
+    # 1 mm on that film, the bubble alone is found, where the photo shows it and at its size
+    offset = (0.8, -0.3)
+    for bubble in ([], ["bubble:45,30,6,1"]):
+        p = tmp_path / f"moved{len(bubble)}.png"
+        extra = [a for spec in bubble for a in ("--defect", spec)]
+        look = LOOK if renderer == "workbench" else MITSUBA
+        args = ["render", str(design.dir), ORBIT, "--size", "2000x1500", *look, *extra, "-o", str(p), "-q"]
+        assert main([*args, "--film-offset-mm", f"{offset[0]},{offset[1]}"]) == 0
+        e = validate(design, [p], tmp_path / f"out{len(bubble)}", "--tolerance-mm", "0.5")["photos"][0]
+        place = e["placement"]
+        assert e["verdict"] == "FAIL" and place["verdict"] == "FAIL" and place["explains"], e["reason"]
+        assert place["offset_mm"] == pytest.approx(offset, abs=0.02)
+        assert place["move_mm"] == pytest.approx([-offset[0], -offset[1]], abs=0.02)
+        assert e["reason"].startswith("film placed off by (+0.80, -0.30) mm"), e["reason"]
+        big = [d for d in e["defects"] if d["area_mm2"] > 4.0]
+        if not bubble:
+            assert not [d for d in e["defects"] if d["kind"] == "shift"], e["defects"]
+            continue
+        assert len(big) == 1 and big[0]["kind"] == "shift", e["defects"]
+        truth = json.loads(p.with_suffix(".json").read_text())["defects"]
+        ((t, f, dist, area_err),) = match(truth, big)
+        # (the photo shows the bubble where the film put it: its print position plus the offset)
+        assert dist <= 1.0 and abs(area_err) <= 0.25, (t, f)
+
+
 def test_parallel_photos_give_the_same_report(design, tmp_path):
     p = render(design, tmp_path / "defects.png", "2000x1500", [spec for spec, _ in DEFECTS.values()])
     serial = validate(design, [p], tmp_path / "serial")

@@ -70,3 +70,71 @@ def test_the_view_warp_takes_no_point_from_the_back_of_the_part():
         _, valid = warp_photo(photo, cam, surface, V, F)
         on = np.isfinite(surface.X[..., 0])
         assert on.sum() > 1000 and (valid[on] == expected).all()
+
+
+def test_a_steep_surface_is_no_step_and_a_jump_is():
+    # a plane seen at 75 degrees from its normal (cos 0.26: beyond what is scored, but one
+    # surface) changes depth by tan 75° · z / fx per pixel, steadily: it mixes nothing. The same
+    # plane with a 2 mm ledge across it (another surface in front) steps there
+    fx = 1000.0
+    z = 500.0 + np.arange(120)[None, :] * np.tan(np.radians(75.0)) * 500.0 / fx
+    depth = np.full((80, 160), np.inf)
+    depth[20:60, 20:140] = np.repeat(z, 40, axis=0)
+    steps = dense.depth_steps(depth, 2.0, fx)
+    assert not steps[25:55, 25:135].any()  # the slope's inside
+    assert steps[20, 60] and steps[59, 60] and steps[40, 20] and steps[40, 139]  # its outline
+    depth[20:60, 80:140] -= 2.0  # a ledge 2 mm nearer the camera from column 80 on
+    steps = dense.depth_steps(depth, 2.0, fx)
+    assert steps[40, 79] and steps[40, 80] and not steps[40, 60] and not steps[40, 100]
+
+
+def scan_scene(flipped: np.ndarray):
+    """A 100 x 100 mm grid of 2 mm squares at z = 0 seen from 500 mm above; the triangles
+    ``flipped`` wound the other way (a scan's tiny folded-over triangles)."""
+    n = 51
+    x, y = np.meshgrid(np.linspace(-50.0, 50.0, n), np.linspace(-50.0, 50.0, n))
+    V = np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], axis=1)
+    i = np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]
+    F = np.concatenate([np.stack([i, i + 1, i + n + 1], -1), np.stack([i, i + n + 1, i + n], -1)]).reshape(-1, 3)
+    F[flipped] = F[flipped][:, ::-1]
+    rgb = np.random.default_rng(0).integers(0, 255, (394, 394, 3), dtype=np.uint8)  # 100 dpi
+    grid = dense.print_grid(V, F, V[:, :2] + 50.0, 100.0, rgb, 100.0, None)
+    cam = Camera.look_at([0.0, 0.0, 500.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0], 30.0, 800, 800)
+    photo = np.random.default_rng(1).integers(0, 255, (800, 800, 3), dtype=np.uint8)
+    return V, F, grid, cam, photo
+
+
+def test_a_scans_folded_over_triangles_open_no_hole_in_what_is_seen():
+    # 40 scattered triangles turned over inside a surface that faces the camera: the part's
+    # surface there faces it, so they are seen, and nothing around them is masked; the whole
+    # sheet turned over is the back of the part
+    flipped = np.random.default_rng(2).choice(5000, 40, replace=False)
+    V, F, grid, cam, photo = scan_scene(flipped)
+    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
+    on = np.isfinite(grid.X[..., 0])
+    assert not (state[on] == dense.OCCLUDED).any()
+    band = dense.rim_band(state)
+    inner = np.zeros_like(on)
+    inner[30:-30, 30:-30] = True  # farther than the rim band and the outline's from the film's outline
+    assert (band[inner] == dense.FULL).all()
+    V, F, grid, cam, photo = scan_scene(np.arange(5000))
+    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
+    assert (state[on] == dense.OCCLUDED).all()
+
+
+def test_the_rim_band_follows_the_films_outline_and_the_frame_only():
+    # a hole that is hidden or too oblique in the middle of what is seen opens no band; the
+    # film's outline (off the part) and the photo's frame (not seen) do, EDGE_PX wide
+    state = np.full((100, 100), dense.FULL, np.uint8)
+    state[:, :10] = dense.OFF_PART
+    state[90:, :] = dense.NOT_SEEN
+    state[40:50, 40:50] = dense.OCCLUDED
+    state[60:70, 60:70] = dense.GRAZING
+    out = dense.rim_band(state)
+    e = dense.EDGE_PX
+    # (the grid's own border is a frame too)
+    assert (out[:90, 10 : 10 + e] == dense.EDGE).all() and (out[e : 90 - e, 10 + e : 100 - e] != dense.EDGE).all()
+    assert (out[90 - e : 90, 10:] == dense.EDGE).all()
+    assert (out[0:e, 10:] == dense.EDGE).all() and (out[:, 100 - e :][: 90 - e] == dense.EDGE).all()
+    assert (out[35:55, 35:55][state[35:55, 35:55] == dense.FULL] == dense.FULL).all()
+    assert (out[55:75, 55:75][state[55:75, 55:75] == dense.FULL] == dense.FULL).all()

@@ -25,9 +25,9 @@ from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
 from workbench.options import Number, parse_part_offset, parse_part_rotation
-from workbench.validate import dense, detection, landing, pictures
+from workbench.validate import detection, landing, pictures
 from workbench.validate.part import part_summary
-from workbench.validate.photo import print_grid_of, sha256, validate_photo
+from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
 from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, verdict_rule
 
@@ -203,10 +203,7 @@ def validate_in_pool(jobs: int, work: list[tuple], design: Design, profile, prof
         context, initargs = get_context("spawn"), (str(design.dir), str(profile_path))
         with ProcessPoolExecutor(jobs, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
             return list(pool.map(_validate_in_worker, work))
-    p = design.info["print"]
-    cache["grid"] = dense.print_grid(
-        design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner
-    )
+    cache["grid"] = design_print_grid(design)
     # OpenCV's thread pool stopped before the fork (the workers inherit one thread): a forked
     # worker that reconfigured it hung, waiting on a condition variable of pool threads that
     # exist only here
@@ -392,11 +389,10 @@ def run(args) -> int:
             + (f" ({entry.get('view')}, p95 {mm['p95']:.3f} mm)" if mm.get("p95") is not None else "")
             + f": {entry['reason']}"
         )
-    p = design.info["print"]
     scored = any(s is not None for s in states)
     grid = print_grid_of(cache) if scored else None
     if grid is None and scored:
-        grid = dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
+        grid = design_print_grid(design)
     part, combined, part_defects = part_summary(states, grid, names, entries)
     part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm, held)
     if combined is not None:

@@ -36,7 +36,7 @@ from workbench.camera import Camera
 from workbench.raster import depth_buffer, interpolate, rasterize_triangles
 from workbench.render.defects import FILM_RGB
 from workbench.validate import detection
-from workbench.views.visibility import faces_facing, unoccluded_many
+from workbench.views.visibility import surface_faces_facing, unoccluded_many
 
 MAX_GRID_PX = 4.0e6  # analysis grid: the print, reduced by a whole factor to at most this many pixels
 REGISTRATION_BLUR_PX = 1.0  # both images smoothed alike before the flow (as the tiles are)
@@ -196,6 +196,9 @@ class PrintGrid:
     fold : (rows, cols) bool or None
         Where the surface folds (:func:`grid_folds`), made on first use: it is the surface's, the
         same for every photo of the part (a quarter of a second on a 1.4 Mpx grid).
+    film : (rows, cols) int16 or None
+        With several films, the film (0-based) under each pixel (-1: off the part); None for
+        a design of one film. Each film is placed on its own (:func:`placement_field`).
     """
 
     X: np.ndarray
@@ -206,6 +209,7 @@ class PrintGrid:
     reference: np.ndarray
     face: np.ndarray
     fold: np.ndarray | None = None
+    film: np.ndarray | None = None
 
 
 def grid_folds(grid: PrintGrid) -> np.ndarray:
@@ -218,7 +222,7 @@ def grid_folds(grid: PrintGrid) -> np.ndarray:
     return grid.fold
 
 
-def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> PrintGrid:
+def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner, face_film=None) -> PrintGrid:
     """Surface points, ownership and stretch of every pixel of the print's analysis grid.
 
     Parameters
@@ -237,6 +241,8 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
         Its resolution.
     owner : (rows, cols) int
         Owning view per print pixel (-1: none).
+    face_film : (#F,) int, optional
+        With several films, the film of each face (-1: none).
 
     Returns
     -------
@@ -264,7 +270,10 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner) -> Print
     if owner is not None:
         own = owner[factor // 2 :: factor, factor // 2 :: factor][:gr, :gc].astype(np.int16)
     own[~on] = -1
-    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref), face)
+    film = None
+    if face_film is not None:
+        film = np.where(on, np.asarray(face_film)[np.maximum(face, 0)], -1).astype(np.int16)
+    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref), face, film=film)
 
 
 def warp_to_print(
@@ -337,7 +346,9 @@ def warp_to_print(
     with np.errstate(divide="ignore", invalid="ignore"):
         # a grid pixel whose photo footprint is much thinner along one axis than the other
         oblique = np.maximum(along_x, along_y) / np.minimum(along_x, along_y) > MAX_GRAZING
-    state[(state == FULL) & oblique] = GRAZING
+    # (too oblique whatever else: beside an outline the surface turns away, and what keeps it
+    # from being measured there is how obliquely it is seen)
+    state[((state == FULL) | (state == EDGE)) & oblique] = GRAZING
     footprint = np.where(ok, np.minimum(along_x, along_y), 0.0).astype(np.float32)
     return warped, state, scale, footprint
 
@@ -369,9 +380,11 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
     inside_ideal : (n,) bool
         The same through the ideal camera (where the depth buffer can say what hides them).
     shown : (n,) bool
-        Not hidden by another part of the mesh and on a triangle that faces the camera: just
-        behind a fold, the surface that turns its back is within the depth test's tolerance of
-        the surface in front of it.
+        Not hidden by another part of the mesh and on a part of the surface that faces the
+        camera (:func:`workbench.views.visibility.surface_faces_facing`): just behind a fold,
+        the surface that turns its back is within the depth test's tolerance of the surface in
+        front of it, while a scan's tiny triangle folded over inside a surface that faces the
+        camera is shown by it.
     """
     ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
     xy, z, lens = project_through_lens(cam, X)
@@ -382,12 +395,17 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
     def framed(p):
         return in_front & (p[:, 0] >= 0) & (p[:, 1] >= 0) & (p[:, 0] <= cam.width - 1) & (p[:, 1] <= cam.height - 1)
 
-    shown = seen & faces_facing(V, F, ideal.center)[faces]
+    shown = seen & surface_faces_facing(V, F, ideal.center)[faces]
     return xy, lens, framed(lens), framed(xy), shown
 
 
 def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) -> np.ndarray:
     """Photo pixels near a step in depth: the part's outline, or one surface in front of another.
+
+    A step is where the photo's pixels mix two surfaces: a change in depth between neighbouring
+    pixels that the surface's slope on neither side predicts. A steep surface changes depth
+    fast but steadily (its slope, extrapolated from either side, predicts the next pixel) and
+    mixes nothing: it is too oblique where it is (``warp_to_print``), not an edge.
 
     Parameters
     ----------
@@ -396,12 +414,12 @@ def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) ->
     radius_px : float
         Width of the band on each side of a step, photo pixels.
     fx : float, optional
-        The camera's focal length, pixels. With it, a step is a depth change between
-        neighbours larger than any scored surface has: one pixel spans z / fx mm at depth z,
-        so a surface seen at the largest obliquity that is scored (cos θ = 1 / MAX_GRAZING)
-        changes depth by tan θ · z / fx per pixel; a step is twice that (a neck 30 mm
-        behind a jaw seen from 900 mm is 3 %, under the relative DEPTH_STEP). Without it,
-        a relative jump of DEPTH_STEP.
+        The camera's focal length, pixels. With it, a change is a step when it departs from
+        both sides' slopes by more than the depth one pixel spans on a surface at the largest
+        obliquity that is scored: one pixel spans z / fx mm at depth z, and such a surface
+        (cos θ = 1 / MAX_GRAZING) changes depth by tan θ · z / fx across it; a curved surface's
+        slope changes by far less from one pixel to the next (a 5 mm fillet at that obliquity,
+        0.1 mm pixels: 0.05 mm against 0.28 mm). Without it, by DEPTH_STEP of the depth.
 
     Returns
     -------
@@ -412,14 +430,14 @@ def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) ->
     r = max(int(np.ceil(radius_px)), 1)
     out = np.zeros((h, w), bool)
     # a step needs the part on one side: only the part's bounding box, with a margin of the band
-    # and of the 3 x 3 window, can hold one (a 12 Mpx photo's part fills a quarter of it).
-    # The result is the same: the margin's pixels hold no part, so the windows there see what
+    # and of the pairs' reach, can hold one (a 12 Mpx photo's part fills a quarter of it).
+    # The result is the same: the margin's pixels hold no part, so the pairs there see what
     # they see in the whole image, and the band reaches no farther than the margin
     rows = np.flatnonzero(np.isfinite(depth).any(axis=1))
     if not len(rows):
         return out
     cols = np.flatnonzero(np.isfinite(depth[rows[0] : rows[-1] + 1]).any(axis=0))
-    m = r + 2
+    m = r + 3
     y0, y1 = max(rows[0] - m, 0), min(rows[-1] + 1 + m, h)
     x0, x1 = max(cols[0] - m, 0), min(cols[-1] + 1 + m, w)
     out[y0:y1, x0:x1] = _depth_steps(depth[y0:y1, x0:x1], r, fx)
@@ -428,20 +446,30 @@ def depth_steps(depth: np.ndarray, radius_px: float, fx: float | None = None) ->
 
 def _depth_steps(depth: np.ndarray, r: int, fx: float | None) -> np.ndarray:
     """:func:`depth_steps` within a crop whose border rows and columns hold no part; (h, w) bool."""
-    d = np.where(np.isfinite(depth), depth, 1e30).astype(np.float32)
-    k = np.ones((3, 3), np.uint8)
-    near, far = cv2.erode(d, k), cv2.dilate(d, k)
-    # a smooth surface changes depth by a fraction of a percent per pixel up to grazing
-    # angles that are not scored anyway; the background, or a surface behind a fold,
-    # by far more
+    # (no part: a depth far beyond any, finite, so that differences stay numbers)
+    d = np.where(np.isfinite(depth), depth, 1e12)
+    near = np.minimum(d, np.minimum(np.roll(d, 1, 0), np.roll(d, 1, 1)))
     if fx is None:
         limit = DEPTH_STEP * near
     else:
         tan_max = np.sqrt(MAX_GRAZING**2 - 1.0)
-        # the 3 x 3 window spans two pixels each way
-        limit = np.minimum(DEPTH_STEP, 2.0 * 2.0 * tan_max / fx) * near
-    step = (far - near > limit).astype(np.uint8)
-    return cv2.dilate(step, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
+        limit = np.minimum(DEPTH_STEP, tan_max / fx) * near
+    step = np.zeros(d.shape, bool)
+    for axis in (0, 1):
+        a = np.moveaxis(d, axis, 0)
+        lim = np.moveaxis(limit, axis, 0)[1:-2]
+        s = np.moveaxis(step, axis, 0)
+        # the pair (k, k + 1), and the depth at k + 1 predicted from the slope on its left
+        # (2 d[k] - d[k - 1]) and at k from the slope on its right (2 d[k + 1] - d[k + 2])
+        d0, d1, dm, dp = a[1:-2], a[2:-1], a[:-3], a[3:]
+        # (a jump that either slope predicts is one surface; a ledge on a steep slope can make
+        # the jump itself small, so it is not asked for)
+        pair = (np.abs(d1 - (2.0 * d0 - dm)) > lim) & (np.abs(d0 - (2.0 * d1 - dp)) > lim)
+        s[1:-2] |= pair
+        s[2:-1] |= pair
+    # (the crop's border rows and columns hold no part: a pair there has none to mix)
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    return cv2.dilate(step.astype(np.uint8), k).astype(bool)
 
 
 def project_through_lens(cam: Camera, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -561,7 +589,7 @@ def agreement(flow_px: np.ndarray, full: np.ndarray, px_per_mm: float, p0, p1, b
     return {"tiles": len(d), "median_mm": float(np.median(d)), "p95_mm": float(np.percentile(d, 95))}
 
 
-def local_normalise(gray: np.ndarray, sigma: float) -> np.ndarray:
+def local_normalise(gray: np.ndarray, sigma: float, weight: np.ndarray | None = None) -> np.ndarray:
     """Grey image with its local mean removed and its local contrast scaled to 1, as uint8 for DIS.
 
     Parameters
@@ -569,18 +597,43 @@ def local_normalise(gray: np.ndarray, sigma: float) -> np.ndarray:
     gray : (H, W) float32
     sigma : float
         Window, pixels.
+    weight : (H, W) float32 or bool, optional
+        Which pixels the window's mean and contrast are taken over (:func:`masked_normalise`);
+        every pixel when not given.
 
     Returns
     -------
     (H, W) uint8
         128 + 40 · (g - mean) / std, clipped.
     """
+    if weight is not None:
+        return np.clip(128.0 + 40.0 * masked_normalise(gray, weight.astype(np.float32), sigma), 0, 255).astype(np.uint8)
     m = cv2.GaussianBlur(gray, (0, 0), sigma)
     d = gray - m
     s = np.sqrt(cv2.GaussianBlur(d * d, (0, 0), sigma))
     # a floor on the contrast: flat areas stay flat instead of amplifying noise
     n = d / np.maximum(s, 6.0)
     return np.clip(128.0 + 40.0 * n, 0, 255).astype(np.uint8)
+
+
+def masked_normalise(gray: np.ndarray, w: np.ndarray, sigma: float) -> np.ndarray:
+    """``gray`` less its local mean, over its local contrast, both weighted by ``w``; (H, W) float32.
+
+    Parameters
+    ----------
+    gray : (H, W) float32
+    w : (H, W) float32
+        Weights in [0, 1]: a pixel of weight 0 (not scored: another surface, glare, nothing)
+        moves neither the mean nor the contrast of its neighbours' windows.
+    sigma : float
+        Window, pixels.
+    """
+    sw = cv2.GaussianBlur(w, (0, 0), sigma) + 1e-6
+    m = cv2.GaussianBlur(gray * w, (0, 0), sigma) / sw
+    d = gray - m
+    s = np.sqrt(cv2.GaussianBlur(d * d * w, (0, 0), sigma) / sw)
+    # (a floor on the contrast: flat areas stay flat instead of amplifying noise)
+    return d / np.maximum(s, 6.0)
 
 
 def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
@@ -839,8 +892,11 @@ def flow_images(
     if factor > 1:
         ref_gray, warped_gray = _reduce(ref_gray, factor), _reduce(warped_gray, factor)
         scored = _reduce(scored.astype(np.float32), factor) > 0.5
-    r = local_normalise(ref_gray, NORM_SIGMA_PX)
-    return r, np.where(scored, local_normalise(warped_gray, NORM_SIGMA_PX), r)
+    # (both over the scored pixels alone: beside a surface that is not scored, what the photo
+    # shows there, another surface or nothing, moves neither image's window)
+    w = scored.astype(np.float32)
+    r = local_normalise(ref_gray, NORM_SIGMA_PX, w)
+    return r, np.where(scored, local_normalise(warped_gray, NORM_SIGMA_PX, w), r)
 
 
 def dis_flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -1292,6 +1348,126 @@ def unresolved_detail(ref_gray: np.ndarray, blur_px: np.ndarray, min_texture: fl
     return unresolved, needed
 
 
+def rim_band(state: np.ndarray) -> np.ndarray:
+    """The states with a band of EDGE_PX grid pixels along the film's rim and the photo's frame made EDGE.
+
+    Along the film's outline (beyond it: OFF_PART) the photo's pixels mix the film with what
+    lies beyond it, and the film's landing is measured there apart (``landing``); along the
+    photo's frame (NOT_SEEN) nothing of the print lies on the far side. Nothing else opens a
+    band: where the photo mixes two surfaces, the depth step already made its pixels EDGE, in
+    the photo's own pixels (:func:`depth_steps`); a surface too oblique, hidden or turned
+    away beside a scored one mixes nothing into it, and the fits and the flow's
+    normalisation weigh only scored pixels.
+
+    Parameters
+    ----------
+    state : (rows, cols) uint8
+        Visibility states (:func:`warp_to_print`).
+
+    Returns
+    -------
+    (rows, cols) uint8
+        A copy, FULL pixels within EDGE_PX of OFF_PART or NOT_SEEN made EDGE.
+    """
+    state = state.copy()
+    k = 2 * EDGE_PX + 1
+    beyond = np.isin(state, (OFF_PART, NOT_SEEN)).astype(np.uint8)
+    near = cv2.dilate(beyond, np.ones((k, k), np.uint8), borderValue=1).astype(bool)
+    state[(state == FULL) & near] = EDGE
+    return state
+
+
+@dataclass
+class FlowStart:
+    """What :func:`analyse` starts from: the masks, the images the flow compares and the flow itself.
+
+    Attributes
+    ----------
+    seen, sat, inner : (H, W) bool
+        Scored pixels; clipped highlights (with their margin); scored pixels with scored
+        neighbours 2 px each way (the blur's and the exposure fit's).
+    rg, pg : (H, W) float32
+        The print and the photo, grey.
+    rgb_, pgb_ : (H, W) float32
+        Both smoothed alike by ``reg`` before the flow.
+    ref_n, pho_n : (h, w) uint8
+        Both as the flow compares them (:func:`flow_images`).
+    texture : Future
+        :func:`print_texture` of ``rgb_``.
+    m : (H, W, 2) float32
+        The flow: the photo at y shows the print at y - m(y), grid px.
+    reg : float
+        The registration blur, grid px.
+    flow_k : int
+        The flow's reduction of the grid (:func:`flow_factor`).
+    win : float
+        The flow's window, grid px.
+    """
+
+    seen: np.ndarray
+    sat: np.ndarray
+    inner: np.ndarray
+    rg: np.ndarray
+    pg: np.ndarray
+    rgb_: np.ndarray
+    pgb_: np.ndarray
+    ref_n: np.ndarray
+    pho_n: np.ndarray
+    texture: object
+    m: np.ndarray
+    reg: float
+    flow_k: int
+    win: float
+
+
+def flow_start(
+    ref: np.ndarray, pho: np.ndarray, warped: np.ndarray, state: np.ndarray, scale: float, later
+) -> FlowStart:
+    """The masks, images and flow of :func:`analyse` for a print ``ref`` (H, W, 3) float32 against the photo.
+
+    Parameters
+    ----------
+    ref : (H, W, 3) float32
+        The print on the grid (or the print as the film's placement puts it).
+    pho, warped : (H, W, 3) float32 and uint8
+        The photo on the grid.
+    state : (H, W) uint8
+        Visibility states (FULL: scored).
+    scale : float
+        Photo pixels per grid pixel.
+    later : Executor
+        Where the print's texture is computed beside the flow.
+
+    Returns
+    -------
+    FlowStart
+    """
+    seen = state == FULL
+    rg = cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY)
+    pg = cv2.cvtColor(pho, cv2.COLOR_RGB2GRAY)
+    # highlights: white-out, every channel clipped (and a margin around, where the glare still adds light)
+    # (an opening first: a highlight is broad; a white scratch that clips is a defect, not glare)
+    sat = ((_cmin(warped) >= SATURATED) & seen).astype(np.uint8)
+    sat = cv2.morphologyEx(sat, cv2.MORPH_OPEN, np.ones((9, 9), np.uint8))
+    sat = cv2.dilate(sat, np.ones((7, 7), np.uint8)).astype(bool)
+    inner = cv2.erode(seen.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    # the flow on both images smoothed alike (unbiased whatever the photo's blur; estimating
+    # that blur first is not: misregistration makes more blur look better)
+    reg = max(REGISTRATION_BLUR_PX, REGISTRATION_BLUR_PX / max(scale, 1e-3))
+    rgb_ = cv2.GaussianBlur(rg, (0, 0), reg)
+    pgb_ = cv2.GaussianBlur(pg, (0, 0), reg)
+    # (at about the photo's resolution where it is coarser than the grid, its windows with it)
+    flow_k = flow_factor(scale)
+    win = TENSOR_SIGMA_PX * flow_k
+    ref_n, pho_n = flow_images(rgb_, pgb_, seen & ~sat, flow_k)
+    # (the flow compares locally normalised images, so whether it is the pixel's own depends
+    # on the print's texture, not on the photo's exposure)
+    texture = later.submit(print_texture, rgb_, win, flow_k)
+    g = dis_flow(pho_n, ref_n)
+    m = -(_enlarge_flow(g, rg.shape) if flow_k > 1 else g)  # as dense_flow
+    return FlowStart(seen, sat, inner, rg, pg, rgb_, pgb_, ref_n, pho_n, texture, m, reg, flow_k, win)
+
+
 def analyse(
     grid: PrintGrid,
     warped: np.ndarray,
@@ -1337,42 +1513,43 @@ def analyse(
 
 def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later) -> DenseResult:
     """:func:`analyse`, with ``later`` the executor of the work that can run beside it."""
-    state = state.copy()
-    # the film's rim and the photo's edge: the flow and the exposure fit have no neighbours
-    # on one side there, so a band of EDGE_PX is not scored
-    seen0 = (state == FULL).astype(np.uint8)
-    k = 2 * EDGE_PX + 1
-    state[(state == FULL) & ~cv2.erode(seen0, np.ones((k, k), np.uint8), borderValue=0).astype(bool)] = EDGE
-    seen = state == FULL
-    ref = grid.reference.astype(np.float32)
+    state = rim_band(state)
     pho = warped.astype(np.float32)
-    rg = cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY)
-    pg = cv2.cvtColor(pho, cv2.COLOR_RGB2GRAY)
-    # highlights: white-out, every channel clipped (and a margin around, where the glare still adds light)
-    # (an opening first: a highlight is broad; a white scratch that clips is a defect, not glare)
-    sat = ((_cmin(warped) >= SATURATED) & seen).astype(np.uint8)
-    sat = cv2.morphologyEx(sat, cv2.MORPH_OPEN, np.ones((9, 9), np.uint8))
-    sat = cv2.dilate(sat, np.ones((7, 7), np.uint8)).astype(bool)
-    inner = cv2.erode(seen.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
-    # the flow on both images smoothed alike (unbiased whatever the photo's blur; estimating
-    # that blur first is not: misregistration makes more blur look better)
-    reg = max(REGISTRATION_BLUR_PX, REGISTRATION_BLUR_PX / max(scale, 1e-3))
-    rgb_ = cv2.GaussianBlur(rg, (0, 0), reg)
-    pgb_ = cv2.GaussianBlur(pg, (0, 0), reg)
-    # (at about the photo's resolution where it is coarser than the grid, its windows with it)
-    flow_k = flow_factor(scale)
-    win = TENSOR_SIGMA_PX * flow_k
-    H, W = rg.shape
-    ref_n, pho_n = flow_images(rgb_, pgb_, seen & ~sat, flow_k)
+    ref = grid.reference.astype(np.float32)
+    fs = flow_start(ref, pho, warped, state, scale, later)
+    H, W = state.shape
+    jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
+    # (surface mm per grid px: print mm times the film's local stretch)
+    mm_per_px = (grid.surface_per_print / grid.px_per_mm).astype(np.float32)
+    # placement is not a defect: each film's placement (an affine field over the film, fitted to
+    # this first flow where the print has texture both ways) is judged as placement, and the
+    # analysis starts again from the print placed so, when that placement moves it anywhere by
+    # more than a measuring pixel's uncertainty may be. Local defects are then what remains: a
+    # film 0.8 mm off is no 10,000 mm² "shift", a bubble on it is still found, and the print's
+    # texture the flow and its windows weigh is the texture the photo shows there (the print
+    # where it is, 9 grid px from it, drew a slide along every rim)
+    two_way = fs.seen & ~fs.sat & (fs.texture.result()[1] >= MIN_TWO_WAY)
+    ones = np.ones((H, W), np.float32)
+    early, _ = placement_field(
+        fs.m, np.zeros_like(fs.m), two_way, np.zeros_like(two_way), ones, grid.film, np.inf, fs.win
+    )
+    if np.any(np.hypot(early[..., 0], early[..., 1]) * mm_per_px > tolerance_mm / SIGNIFICANCE_Z):
+        mx, my = jj - early[..., 0], ii - early[..., 1]
+        ref = cv2.remap(ref, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        # (what the placement brings in from beyond the film's outline is no print: the film's rim as placed)
+        on = np.isfinite(grid.X[..., 0]).astype(np.uint8)
+        from_film = cv2.remap(on, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+        state[(state == FULL) & ~from_film] = OFF_PART
+        state = rim_band(state)
+        state[(state == OFF_PART) & on.astype(bool)] = EDGE
+        fs = flow_start(ref, pho, warped, state, scale, later)
+    else:
+        early = np.zeros_like(early)
+    seen, sat, inner, rg, pg, rgb_, pgb_ = fs.seen, fs.sat, fs.inner, fs.rg, fs.pg, fs.rgb_, fs.pgb_
+    ref_n, pho_n, texture, m, reg, flow_k, win = fs.ref_n, fs.pho_n, fs.texture, fs.m, fs.reg, fs.flow_k, fs.win
     back = later.submit(dis_flow, ref_n, pho_n)
-    # (the flow compares locally normalised images, so whether it is the pixel's own depends
-    # on the print's texture, not on the photo's exposure)
-    texture = later.submit(print_texture, rgb_, win, flow_k)
-    g = dis_flow(pho_n, ref_n)
-    m = -(_enlarge_flow(g, (H, W)) if flow_k > 1 else g)  # as dense_flow
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
-    jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     # (the colour's model follows the flow's median over about 2 mm: a film's slide is smooth at
     # that scale, and the flow's own wiggle along a scratch or a dropout's rim, which pulls the
     # neighbouring ink over the bare film, would explain the ink that is gone away)
@@ -1445,8 +1622,6 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     fb = forward_backward(m, ref_n, pho_n, flow_k, back.result())
     weak = np.hypot(weak, 0.5 * fb)
     strong = np.hypot(strong, 0.5 * fb)
-    # surface mm per grid px: print mm times the film's local stretch
-    mm_per_px = (grid.surface_per_print / grid.px_per_mm).astype(np.float32)
     # a pixel measures misregistration where the flow there is its own (MIN_EDGE) and its
     # uncertainty lets a shift of twice the tolerance stand out at SIGNIFICANCE_Z
     # (σ ≤ tolerance / Z); the full vector where the weakest direction does, the component
@@ -1473,9 +1648,11 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px, wide_sigma,
         measurable & (p2 >= MIN_TWO_WAY), measurable, usable, l1_wide, l2_wide,
     )  # fmt: skip
+    # (the misregistration reported is the whole of it: the placement's and the rest)
+    m_total = m + early
     shift = np.full((H, W, 2), np.nan, np.float32)
-    np.copyto(shift, m, where=full[..., None])
-    mn = _csum(m * e1)[..., None] * e1  # the component across the edge
+    np.copyto(shift, m_total, where=full[..., None])
+    mn = _csum(m_total * e1)[..., None] * e1  # the component across the edge
     np.copyto(shift, mn, where=normal[..., None])
     state[scored & ~full & ~normal] = COLOUR_ONLY
     state[unresolved] = UNRESOLVED
@@ -1581,12 +1758,15 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     lit = cv2.dilate((state == HIGHLIGHT).astype(np.uint8), lit_disc).astype(bool)
     # (the slide computed beside the rest where the light is the same: the same numbers)
     m_wide = slide.result() if np.array_equal(lit, lit_now) else tensor_weighted_flow(rgb_, m, 4 * win, ~lit)
+    # (local defects in the flow from the placed print; the misregistration reported is the whole of it)
+    local_shift = np.where(normal[..., None], _csum(m * e1)[..., None] * e1, m)
+    local_mm = np.where(full | normal, np.hypot(local_shift[..., 0], local_shift[..., 1]) * mm_per_px, np.nan)
     wide_ok = scored & ~unresolved & ~lit & (wide_sigma <= usable)
     wide_mm = np.hypot(m_wide[..., 0], m_wide[..., 1]) * mm_per_px
     z_wide = np.where(wide_ok, (wide_mm - tolerance_mm) / wide_sigma, np.nan)
     # the honest measures (the full vector, the component across an edge, a window's slide)
     # significantly beyond the tolerance: a region without any is the flow's guess, not a defect
-    z_shift = (shift_mm - tolerance_mm) / sigma_mm
+    z_shift = (local_mm - tolerance_mm) / sigma_mm
     # (a window's slide spreads past a slid region's rim by about its own radius: eroded by
     # half the window's width, the window's evidence stays inside the region it measured)
     e = max(1, int(round(2 * win)))
@@ -1611,7 +1791,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         shift_bad,
         colour_bad,
         missing,
-        shift_mm,
+        local_mm,
         res,
         grid,
         alpha,
@@ -1717,7 +1897,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         labels,
         defects,
         blur,
-        m,
+        m_total,
         texture,
         sigma_mm,
         noise,
@@ -3001,6 +3181,124 @@ def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> 
             },
         }
     return out
+
+
+PLACEMENT_STRIDE = 4  # every 4th grid pixel each way: neighbours share their flow window anyway
+PLACEMENT_TRIM = 3.0  # a sample beyond this many median normalised residuals is a local defect's, not the film's
+
+
+def placement_field(
+    flow_px: np.ndarray,
+    across: np.ndarray,
+    full: np.ndarray,
+    normal: np.ndarray,
+    sigma_px: np.ndarray,
+    film: np.ndarray | None,
+    max_sigma_px: np.ndarray | float,
+    window_px: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The misregistration each film's placement explains: a robust affine fit of the flow per film.
+
+    A film placed off (moved, turned, scaled, or printed at another scale along each axis)
+    shows, at the print point y, a misregistration affine in y: m(y) = A y + t. A local defect
+    (a bubble, a fold) is what remains: m(y) - A y - t. The fit takes every PLACEMENT_STRIDE-th
+    pixel that measures the full vector (two equations) or the component across an edge
+    (n · m(y), one), each weighted by its own uncertainty, and drops samples beyond
+    PLACEMENT_TRIM median normalised residuals, three times: a bubble of 6 mm on a film of
+    100 mm is a few per cent of the samples and goes with the trimmed ones. A film whose
+    samples cannot determine the six terms to a third of ``max_sigma_px`` at its farthest
+    sample keeps no field (nothing is taken from its flow).
+
+    Parameters
+    ----------
+    flow_px : (H, W, 2) float32
+        The dense flow, grid px (x, y).
+    across : (H, W, 2) float32
+        Unit vector across the edge where only that component is measured.
+    full, normal : (H, W) bool
+        Pixels that measure the full vector; those that measure the component across an edge.
+    sigma_px : (H, W) float32
+        Each pixel's standard uncertainty, grid px (of the full vector's weaker direction, or
+        of the component across the edge).
+    film : (H, W) int or None
+        The film under each pixel (-1: none); None for one film.
+    max_sigma_px : float or (H, W) float
+        The uncertainty a measuring pixel may have (grid px): the fitted field must be known
+        to a third of it.
+    window_px : float
+        The flow window's Gaussian sigma, grid px: samples closer than a window share their
+        evidence.
+
+    Returns
+    -------
+    field : (H, W, 2) float32
+        The placement's misregistration, grid px (0 where a film's placement is undetermined).
+    fitted : (H, W) bool
+        The pixels of films whose placement was fitted.
+    """
+    H, W = full.shape
+    field = np.zeros((H, W, 2), np.float32)
+    fitted = np.zeros((H, W), bool)
+    labels = np.zeros((H, W), np.int16) if film is None else film
+    sub = np.zeros((H, W), bool)
+    sub[::PLACEMENT_STRIDE, ::PLACEMENT_STRIDE] = True
+    limit = np.broadcast_to(np.asarray(max_sigma_px, np.float32), (H, W))
+    ok = np.isfinite(sigma_px) & (sigma_px > 0)
+    for k in np.unique(labels[(full | normal) & ok & sub]):
+        if k < 0:
+            continue
+        mine = labels == k
+        fi, fj = np.nonzero(full & ok & sub & mine)
+        ei, ej = np.nonzero(normal & ok & sub & mine)
+        if len(fi) + len(ei) < 12:
+            continue
+        # centred and scaled coordinates: the normal equations stay well conditioned
+        ii, jj = np.nonzero(mine)
+        c = np.array([jj.mean(), ii.mean()])
+        r = max(float(np.hypot(jj - c[0], ii - c[1]).max()), 1.0)
+
+        bf, be = _affine_terms(fi, fj, c, r), _affine_terms(ei, ej, c, r)
+        zf = np.zeros_like(bf)
+        n = across[ei, ej].astype(np.float64)
+        # unknowns (a_xx, a_xy, t_x, a_yx, a_yy, t_y): x component (bf, 0), y component (0, bf),
+        # across an edge n_x (be, 0) + n_y (0, be)
+        A = np.concatenate(
+            [np.concatenate([bf, zf], 1), np.concatenate([zf, bf], 1),
+             np.concatenate([n[:, :1] * be, n[:, 1:] * be], 1)]
+        )  # fmt: skip
+        b = np.concatenate(
+            [flow_px[fi, fj, 0], flow_px[fi, fj, 1], (flow_px[ei, ej] * across[ei, ej]).sum(axis=1)]
+        ).astype(np.float64)
+        s = np.concatenate([sigma_px[fi, fj], sigma_px[fi, fj], sigma_px[ei, ej]]).astype(np.float64)
+        A, b = A / s[:, None], b / s
+        keep = np.ones(len(b), bool)
+        for _ in range(3):
+            sol = np.linalg.lstsq(A[keep], b[keep], rcond=None)[0]
+            res = np.abs(A @ sol - b)
+            keep = res <= max(PLACEMENT_TRIM * float(np.median(res[keep])), 1e-6)
+        AtA = A[keep].T @ A[keep]
+        if keep.sum() < 12 or np.linalg.cond(AtA) > 1e12:
+            continue
+        # the field's uncertainty at the film's farthest point (|y| = 1): each sample counts as
+        # the share of an independent flow window it is, so the covariance is scaled by the
+        # samples per window and by the reduced chi² where that exceeds 1
+        dof = max(int(keep.sum()) - 6, 1)
+        chi2 = float((res[keep] ** 2).sum()) / dof
+        cov = np.linalg.inv(AtA) * max(chi2, 1.0) * max(1.0, 4.0 * np.pi * window_px**2 / PLACEMENT_STRIDE**2)
+        corner = np.array([1.0, 1.0, 1.0])
+        sd = np.sqrt(max(corner @ cov[:3, :3] @ corner, corner @ cov[3:, 3:] @ corner))
+        if sd > float(np.median(limit[mine])) / 3.0:
+            continue
+        Y = _affine_terms(ii, jj, c, r)
+        field[ii, jj, 0] = Y @ sol[:3]
+        field[ii, jj, 1] = Y @ sol[3:]
+        fitted |= mine
+    return field, fitted
+
+
+def _affine_terms(i: np.ndarray, j: np.ndarray, c: np.ndarray, r: float) -> np.ndarray:
+    """Terms (y_x, y_y, 1) of one component of m = A y + t at pixels (i, j), y = ((j, i) - c) / r; (n, 3)."""
+    return np.stack([(j - c[0]) / r, (i - c[1]) / r, np.ones(len(i))], axis=1)
 
 
 def dense_placement(dr: DenseResult, grid: PrintGrid, max_sigma_mm: float, print_size_mm, stride: int = 4) -> dict:

@@ -19,7 +19,15 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from workbench.validate.dense import EDGE, EDGE_PX, MEASURED, REGISTRATION_BLUR_PX, DenseResult, PrintGrid
+from workbench.validate.dense import (
+    EDGE,
+    EDGE_PX,
+    MEASURED,
+    REGISTRATION_BLUR_PX,
+    DenseResult,
+    PrintGrid,
+    masked_normalise,
+)
 
 SPACING_MM = 1.0  # block of the landing grid, print mm
 MIN_BLOCK_SHARE = 0.25  # a block is measured when this share of its pixels measures the full vector
@@ -61,16 +69,6 @@ RIM_TEXTURE_QUANTILE = 10.0  # percentile
 RIM_Z = 3.0
 RIM_SLOPE = 0.05  # mm per mm: 5 % strain between the rim and its neighbour, beyond any forming law's change
 RIM_REACH_PX = 2 * EDGE_PX  # a rim pixel farther than this from a kept scored one (grid px) has none to agree with
-
-
-def masked_normalise(gray: np.ndarray, w: np.ndarray, sigma: float) -> np.ndarray:
-    """``gray`` less its local mean, over its local contrast, both weighted by ``w`` (H, W) in [0, 1]."""
-    sw = cv2.GaussianBlur(w, (0, 0), sigma) + 1e-6
-    m = cv2.GaussianBlur(gray * w, (0, 0), sigma) / sw
-    d = gray - m
-    s = np.sqrt(cv2.GaussianBlur(d * d * w, (0, 0), sigma) / sw)
-    # (a floor on the contrast, as the flow's: flat areas stay flat instead of amplifying noise)
-    return d / np.maximum(s, 6.0)
 
 
 def refine_flow(

@@ -36,6 +36,7 @@ from workbench.validate.rule import (
     MIN_TILES,
     colour_verdict,
     photo_verdict,
+    placement,
 )
 from workbench.validate.score import (
     TILE,
@@ -203,7 +204,7 @@ def _validate_photo(
     """:func:`validate_photo`, with ``side`` the executor of the work that can go beside the photo's own."""
     files: dict = {}
     if "grid" not in cache and not isinstance(profile, str):
-        cache["grid"] = side.submit(_print_grid, design)
+        cache["grid"] = side.submit(design_print_grid, design)
     try:
         if path.is_dir():
             raise WorkbenchError(f"{path}: is a directory, not a photo")
@@ -381,6 +382,7 @@ def _validate_photo(
             "scratch": dr.scratch_found.astype(np.uint8),
         }
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
+    entry["placement"] = placement(entry, tolerance_mm)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
     clock.append(time.perf_counter())  # summary
     stem = stem or safe_name(path.stem)
@@ -461,10 +463,13 @@ def _page(rgb: np.ndarray) -> bytes:
     return page_picture(Image.fromarray(rgb))
 
 
-def _print_grid(design: Design) -> dense.PrintGrid:
-    """The print's analysis grid of ``design`` (:func:`workbench.validate.dense.print_grid`)."""
+def design_print_grid(design: Design) -> dense.PrintGrid:
+    """The print's analysis grid of ``design``, its films labelled (:func:`workbench.validate.dense.print_grid`)."""
     p = design.info["print"]
-    return dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
+    return dense.print_grid(
+        design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner,
+        film_of_face(design.info, len(design.F)),
+    )  # fmt: skip
 
 
 def print_grid_of(cache: dict) -> dense.PrintGrid | None:

@@ -117,6 +117,68 @@ def colour_verdict(colour: dict | None, max_delta_e: float = MAX_DELTA_E) -> tup
     return "PASS", f"{words} <= {max_delta_e:g}"
 
 
+def placement(entry: dict, tolerance_mm: float) -> dict | None:
+    """The film's placement as the technician acts on it: where it lies, the move that corrects it, and its verdict.
+
+    The misregistration's p95 is the placement's when the film's fitted placement (offset,
+    rotation, scale) explains it: once the film is moved as said, what remains, whose p95 is
+    about twice the fit's rms residual (a normal scatter's 95th percentile is 1.96 σ), is
+    within the tolerance. Then a p95 beyond the tolerance is a placement FAIL; otherwise it
+    is the film's shape (forming), not where it lies.
+
+    Parameters
+    ----------
+    entry : dict
+        The photo's entry: ``film_offset_mm`` [x, y] (print mm, y down), ``film_rotation_deg``,
+        ``film_scale_pct``, ``film_fit_rms_mm``, ``misregistration_mm``.
+    tolerance_mm : float
+        Largest accepted misregistration, mm.
+
+    Returns
+    -------
+    dict or None
+        ``verdict`` (PASS or FAIL), ``offset_mm``, ``rotation_deg``, ``scale_pct``, ``move_mm``
+        and ``turn_deg`` (the correction: the opposite), ``explains`` (bool) and ``decided_by``
+        (the figures that decided); None without a fitted placement.
+    """
+    off, rms = entry.get("film_offset_mm"), entry.get("film_fit_rms_mm")
+    mis = entry.get("misregistration_mm") or {}
+    if off is None or rms is None or mis.get("p95") is None:
+        return None
+    rot, scale, p95 = entry.get("film_rotation_deg") or 0.0, entry.get("film_scale_pct") or 0.0, mis["p95"]
+    explains = 2.0 * rms <= tolerance_mm
+    fail = explains and p95 > tolerance_mm
+    decided = (
+        f"misregistration p95 {p95:.3f} mm {'>' if p95 > tolerance_mm else '<='} tolerance {tolerance_mm:g} mm; "
+        f"the film's fitted placement leaves an rms of {rms:.3f} mm (p95 about {2 * rms:.3f} mm), "
+        + (
+            "so the placement explains it"
+            if explains
+            else "more than the tolerance: the film's shape, not where it lies"
+        )
+    )
+    return {
+        "verdict": "FAIL" if fail else "PASS",
+        "offset_mm": [float(off[0]), float(off[1])],
+        "rotation_deg": float(rot),
+        "scale_pct": float(scale),
+        "move_mm": [-float(off[0]), -float(off[1])],
+        "turn_deg": -float(rot),
+        "explains": bool(explains),
+        "decided_by": decided,
+    }
+
+
+def placement_words(place: dict) -> str:
+    """The placement's action in words: where the film lies and the move that corrects it."""
+    (x, y), r = place["offset_mm"], place["rotation_deg"]
+    (mx, my), t = place["move_mm"], place["turn_deg"]
+    return (
+        f"film placed off by ({x:+.2f}, {y:+.2f}) mm, turned {r:+.2f}°, scaled {place['scale_pct']:+.2f} %: "
+        f"move it by ({mx:+.2f}, {my:+.2f}) mm and turn it by {t:+.2f}° (print mm, x right, y down)"
+    )
+
+
 def photo_verdict(
     entry: dict, tolerance_mm: float, max_defect_mm2: float, max_delta_e: float = MAX_DELTA_E
 ) -> tuple[str, str]:
@@ -177,10 +239,12 @@ def photo_verdict(
     beyond = entry.get("tiles_beyond")
     carried = src != "" or beyond is None or beyond >= max(MIN_TILES_BEYOND, 0.05 * tiles)
     if p95 > tolerance_mm + margin and carried:
-        why.append(
-            f"misregistration p95{src} {p95:.3f} mm > tolerance {tolerance_mm} mm"
-            + (f" by more than {dense.SIGNIFICANCE_Z:g} x its uncertainty {unc:.3f} mm" if unc else "")
+        beyond_words = f"misregistration p95{src} {p95:.3f} mm > tolerance {tolerance_mm} mm" + (
+            f" by more than {dense.SIGNIFICANCE_Z:g} x its uncertainty {unc:.3f} mm" if unc else ""
         )
+        place = placement(entry, tolerance_mm)
+        # (the action first: where the film lies and how to move it, when its placement explains it)
+        why.append(f"{placement_words(place)} ({beyond_words})" if place and place["explains"] else beyond_words)
     if big:
         why.append(defects_reason(big, max_defect_mm2))
     if colour == "FAIL":

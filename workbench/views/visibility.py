@@ -119,6 +119,67 @@ def faces_facing(V: np.ndarray, F: np.ndarray, center: np.ndarray) -> np.ndarray
     return np.einsum("ij,ij->i", normal, np.asarray(center) - (a + b + c) / 3.0) > 0
 
 
+# A scan's surface is noisy at the scale of its triangles: a tiny triangle folded over inside a
+# surface that faces the camera turns its back to it though the part does not. The part's
+# surface there is what its neighbours make: the normal averaged over SURFACE_RINGS rings of
+# neighbouring faces (one ring: the faces that share a vertex with it). A real fold keeps its
+# back turned: two rings from the crease, every face behind it still faces away.
+SURFACE_RINGS = 2
+
+
+def smoothed_face_normals(V: np.ndarray, F: np.ndarray, rings: int = SURFACE_RINGS) -> np.ndarray:
+    """Face normals averaged over ``rings`` rings of neighbouring faces, area-weighted.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions, mm.
+    F : (#F, 3) int
+        Triangles, counter-clockwise seen from the decorated side.
+    rings : int
+        How many times the normals are carried face to vertex and back (each pass widens the
+        average by one ring of faces that share a vertex).
+
+    Returns
+    -------
+    (#F, 3) float
+        Unnormalised: twice the area-weighted mean normal, mm² (only its direction is used).
+    """
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    n = np.cross(b - a, c - a)  # |n| = twice the face's area: the sums below are area-weighted
+    for _ in range(rings):
+        # faces to vertices (the sum over the faces around each vertex), then back (the mean of
+        # the face's three vertices)
+        idx = F.ravel()
+        vn = np.stack([np.bincount(idx, np.repeat(n[:, d], 3), minlength=len(V)) for d in range(3)], axis=1)
+        n = (vn[F[:, 0]] + vn[F[:, 1]] + vn[F[:, 2]]) / 3.0
+    return n
+
+
+def surface_faces_facing(V: np.ndarray, F: np.ndarray, center: np.ndarray, rings: int = SURFACE_RINGS) -> np.ndarray:
+    """Triangles on a part of the surface that faces a camera centre (see SURFACE_RINGS).
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions, mm.
+    F : (#F, 3) int
+        Triangles, counter-clockwise seen from the decorated side.
+    center : (3,) float
+        Camera centre, mm.
+    rings : int
+        Rings of neighbouring faces the surface's normal is averaged over.
+
+    Returns
+    -------
+    (#F,) bool
+        True where the camera lies on the decorated side of the triangle's own plane or of the
+        surface its neighbours make there.
+    """
+    to_cam = np.asarray(center) - V[F].mean(axis=1)
+    return faces_facing(V, F, center) | (np.einsum("ij,ij->i", smoothed_face_normals(V, F, rings), to_cam) > 0)
+
+
 def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera, faces: np.ndarray | None = None) -> ViewVisibility:
     """Depth buffer of a view and the faces it sees fully or in part.
 

@@ -26,6 +26,13 @@ from workbench.errors import UsageError, WorkbenchError
 from workbench.jsonfile import recorded_path
 from workbench.options import Number, parse_part_offset, parse_part_rotation
 from workbench.validate import detection, landing, pictures
+from workbench.validate.coverage import (
+    MIN_COVERAGE,
+    CoverageOptions,
+    coverage_words,
+    next_photo_words,
+    part_coverage,
+)
 from workbench.validate.part import part_summary
 from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
@@ -113,6 +120,18 @@ def add_parser(sub) -> None:
         "--part-offset-mm",
         metavar="X,Y[,Z]",
         help="... and its centre moved by X, Y, Z mm (mesh frame) from where the design puts it (default 0,0,0)",
+    )
+    p.add_argument(
+        "--min-coverage",
+        action=Number,
+        lo=0,
+        hi=1,
+        default=MIN_COVERAGE,
+        help=(
+            "share of each film, per defect class (a slide beyond the tolerance, ink gone, a scratch), that the "
+            "part's photos together must be able to find it on for a PASS; less is INCOMPLETE, with the "
+            f"uncovered regions and the next photo to take (default {MIN_COVERAGE:g}; 0: coverage not required)"
+        ),
     )
     p.add_argument(
         "--jobs",
@@ -395,6 +414,32 @@ def run(args) -> int:
         grid = design_print_grid(design)
     part, combined, part_defects = part_summary(states, grid, names, entries)
     part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm, held)
+    maps = detection.part_maps(entries)
+    if maps and combined is not None:
+        # a PASS is evidence only where the photos could have found something: with less than
+        # --min-coverage of a film covered for a defect class, the part is INCOMPLETE
+        opts = CoverageOptions(args.tolerance_mm, args.max_delta_e, args.min_coverage, args.max_defect_mm2)
+        centres = [e["pose"]["camera_center_mm"] for e in entries if (e.get("pose") or {}).get("camera_center_mm")]
+        intrinsics = profile if not isinstance(profile, str) else None
+        seen_from = (
+            design.V,
+            design.F,
+            np.asarray(centres, np.float64).reshape(-1, 3),
+            intrinsics,
+            design.orbit_camera,
+        )
+        part["coverage"], uncovered = part_coverage(maps, grid, combined, seen_from, opts)
+        if part["verdict"] == "PASS" and not part["coverage"]["complete"]:
+            part["verdict"] = "INCOMPLETE"
+            advice = next_photo_words(part["coverage"])
+            part["reason"] = coverage_words(part["coverage"]["films"], opts) + (f"; {advice}" if advice else "")
+        files[out / "uncovered_print.png"] = pictures.uncovered_figure(
+            grid.reference,
+            uncovered,
+            part["coverage"]["uncovered"]["regions"],
+            grid.px_per_mm,
+            f"where the part's {part['photos_scored']} photo(s) cannot find a defect: {part['verdict']}",
+        )
     if combined is not None:
         files[out / "coverage_print.png"] = pictures.coverage_figure(
             combined,
@@ -427,11 +472,13 @@ def run(args) -> int:
         # (only when given: a report of a part held as designed keeps its bytes)
         report["part_held"] = held
     files.update(landing.add_to_report(report, entries, out))
-    files.update(detection.add_to_report(report, entries, out))
+    files.update(detection.add_to_report(report, maps, out))
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
     files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"}, pages)
     write_folder(out, files, inputs)
+    why = f" ({part['reason']})" if part.get("reason") else ""
     log(
-        f"{len(entries)} photo(s), part: {part['verdict']}; wrote {out / 'validation.json'} and {out / 'qa_report.pdf'}"
+        f"{len(entries)} photo(s), part: {part['verdict']}{why}; wrote {out / 'validation.json'} and "
+        f"{out / 'qa_report.pdf'}"
     )
     return 0

@@ -210,14 +210,16 @@ def above_limit(
     return share >= need and share * area_mm2 > max_defect_mm2, share
 
 
-def add_to_report(report: dict, entries: list[dict], out) -> dict:
-    """Take each photo's detection maps out of its entry and return the side file ``detection.npz``.
+def part_maps(entries: list[dict]) -> dict:
+    """Take each photo's detection maps out of its entry; they and the part's, the best over its photos.
 
-    ``report["detection"]`` gets its name, sha256 and what it holds. The part's maps are the
-    best over its photos: the smallest slide any photo finds, ink gone that any photo finds.
+    Returns
+    -------
+    dict of name to (H, W) array
+        ``photoK_shift_limit_um``, ``photoK_dropout``, ``photoK_scratch`` per scored photo K, and
+        ``part_*``: the smallest slide any photo finds, ink gone and scratches any photo finds;
+        empty when no photo was scored.
     """
-    from workbench.validate.landing import npz_bytes
-
     arrays: dict = {}
     part_limit = part_drop = part_scratch = None
     for k, e in enumerate(entries):
@@ -235,6 +237,16 @@ def add_to_report(report: dict, entries: list[dict], out) -> dict:
     arrays["part_shift_limit_um"] = part_limit
     arrays["part_dropout"] = part_drop
     arrays["part_scratch"] = part_scratch
+    return arrays
+
+
+def add_to_report(report: dict, arrays: dict, out) -> dict:
+    """The side file ``detection.npz`` of :func:`part_maps`' arrays, and ``report["detection"]``: its name,
+    sha256 and what it holds."""
+    from workbench.validate.landing import npz_bytes
+
+    if not arrays:
+        return {}
     data = npz_bytes(arrays)
     report["detection"] = {
         "file": "detection.npz",

@@ -142,6 +142,52 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
     return png_bytes(_titled(np.concatenate([img, legend], axis=0), title, u), compression=1, fast=True)
 
 
+# the uncovered print: a slide not found (blue), ink gone or a scratch not found (magenta), both (red)
+UNCOVERED_COLOURS = {"slide": (40, 90, 220), "ink": (200, 40, 200), "both": (220, 30, 30)}
+
+
+def uncovered_figure(reference: np.ndarray, uncovered: dict, regions: list, px_per_mm: float, title: str) -> bytes:
+    """Where the part's photos cannot find a defect class, over the greyed print, regions numbered; PNG.
+
+    Parameters
+    ----------
+    reference : (rows, cols, 3) uint8
+        The print on the analysis grid.
+    uncovered : dict of (rows, cols) bool
+        Per class (``slide``, ``ink_gone``, ``scratch``): where it would show and no photo finds it.
+    regions : list of dict
+        The listed regions (``centre_mm``), numbered from 1 as in validation.json.
+    px_per_mm : float
+        Grid resolution.
+    title : str
+    """
+    from workbench.export import png_bytes
+
+    grey = cv2.cvtColor(reference, cv2.COLOR_RGB2GRAY) // 2 + 128
+    img = np.repeat(grey[..., None], 3, axis=2)
+    slide = uncovered["slide"]
+    ink = uncovered["ink_gone"] | uncovered["scratch"]
+    for mask, key in ((slide & ~ink, "slide"), (ink & ~slide, "ink"), (slide & ink, "both")):
+        img[mask] = (0.35 * img[mask] + 0.65 * np.asarray(UNCOVERED_COLOURS[key])).astype(np.uint8)
+    u = _unit(img.shape[1])
+    for k, r in enumerate(regions):
+        x, y = (int(round(v * px_per_mm)) for v in r["centre_mm"])
+        _text(img, str(k + 1), (x, y), 0.5 * u, (0, 0, 0), _weight(u), outline=True)
+    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
+    words = [
+        (UNCOVERED_COLOURS["slide"], "a slide of the film is not found here"),
+        (UNCOVERED_COLOURS["ink"], "ink gone or a scratch is not found here"),
+        (UNCOVERED_COLOURS["both"], "neither is found here"),
+    ]
+    line = int(22 * u)
+    legend = np.full((line * len(words) + int(16 * u), img.shape[1], 3), 255, np.uint8)
+    for i, (colour, text) in enumerate(words):
+        x0, y0 = int(40 * u), int(8 * u) + i * line
+        cv2.rectangle(legend, (x0, y0 + int(4 * u)), (x0 + int(26 * u), y0 + int(15 * u)), colour, cv2.FILLED)
+        _text(legend, text, (x0 + int(34 * u), y0 + int(15 * u)), 0.45 * u, thickness=_weight(u))
+    return png_bytes(_titled(np.concatenate([img, legend], axis=0), title, u), compression=1, fast=True)
+
+
 def dense_heatmap(
     reference: np.ndarray, shift_mm: np.ndarray, labels: np.ndarray, px_per_mm: float, vmax: float, title: str
 ) -> np.ndarray:

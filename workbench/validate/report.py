@@ -7,7 +7,12 @@ import io
 from workbench.printing.pdf import build_date
 
 REPORT_IMAGE_PX = 1200  # widest picture embedded in the report
-VERDICT_COLOURS = {"PASS": (0.1, 0.55, 0.2), "FAIL": (0.8, 0.1, 0.1), "INVALID": (0.55, 0.45, 0.1)}
+VERDICT_COLOURS = {
+    "PASS": (0.1, 0.55, 0.2),
+    "FAIL": (0.8, 0.1, 0.1),
+    "INVALID": (0.55, 0.45, 0.1),
+    "INCOMPLETE": (0.15, 0.35, 0.75),
+}
 
 
 def draw_row(c, cols: list[float], cells: list[str], y: float) -> None:
@@ -115,7 +120,9 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     c.setFont("Helvetica-Bold", 14)
     c.drawString(20 * mm, H - 20 * mm, f"Is this part good?  {job.get('name', 'design')}")
     c.setFillColorRGB(*VERDICT_COLOURS[verdict])
-    c.setFont("Helvetica-Bold", 36)
+    # (36 pt, smaller where the word would run into the lines beside it at 70 mm: INCOMPLETE)
+    size = min(36.0, 36.0 * 48 * mm / c.stringWidth(verdict, "Helvetica-Bold", 36))
+    c.setFont("Helvetica-Bold", size)
     c.drawString(20 * mm, H - 36 * mm, verdict)
     c.setFillColorRGB(0, 0, 0)
     c.setFont("Helvetica", 9)
@@ -131,9 +138,11 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
         c.drawString(70 * mm, H - 33 * mm, f"measured: {100 * measured:.0f} % of the part's print ({cov})")
     fails = [e for e in photos if e["verdict"] == "FAIL"]
     y = H - 48 * mm
-    if fails:
+    # (an INCOMPLETE part's why is its own: what its photos do not cover, and the next photo)
+    why = fails[0]["reason"] if fails else part.get("reason")
+    if why:
         # the reason in full, wrapped to the page (three lines at most; validation.json has it all)
-        lines = simpleSplit(f"why: {fails[0]['reason']}", "Helvetica", 9, W - 85 * mm)
+        lines = simpleSplit(f"why: {why}", "Helvetica", 9, W - 85 * mm)
         if len(lines) > 3:
             lines = lines[:2] + [lines[2][: max(0, len(lines[2]) - 4)] + " ..."]
         for i, line in enumerate(lines):
@@ -194,6 +203,84 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
         line += word + " "
     if line:
         c.drawString(20 * mm, y, line)
+    c.showPage()
+
+
+def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
+    """What the part's photos cover per film and defect class, the uncovered regions and why, the next photo."""
+    from PIL import Image
+    from reportlab.lib.units import mm
+    from reportlab.lib.utils import ImageReader, simpleSplit
+
+    from workbench.validate.coverage import CLASS_WORDS, CLASSES
+
+    cov = (report.get("part") or {}).get("coverage")
+    if not cov:
+        return
+    c.setFont("Helvetica-Bold", 14)
+    c.drawString(20 * mm, H - 20 * mm, "Not covered, and why")
+    c.setFont("Helvetica", 8)
+    y = H - 28 * mm
+    need = f"at least {100 * cov['min_coverage']:.0f} % of each film, per class, for a PASS"
+    c.drawString(20 * mm, y, f"Where the part's photos together can find each defect class ({need}):")
+    y -= 5 * mm
+    cols = [20, 34, 62, 100, 138]
+    draw_row(c, cols, ["film", "area mm²", *(CLASS_WORDS[k] for k in CLASSES)], y)
+    for f in cov["films"]:
+        y -= 4.2 * mm
+        cells = [str(f["film"]), f"{f['area_mm2']:.0f}"]
+        for k in CLASSES:
+            share = f[k]["share"]
+            cells.append(
+                "shows nowhere" if share is None else f"{100 * share:.1f} %" + ("" if f[k]["covered"] else " (short)")
+            )
+        draw_row(c, cols, cells, y)
+    y -= 6 * mm
+    for line in simpleSplit(cov.get("note", ""), "Helvetica-Oblique", 7, W - 40 * mm):
+        c.setFont("Helvetica-Oblique", 7)
+        c.drawString(20 * mm, y, line)
+        y -= 3.5 * mm
+    c.setFont("Helvetica", 8)
+    nxt = cov.get("next_photo")
+    if nxt:
+        az, el, dist = nxt["orbit"]
+        y -= 2 * mm
+        c.setFont("Helvetica-Bold", 9)
+        c.drawString(
+            20 * mm, y, f"Next photo: azimuth {az:g}°, elevation {el:g}°, {dist:g} mm from the part's centre "
+            f"(sees {100 * nxt['sees_share']:.0f} % of what is uncovered from a new angle)",
+        )  # fmt: skip
+        y -= 4 * mm
+        c.setFont("Helvetica", 7)
+        c.drawString(20 * mm, y, "azimuth 0: in front of the part (towards -y), counter-clockwise seen from above")
+        y -= 5 * mm
+    unc = cov.get("uncovered") or {}
+    if unc.get("measured_share"):
+        c.setFont("Helvetica", 8)
+        c.drawString(
+            20 * mm, y, f"{100 * unc['measured_share']:.0f} % of what is uncovered was measured and is below the "
+            "stated limit there: a finer photo (closer, or more pixels) or one without the lamp's glint there",
+        )  # fmt: skip
+        y -= 5 * mm
+    regions = unc.get("regions", [])
+    c.setFont("Helvetica-Bold", 9)
+    c.drawString(20 * mm, y, f"Uncovered regions: {unc.get('area_mm2', 0):.0f} mm² in all, the largest {len(regions)}")
+    y -= 4.5 * mm
+    c.setFont("Helvetica", 7)
+    for k, r in enumerate(regions[:10]):
+        x0, y0 = r["centre_mm"]
+        line = (
+            f"{k + 1}. ({x0:.1f}, {y0:.1f}) mm, {r['area_mm2']:.0f} mm², {', '.join(r['classes'])}: "
+            f"{r['why']} ({100 * r['why_share']:.0f} % of it)"
+        )
+        c.drawString(20 * mm, y, line[:190])
+        y -= 3.6 * mm
+    if "uncovered_print.png" in pictures:
+        img = Image.open(io.BytesIO(pictures["uncovered_print.png"]))
+        w = W - 40 * mm
+        h = min(w * img.height / img.width, y - 20 * mm)
+        w = h * img.width / img.height
+        c.drawImage(ImageReader(img), 20 * mm, y - h - 2 * mm, width=w, height=h)
     c.showPage()
 
 
@@ -420,6 +507,7 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
     c.setTitle(f"workbench QA report: {job.get('name', '')}")
     c.setCreator(f"workbench {report['software']['version']}")
     first_page(c, report, pictures, W, H)
+    coverage_page(c, report, pictures, W, H)
     c.setFont("Helvetica-Bold", 14)
     c.drawString(20 * mm, H - 20 * mm, f"QA acceptance report: {job.get('name', 'design')}")
     c.setFont("Helvetica", 8)

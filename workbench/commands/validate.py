@@ -33,10 +33,10 @@ from workbench.validate.coverage import (
     next_photo_words,
     part_coverage,
 )
-from workbench.validate.part import part_summary
+from workbench.validate.part import light_in_one_photo, part_summary
 from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
-from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, verdict_rule
+from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, photo_verdict, verdict_rule
 
 
 def add_parser(sub) -> None:
@@ -412,9 +412,18 @@ def run(args) -> int:
     grid = print_grid_of(cache) if scored else None
     if grid is None and scored:
         grid = design_print_grid(design)
+    maps = detection.part_maps(entries)
+    if grid is not None:
+        # several photos, one part: ink gone that another photo sees intact is light where found
+        for k, d in light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2):
+            e = entries[k]
+            kept = {**e, "defects": [x for x in e["defects"] if not x.get("dismissed")]}
+            e["verdict_in_part"], e["reason_in_part"] = photo_verdict(
+                kept, args.tolerance_mm, args.max_defect_mm2, args.max_delta_e
+            )
+            log(f"{Path(e['photo']).name}: {d['kind']} of {d['area_mm2']:.1f} mm² is light: {d['decided_by']['words']}")
     part, combined, part_defects = part_summary(states, grid, names, entries)
     part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm, held)
-    maps = detection.part_maps(entries)
     if maps and combined is not None:
         # a PASS is evidence only where the photos could have found something: with less than
         # --min-coverage of a film covered for a defect class, the part is INCOMPLETE

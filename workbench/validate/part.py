@@ -9,6 +9,74 @@ import numpy as np
 from workbench.validate import dense
 
 
+def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm: float, max_defect_mm2: float) -> list:
+    """Ink gone that another photo of the part sees intact: light in the photo that found it.
+
+    Ink that is gone stays at its print position in every photo; a glint or a reflection moves
+    with the camera. A region a photo takes for ink gone (``missing``) is light when another photo
+    of the part measured it, found no defect there, and states that it finds ink gone there (its
+    detection map, ``photoK_dropout`` or ``photoK_scratch``, over at least DROPOUT_SHARE of the
+    region: the share at which the stated limit counts a dropout as found). The defect stays in
+    its photo's list, marked ``dismissed`` with what decided it (``decided_by``); it no longer
+    counts for the part.
+
+    Parameters
+    ----------
+    entries : list of dict
+        The photos' entries (``defects`` with ``kind``, ``area_mm2``, ``bbox_mm``).
+    states : list of (H, W) uint8 or None
+        Each photo's state map on the print's grid (None: not scored).
+    maps : dict
+        The detection maps (:func:`workbench.validate.detection.part_maps`), ``photoK_*`` by entry.
+    px_per_mm : float
+        The grid's resolution.
+    max_defect_mm2 : float
+        Only defects over the verdict's area are checked (the others do not fail the part).
+
+    Returns
+    -------
+    list of (int, dict)
+        The photo index and the defect dismissed, for each one.
+    """
+    from workbench.validate.detection import DROPOUT_SHARE
+
+    out = []
+    for a, (ea, sa) in enumerate(zip(entries, states, strict=True)):
+        if sa is None:
+            continue
+        for d in ea.get("defects", []):
+            if d["kind"] != "missing" or d["area_mm2"] <= max_defect_mm2 or d.get("dismissed"):
+                continue
+            x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
+            box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
+            region = sa[box] == dense.DEFECT
+            n = int(region.sum())
+            if n == 0:
+                continue
+            for b, sb in enumerate(states):
+                if b == a or sb is None or f"photo{b}_dropout" not in maps:
+                    continue
+                finds = maps[f"photo{b}_dropout"][box].astype(bool) | maps[f"photo{b}_scratch"][box].astype(bool)
+                clean = np.isin(sb[box], dense.MEASURED) & (sb[box] != dense.DEFECT)
+                share = float((region & finds & clean).sum()) / n
+                if share >= DROPOUT_SHARE:
+                    d["dismissed"] = True
+                    d["decided_by"] = {
+                        "found_as": d.get("decided_by"),
+                        "hypothesis": "light",
+                        "photo": Path(entries[b]["photo"]).name,
+                        "share": round(share, 3),
+                        "words": (
+                            f"{Path(entries[b]['photo']).name} measured {100 * share:.0f} % of it, finds ink gone "
+                            "there and found none: ink gone stays on the print in every photo, so this is light in "
+                            f"{Path(ea['photo']).name}"
+                        ),
+                    }
+                    out.append((a, d))
+                    break
+    return out
+
+
 def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> tuple[dict, np.ndarray, list]:
     """What all photos of the part show together, on its print.
 
@@ -18,7 +86,8 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
     Returns
     -------
     summary : dict
-        verdict (FAIL when any photo fails, PASS when every scored photo passes, INVALID when
+        verdict (FAIL when any photo fails, by its ``verdict_in_part`` where another photo
+        showed one of its defects to be light, PASS when every scored photo passes, INVALID when
         none was scored), coverage of the part's print and of each view's region, defects.
     combined : (rows, cols) uint8
         The combined state map.
@@ -26,7 +95,8 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
         Part defects: centre_mm, area_mm2 (print), and the photos that show each.
     """
     scored = [s for s in states if s is not None]
-    verdicts = [e["verdict"] for e in entries]
+    # (a photo's verdict in the part: without what another photo showed to be light in it)
+    verdicts = [e.get("verdict_in_part", e["verdict"]) for e in entries]
     if "FAIL" in verdicts:
         verdict = "FAIL"
     elif "PASS" in verdicts:
@@ -45,6 +115,8 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
         if (e.get("photo_quality") or {}).get("problems"):
             continue  # the photo's fault (its colour defects are its clipping, its blocks)
         for d in e.get("defects", []):
+            if d.get("dismissed"):
+                continue  # light in this photo: another photo sees the ink (light_in_one_photo)
             x0, y0, x1, y1 = d["bbox_mm"]
             for m in defects:
                 a0, b0, a1, b1 = m["bbox_mm"]

@@ -35,6 +35,7 @@ from workbench.validate.rule import (
     MIN_DENSE_WINDOWS,
     MIN_TILES,
     colour_verdict,
+    defect_decision,
     photo_verdict,
     placement,
 )
@@ -382,6 +383,8 @@ def _validate_photo(
             "scratch": dr.scratch_found.astype(np.uint8),
         }
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
+    for d in entry["defects"]:
+        d["decided_by"] = defect_decision(d, max_defect_mm2)
     entry["placement"] = placement(entry, tolerance_mm)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
     clock.append(time.perf_counter())  # summary

@@ -74,6 +74,54 @@ def significant(defect: dict) -> bool:
     return z is None or z >= dense.SIGNIFICANCE_Z
 
 
+def defect_decision(defect: dict, max_defect_mm2: float) -> dict:
+    """What decided a defect the analysis kept, and whether it fails the part, in values and in words.
+
+    Parameters
+    ----------
+    defect : dict
+        A photo's defect (``kind``, ``area_mm2``, ``significance_z``, and for a slide
+        ``explained_share``, ``peak_mm``; for ink, ``colour_area_mm2``).
+    max_defect_mm2 : float
+        The verdict's largest accepted defect.
+
+    Returns
+    -------
+    dict
+        ``hypothesis`` (the film slid, ink gone, another colour), ``z`` (its significance as a
+        region), ``fails`` (bool), ``words``.
+    """
+    z = defect.get("significance_z")
+    kind = defect["kind"]
+    if kind == "shift":
+        hyp = "the film slid"
+        share = defect.get("explained_share")
+        what = (
+            f"its slide (up to {defect.get('peak_mm', float('nan')):.2f} mm) exceeds the tolerance"
+            + (f" at z = {z:.1f}" if z is not None else "")
+            + (f"; the print moved by the flow explains {100 * share:.0f} % of the residual there" if share else "")
+        )
+    elif kind == "missing":
+        hyp = "ink gone"
+        what = (
+            "the photo steps from the ink to the bare film's colour there and the light tests took it for no light"
+            + (f" (z = {z:.1f})" if z is not None else "")
+        )
+    else:
+        hyp = "another colour"
+        what = "the colour differs from the design's beyond the colour test's limit" + (
+            f" (z = {z:.1f})" if z is not None else ""
+        )
+    big, sig = defect["area_mm2"] > max_defect_mm2, significant(defect)
+    if big and sig:
+        verdict = f"fails: {defect['area_mm2']:.1f} mm² > {max_defect_mm2:g} mm²"
+    elif not big:
+        verdict = f"does not fail: {defect['area_mm2']:.1f} mm² is within the accepted {max_defect_mm2:g} mm²"
+    else:
+        verdict = f"does not fail: as a region it is not significant (z {z:.2f} < {dense.SIGNIFICANCE_Z:g})"
+    return {"hypothesis": hyp, "z": z, "fails": bool(big and sig), "words": f"{what}; {verdict}"}
+
+
 def defects_reason(big: list[dict], max_defect_mm2: float) -> str:
     """The verdict's words for the defects over the limit (largest first)."""
     d = big[0]

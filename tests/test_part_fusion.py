@@ -1,0 +1,133 @@
+"""Several photos, one part: ink gone stays on the print in every photo; light moves with the camera."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import ROOT
+
+from workbench.cli import main
+from workbench.validate import dense
+from workbench.validate.part import light_in_one_photo
+
+PPM = 10.0
+
+
+def two_photos(b_state: int, b_finds: bool):
+    """Photo A finds 40 x 40 grid px (16 mm²) of ink gone; photo B gives the region ``b_state``."""
+    H, W = 100, 100
+    sa = np.full((H, W), dense.FULL, np.uint8)
+    sa[40:80, 30:70] = dense.DEFECT
+    sb = np.full((H, W), dense.FULL, np.uint8)
+    sb[40:80, 30:70] = b_state
+    maps = {}
+    for k in (0, 1):
+        maps[f"photo{k}_dropout"] = np.full((H, W), 1 if (k == 0 or b_finds) else 0, np.uint8)
+        maps[f"photo{k}_scratch"] = np.zeros((H, W), np.uint8)
+    d = {"kind": "missing", "area_mm2": 16.0, "bbox_mm": [3.0, 4.0, 7.0, 8.0], "centre_mm": [5.0, 6.0]}
+    entries = [{"photo": "a.png", "defects": [d]}, {"photo": "b.png", "defects": []}]
+    return entries, [sa, sb], maps
+
+
+def test_ink_gone_in_one_photo_that_another_sees_intact_is_light():
+    entries, states, maps = two_photos(dense.FULL, True)
+    ((k, d),) = light_in_one_photo(entries, states, maps, PPM, 4.0)
+    assert k == 0 and d["dismissed"] and d["decided_by"]["photo"] == "b.png" and d["decided_by"]["share"] == 1.0
+    assert d["decided_by"]["hypothesis"] == "light"
+
+
+@pytest.mark.parametrize(
+    "b_state, b_finds, why",
+    [
+        (dense.DEFECT, True, "the other photo finds it too: ink gone stays put"),
+        (dense.FULL, False, "the other photo cannot find ink gone there"),
+        (dense.HIGHLIGHT, True, "the other photo does not measure it"),
+        (dense.OCCLUDED, True, "the other photo does not see it"),
+    ],
+)
+def test_ink_gone_stays_when_no_other_photo_shows_the_ink(b_state, b_finds, why):
+    entries, states, maps = two_photos(b_state, b_finds)
+    assert light_in_one_photo(entries, states, maps, PPM, 4.0) == [], why
+    assert "dismissed" not in entries[0]["defects"][0]
+
+
+def test_a_small_region_is_not_judged():
+    # below the verdict's area a region fails nothing: it is left as found
+    entries, states, maps = two_photos(dense.FULL, True)
+    assert light_in_one_photo(entries, states, maps, PPM, 16.0) == []
+
+
+def test_a_real_dropout_seen_by_two_photos_fails_the_part(tmp_path):
+    # the same dropout of 20 mm² on dark checker ink, photographed from two sides: both photos
+    # show it where it is on the print, neither dismisses the other's
+    d = tmp_path / "design"
+    assert main(["design", str(ROOT / "fixtures" / "default" / "job.toml"), "--out", str(d), "-q"]) == 0
+    photos = []
+    for k, orbit in enumerate(("10,55,330", "-40,60,330")):
+        p = tmp_path / f"p{k}.png"
+        args = [
+            "render",
+            str(d),
+            f"--orbit={orbit}",
+            "--size",
+            "2000x1500",
+            "--realistic",
+            "--defect",
+            "dropout:60,25,2.52",
+        ]
+        assert main([*args, "-o", str(p), "-q"]) == 0
+        photos.append(p)
+    out = tmp_path / "v"
+    args = [
+        "validate",
+        str(d),
+        *map(str, photos),
+        "--camera",
+        str(photos[0].with_suffix(".json")),
+        "--out",
+        str(out),
+        "-q",
+    ]
+    assert main(args) == 0
+    report = json.loads((out / "validation.json").read_text())
+    assert report["part"]["verdict"] == "FAIL"
+    found = [x for e in report["photos"] for x in e["defects"] if x["kind"] == "missing" and x["area_mm2"] > 4]
+    assert found and not any(x.get("dismissed") for x in found)
+    (part,) = [x for x in report["part"]["defects"] if x["kind"] == "missing" and x["area_mm2"] > 4]
+    assert np.hypot(part["centre_mm"][0] - 60, part["centre_mm"][1] - 25) <= 1.0
+
+
+def test_every_listed_defect_says_what_decided_it_and_whether_it_fails():
+    from workbench.validate.rule import defect_decision
+
+    slid = {"kind": "shift", "area_mm2": 28.3, "significance_z": 12.0, "explained_share": 0.9, "peak_mm": 1.02}
+    d = defect_decision(slid, 4.0)
+    assert d["hypothesis"] == "the film slid" and d["fails"] and d["z"] == 12.0
+    assert d["words"].endswith("fails: 28.3 mm² > 4 mm²") and "explains 90 %" in d["words"]
+    small = {"kind": "missing", "area_mm2": 1.9, "significance_z": 3.01}
+    d = defect_decision(small, 4.0)
+    assert not d["fails"] and d["words"].endswith("does not fail: 1.9 mm² is within the accepted 4 mm²")
+    faint = {"kind": "missing", "area_mm2": 27.9, "significance_z": 0.07}
+    d = defect_decision(faint, 4.0)
+    assert not d["fails"] and "not significant (z 0.07 < 3)" in d["words"]
+
+
+def test_the_placement_names_the_move_when_it_explains_the_misregistration():
+    from workbench.validate.rule import placement, placement_words
+
+    e = {
+        "film_offset_mm": [0.8, -0.3], "film_rotation_deg": 0.02, "film_scale_pct": 0.0,
+        "film_fit_rms_mm": 0.011, "misregistration_mm": {"p95": 0.86},
+    }  # fmt: skip
+    p = placement(e, 0.5)
+    assert p["verdict"] == "FAIL" and p["explains"] and p["move_mm"] == [-0.8, 0.3] and p["turn_deg"] == -0.02
+    assert placement_words(p).startswith("film placed off by (+0.80, -0.30) mm, turned +0.02°")
+    assert "move it by (-0.80, +0.30) mm and turn it by -0.02°" in placement_words(p)
+    # a field the placement leaves at an rms of 0.3 mm (p95 about 0.6): the film's shape, not where it lies
+    p = placement({**e, "film_fit_rms_mm": 0.3}, 0.5)
+    assert p["verdict"] == "PASS" and not p["explains"] and "the film's shape" in p["decided_by"]
+    # within the tolerance: placed well enough
+    assert placement({**e, "misregistration_mm": {"p95": 0.2}}, 0.5)["verdict"] == "PASS"
+    assert placement({**e, "film_offset_mm": None}, 0.5) is None

@@ -538,6 +538,12 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
         "stated": stated,
         "verdict": entry.get("verdict"),
         "reason": entry.get("reason"),
+        # (the part of one photo: INCOMPLETE where the photo passes and covers too little of a film)
+        "part_verdict": (report.get("part") or {}).get("verdict"),
+        "coverage": [
+            {c: (f.get(c) or {}).get("share") for c in ("slide", "ink_gone", "scratch")}
+            for f in ((report.get("part") or {}).get("coverage") or {}).get("films", [])
+        ],
         "defects_found": [
             {k: d.get(k) for k in ("kind", "area_mm2", "centre_mm", "peak_mm", "view")}
             for d in entry.get("defects", [])

@@ -413,16 +413,20 @@ def run(args) -> int:
     if grid is None and scored:
         grid = design_print_grid(design)
     maps = detection.part_maps(entries)
-    if grid is not None:
-        # several photos, one part: ink gone that another photo sees intact is light where found
-        for k, d in light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2):
-            e = entries[k]
-            kept = {**e, "defects": [x for x in e["defects"] if not x.get("dismissed")]}
-            e["verdict_in_part"], e["reason_in_part"] = photo_verdict(
-                kept, args.tolerance_mm, args.max_defect_mm2, args.max_delta_e
-            )
-            log(f"{Path(e['photo']).name}: {d['kind']} of {d['area_mm2']:.1f} mm² is light: {d['decided_by']['words']}")
-    part, combined, part_defects = part_summary(states, grid, names, entries)
+    # several photos, one part: ink gone that another photo sees intact is light where it was found
+    dismissed = light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2) if grid else []
+    in_part = {}
+    for k in sorted({x["photo_index"] for x in dismissed}):
+        e = entries[k]
+        gone = {x["id"] for x in dismissed if x["photo_index"] == k}
+        kept = {**e, "defects": [d for d in e["defects"] if d.get("id") not in gone]}
+        in_part[k] = photo_verdict(kept, args.tolerance_mm, args.max_defect_mm2, args.max_delta_e)
+    for x in dismissed:
+        log(f"{x['photo']}: {x['kind']} of {x['area_mm2']:.1f} mm² is light: {x['decided_by']['words']}")
+    part, combined, part_defects = part_summary(states, grid, names, entries, dismissed, in_part)
+    if dismissed:
+        part["dismissed"] = [{k: v for k, v in x.items() if k != "photo_index"} for x in dismissed]
+        part["photo_verdicts_in_part"] = {Path(entries[k]["photo"]).name: v for k, (v, _) in in_part.items()}
     part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm, held)
     if maps and combined is not None:
         # a PASS is evidence only where the photos could have found something: with less than

@@ -17,8 +17,7 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
     of the part measured it, found no defect there, and states that it finds ink gone there (its
     detection map, ``photoK_dropout`` or ``photoK_scratch``, over at least DROPOUT_SHARE of the
     region: the share at which the stated limit counts a dropout as found). The defect stays in
-    its photo's list, marked ``dismissed`` with what decided it (``decided_by``); it no longer
-    counts for the part.
+    its photo's entry as its photo found it; for the part it is dismissed, with what decided it.
 
     Parameters
     ----------
@@ -35,8 +34,12 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
 
     Returns
     -------
-    list of (int, dict)
-        The photo index and the defect dismissed, for each one.
+    list of dict
+        One per defect dismissed: ``photo_index``, ``photo`` (its file name), ``id`` (the
+        defect's in that photo), ``kind``, ``area_mm2``, ``centre_mm`` and ``decided_by``
+        (``hypothesis`` light, the ``photo`` that sees the ink, the ``share`` of the region it
+        measured and would find ink gone in, ``found_as``: what the photo that found it decided,
+        ``words``).
     """
     from workbench.validate.detection import DROPOUT_SHARE
 
@@ -45,7 +48,7 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
         if sa is None:
             continue
         for d in ea.get("defects", []):
-            if d["kind"] != "missing" or d["area_mm2"] <= max_defect_mm2 or d.get("dismissed"):
+            if d["kind"] != "missing" or d["area_mm2"] <= max_defect_mm2:
                 continue
             x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
             box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
@@ -60,24 +63,39 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
                 clean = np.isin(sb[box], dense.MEASURED) & (sb[box] != dense.DEFECT)
                 share = float((region & finds & clean).sum()) / n
                 if share >= DROPOUT_SHARE:
-                    d["dismissed"] = True
-                    d["decided_by"] = {
-                        "found_as": d.get("decided_by"),
-                        "hypothesis": "light",
-                        "photo": Path(entries[b]["photo"]).name,
-                        "share": round(share, 3),
-                        "words": (
-                            f"{Path(entries[b]['photo']).name} measured {100 * share:.0f} % of it, finds ink gone "
-                            "there and found none: ink gone stays on the print in every photo, so this is light in "
-                            f"{Path(ea['photo']).name}"
-                        ),
-                    }
-                    out.append((a, d))
+                    seen_by, found_in = Path(entries[b]["photo"]).name, Path(ea["photo"]).name
+                    out.append(
+                        {
+                            "photo_index": a,
+                            "photo": found_in,
+                            "id": d.get("id"),
+                            "kind": d["kind"],
+                            "area_mm2": d["area_mm2"],
+                            "centre_mm": d["centre_mm"],
+                            "decided_by": {
+                                "hypothesis": "light",
+                                "photo": seen_by,
+                                "share": round(share, 3),
+                                "found_as": d.get("decided_by"),
+                                "words": (
+                                    f"{seen_by} measured {100 * share:.0f} % of it, finds ink gone there and found "
+                                    f"none: ink gone stays on the print in every photo, so this is light in {found_in}"
+                                ),
+                            },
+                        }
+                    )
                     break
     return out
 
 
-def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> tuple[dict, np.ndarray, list]:
+def part_summary(
+    states: list,
+    grid,
+    names: list[str],
+    entries: list[dict],
+    dismissed: list | None = None,
+    in_part: dict | None = None,
+) -> tuple[dict, np.ndarray, list]:
     """What all photos of the part show together, on its print.
 
     Each print pixel keeps the most telling state any photo gives it (defective over measured
@@ -86,9 +104,9 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
     Returns
     -------
     summary : dict
-        verdict (FAIL when any photo fails, by its ``verdict_in_part`` where another photo
-        showed one of its defects to be light, PASS when every scored photo passes, INVALID when
-        none was scored), coverage of the part's print and of each view's region, defects.
+        verdict (FAIL when any photo fails, by its verdict in the part, ``in_part``, where another
+        photo showed one of its defects to be light, PASS when every scored photo passes,
+        INVALID when none was scored), coverage of the part's print and of each view's region, defects.
     combined : (rows, cols) uint8
         The combined state map.
     defects : list of dict
@@ -96,7 +114,9 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
     """
     scored = [s for s in states if s is not None]
     # (a photo's verdict in the part: without what another photo showed to be light in it)
-    verdicts = [e.get("verdict_in_part", e["verdict"]) for e in entries]
+    in_part = in_part or {}
+    gone = {(x["photo_index"], x["id"]) for x in dismissed or []}
+    verdicts = [in_part.get(k, (e["verdict"], None))[0] for k, e in enumerate(entries)]
     if "FAIL" in verdicts:
         verdict = "FAIL"
     elif "PASS" in verdicts:
@@ -111,11 +131,11 @@ def part_summary(states: list, grid, names: list[str], entries: list[dict]) -> t
     # one defect seen in several photos is one defect of the part: photos' defects whose
     # boxes on the print overlap are merged (the largest area, the centre of the largest)
     defects: list = []
-    for e in entries:
+    for k, e in enumerate(entries):
         if (e.get("photo_quality") or {}).get("problems"):
             continue  # the photo's fault (its colour defects are its clipping, its blocks)
         for d in e.get("defects", []):
-            if d.get("dismissed"):
+            if (k, d.get("id")) in gone:
                 continue  # light in this photo: another photo sees the ink (light_in_one_photo)
             x0, y0, x1, y1 = d["bbox_mm"]
             for m in defects:

@@ -207,20 +207,33 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
 
 
 def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
-    """What the part's photos cover per film and defect class, the uncovered regions and why, the next photo."""
+    """What the part's photos cover per film and defect class, the uncovered regions and why, the next photo, and
+    what one photo found that another showed to be light (not counted)."""
     from PIL import Image
     from reportlab.lib.units import mm
     from reportlab.lib.utils import ImageReader, simpleSplit
 
     from workbench.validate.coverage import CLASS_WORDS, CLASSES
 
-    cov = (report.get("part") or {}).get("coverage")
+    part = report.get("part") or {}
+    cov = part.get("coverage")
     if not cov:
         return
     c.setFont("Helvetica-Bold", 14)
-    c.drawString(20 * mm, H - 20 * mm, "Not covered, and why")
+    c.drawString(20 * mm, H - 20 * mm, "Not covered, not counted, and why")
     c.setFont("Helvetica", 8)
     y = H - 28 * mm
+    # what one photo found and another showed to be light
+    for x in part.get("dismissed", [])[:6]:
+        line = (
+            f"Not counted: {x['photo']}'s {x['kind']} of {x['area_mm2']:.1f} mm² at ({x['centre_mm'][0]:.1f}, "
+            f"{x['centre_mm'][1]:.1f}) mm: {x['decided_by']['words']}"
+        )
+        for piece in simpleSplit(line, "Helvetica", 8, W - 40 * mm):
+            c.drawString(20 * mm, y, piece)
+            y -= 3.8 * mm
+    if part.get("dismissed"):
+        y -= 2 * mm
     need = f"at least {100 * cov['min_coverage']:.0f} % of each film, per class, for a PASS"
     c.drawString(20 * mm, y, f"Where the part's photos together can find each defect class ({need}):")
     y -= 5 * mm

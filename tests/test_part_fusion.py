@@ -107,6 +107,7 @@ def test_every_listed_defect_says_what_decided_it_and_whether_it_fails():
     d = defect_decision(slid, 4.0)
     assert d["hypothesis"] == "the film slid" and d["fails"] and d["z"] == 12.0
     assert d["words"].endswith("fails: 28.3 mm² > 4 mm²") and "explains 90 %" in d["words"]
+    assert "(up to 1.02 mm)" in d["words"] and "(up to" not in defect_decision({**slid, "peak_mm": None}, 4.0)["words"]
     small = {"kind": "missing", "area_mm2": 1.9, "significance_z": 3.01}
     d = defect_decision(small, 4.0)
     assert not d["fails"] and d["words"].endswith("does not fail: 1.9 mm² is within the accepted 4 mm²")

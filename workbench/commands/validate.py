@@ -412,6 +412,7 @@ def run(args) -> int:
     grid = print_grid_of(cache) if scored else None
     if grid is None and scored:
         grid = design_print_grid(design)
+    t_part = time.perf_counter()
     maps = detection.part_maps(entries)
     # several photos, one part: ink gone that another photo sees intact is light where it was found
     dismissed = light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2) if grid else []
@@ -453,6 +454,8 @@ def run(args) -> int:
             grid.px_per_mm,
             f"where the part's {part['photos_scored']} photo(s) cannot find a defect: {part['verdict']}",
         )
+    # the part's own stage: its photos fused, its coverage and the next photo (pictures aside)
+    part["seconds"] = round(time.perf_counter() - t_part, 3)
     if combined is not None:
         files[out / "coverage_print.png"] = pictures.coverage_figure(
             combined,

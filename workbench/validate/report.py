@@ -23,6 +23,19 @@ def draw_row(c, cols: list[float], cells: list[str], y: float) -> None:
         c.drawString(x * mm, y, v)
 
 
+def draw_picture(c, png: bytes, top: float, width: float, max_height: float) -> float:
+    """A picture at 20 mm from the left, its top at ``top`` (points), as wide as ``width`` and no taller than
+    ``max_height``; returns its height (points)."""
+    from PIL import Image
+    from reportlab.lib.units import mm
+    from reportlab.lib.utils import ImageReader
+
+    img = Image.open(io.BytesIO(png))
+    h = min(width * img.height / img.width, max_height)
+    c.drawImage(ImageReader(img), 20 * mm, top - h, width=h * img.width / img.height, height=h)
+    return h
+
+
 def detection_line(dn: dict) -> str:
     """One line of what a photo can find (its ``dense.detection_limit``), for its page."""
     lim = dn.get("detection_limit") or {}
@@ -110,9 +123,8 @@ def page_picture(img) -> bytes:
 def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
     """Page one: is this part good, and if not, where is it wrong (the part's verdict, its defects on the
     print, the coverage map, the rule)."""
-    from PIL import Image
     from reportlab.lib.units import mm
-    from reportlab.lib.utils import ImageReader, simpleSplit
+    from reportlab.lib.utils import simpleSplit
 
     part = report.get("part") or {}
     verdict = part.get("verdict", "INVALID")
@@ -186,12 +198,7 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
             c.drawString(20 * mm, y, f"... and {len(defects) - 12} more (validation.json)")
     y -= 6 * mm
     if "coverage_print.png" in pictures:
-        img = Image.open(io.BytesIO(pictures["coverage_print.png"]))
-        w = W - 40 * mm
-        h = min(w * img.height / img.width, y - 45 * mm)
-        w = h * img.width / img.height
-        c.drawImage(ImageReader(img), 20 * mm, y - h, width=w, height=h)
-        y -= h + 4 * mm
+        y -= draw_picture(c, pictures["coverage_print.png"], y, W - 40 * mm, y - 45 * mm) + 4 * mm
     rule = (report.get("verdict_rule") or {}).get("text", "")
     c.setFont("Helvetica-Oblique", 7)
     words, line = rule.split(), ""
@@ -209,9 +216,8 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
 def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
     """What the part's photos cover per film and defect class, the uncovered regions and why, the next photo, and
     what one photo found that another showed to be light (not counted)."""
-    from PIL import Image
     from reportlab.lib.units import mm
-    from reportlab.lib.utils import ImageReader, simpleSplit
+    from reportlab.lib.utils import simpleSplit
 
     from workbench.validate.coverage import CLASS_WORDS, CLASSES
 
@@ -289,11 +295,7 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
         c.drawString(20 * mm, y, line[:190])
         y -= 3.6 * mm
     if "uncovered_print.png" in pictures:
-        img = Image.open(io.BytesIO(pictures["uncovered_print.png"]))
-        w = W - 40 * mm
-        h = min(w * img.height / img.width, y - 20 * mm)
-        w = h * img.width / img.height
-        c.drawImage(ImageReader(img), 20 * mm, y - h - 2 * mm, width=w, height=h)
+        draw_picture(c, pictures["uncovered_print.png"], y - 2 * mm, W - 40 * mm, y - 22 * mm)
     c.showPage()
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from workbench.validate import dense
 from workbench.validate.photo_quality import QualityOptions
 
@@ -74,6 +76,15 @@ def significant(defect: dict) -> bool:
     return z is None or z >= dense.SIGNIFICANCE_Z
 
 
+def _number(v) -> float | None:
+    """A finite number as float, else None."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return f if np.isfinite(f) else None
+
+
 def defect_decision(defect: dict, max_defect_mm2: float) -> dict:
     """What decided a defect the analysis kept, and whether it fails the part, in values and in words.
 
@@ -91,34 +102,29 @@ def defect_decision(defect: dict, max_defect_mm2: float) -> dict:
         ``hypothesis`` (the film slid, ink gone, another colour), ``z`` (its significance as a
         region), ``fails`` (bool), ``words``.
     """
-    z = defect.get("significance_z")
+    # (any figure may be missing or None: a region the colour test found has no slide)
+    z, peak, share = (_number(defect.get(k)) for k in ("significance_z", "peak_mm", "explained_share"))
+    at_z = f" (z = {z:.1f})" if z is not None else ""
     kind = defect["kind"]
     if kind == "shift":
         hyp = "the film slid"
-        share = defect.get("explained_share")
-        what = (
-            f"its slide (up to {defect.get('peak_mm', float('nan')):.2f} mm) exceeds the tolerance"
-            + (f" at z = {z:.1f}" if z is not None else "")
-            + (f"; the print moved by the flow explains {100 * share:.0f} % of the residual there" if share else "")
-        )
+        what = "its slide" + (f" (up to {peak:.2f} mm)" if peak is not None else "") + " exceeds the tolerance" + at_z
+        if share:
+            what += f"; the print moved by the flow explains {100 * share:.0f} % of the residual there"
     elif kind == "missing":
         hyp = "ink gone"
-        what = (
-            "the photo steps from the ink to the bare film's colour there and the light tests took it for no light"
-            + (f" (z = {z:.1f})" if z is not None else "")
-        )
+        what = "the photo steps from the ink to the bare film's colour there and the light tests took it for no light"
+        what += at_z
     else:
         hyp = "another colour"
-        what = "the colour differs from the design's beyond the colour test's limit" + (
-            f" (z = {z:.1f})" if z is not None else ""
-        )
+        what = "the colour differs from the design's beyond the colour test's limit" + at_z
     big, sig = defect["area_mm2"] > max_defect_mm2, significant(defect)
     if big and sig:
         verdict = f"fails: {defect['area_mm2']:.1f} mm² > {max_defect_mm2:g} mm²"
     elif not big:
         verdict = f"does not fail: {defect['area_mm2']:.1f} mm² is within the accepted {max_defect_mm2:g} mm²"
     else:
-        verdict = f"does not fail: as a region it is not significant (z {z:.2f} < {dense.SIGNIFICANCE_Z:g})"
+        verdict = f"does not fail: as a region it is not significant (z {z or 0.0:.2f} < {dense.SIGNIFICANCE_Z:g})"
     return {"hypothesis": hyp, "z": z, "fails": bool(big and sig), "words": f"{what}; {verdict}"}
 
 

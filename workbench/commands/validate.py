@@ -480,7 +480,7 @@ def run(args) -> int:
             if output_profile
             else {"output_profile": None, "note": "the design's sRGB as it is (no --output-profile)"}
         ),
-        "verdict_rule": verdict_rule(args.tolerance_mm, args.max_defect_mm2, args.max_delta_e),
+        "verdict_rule": verdict_rule(args.tolerance_mm, args.max_defect_mm2, args.max_delta_e, args.min_coverage),
         "part": part,
         "photos": entries,
     }

@@ -27,10 +27,25 @@ MAX_DELTA_E = 3.0
 TOO_LITTLE_TEXTURE = "too little texture to measure misregistration here; add texture or a calibration film"
 
 
-def verdict_rule(tolerance_mm: float, max_defect_mm2: float, max_delta_e: float = MAX_DELTA_E) -> dict:
-    """The acceptance rule, as it goes into validation.json and the QA report."""
+def verdict_rule(
+    tolerance_mm: float, max_defect_mm2: float, max_delta_e: float = MAX_DELTA_E, min_coverage: float | None = None
+) -> dict:
+    """The acceptance rule, as it goes into validation.json and the QA report (``min_coverage``: the part's)."""
     z = dense.SIGNIFICANCE_Z
+    part = (
+        ""
+        if min_coverage is None
+        else (
+            " The part: FAIL when any photo fails (ink gone that another photo of the part measures and sees "
+            "intact is light in the photo that found it, and does not count); PASS when its photos pass and "
+            f"together can find a slide, ink gone and a scratch on at least {100 * min_coverage:.0f} % of each film "
+            "where each would show; INCOMPLETE when they pass and cover less (the uncovered regions, why, and the "
+            "next photo are reported). A misregistration the film's fitted placement explains is reported as "
+            "the placement, with the move that corrects it; local defects are sought in what remains."
+        )
+    )
     return {
+        **({"min_coverage": min_coverage} if min_coverage is not None else {}),
         "text": (
             f"FAIL when any defect is larger than {max_defect_mm2:g} mm² on the print, or the misregistration "
             f"p95 exceeds {tolerance_mm:g} mm by more than {z:g} times a measurement's uncertainty (from the tiles, "
@@ -55,7 +70,7 @@ def verdict_rule(tolerance_mm: float, max_defect_mm2: float, max_delta_e: float 
             "channel; each defect carries its significance and confidence, and one whose significance as a "
             f"region is below {z:g} does not fail the part. Highlights, deep shadows, "
             "surface turned away from the camera, the photo's pixels along the part's outline and its folds, "
-            "and detail finer than the photo resolves are masked, not scored for misregistration."
+            "and detail finer than the photo resolves are masked, not scored for misregistration." + part
         ),
         "tolerance_mm": tolerance_mm,
         "max_defect_mm2": max_defect_mm2,

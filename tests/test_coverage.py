@@ -172,3 +172,26 @@ def test_a_perfect_part_seen_in_part_is_incomplete_not_passed(demo, tmp_path):
     assert main(["validate", str(demo / "design"), str(demo / "p.png"), "--camera", str(demo / "p.json"),
                  "--min-coverage", "1.5", "--out", str(tmp_path / "c"), "-q"]) == 2  # fmt: skip
     assert not (tmp_path / "c").exists()
+
+
+def test_a_finer_photo_is_asked_for_by_the_ratio_of_the_stated_slide_to_the_one_needed():
+    # tolerance 0.2 mm: a slide of 0.4 mm must be found; 90 pixels state 0.8 mm (a photo twice
+    # as fine finds it), 10 find none at any size
+    from workbench.validate.detection import NONE_UM
+
+    limit = np.full((10, 10), 800, np.uint16)
+    limit[0] = NONE_UM
+    unc = np.ones((10, 10), bool)
+    out = coverage.finer_photo({"part_shift_limit_um": limit}, unc, 0.2, 6.5)
+    assert out == {
+        "factor": 2.0,
+        "photo_px_per_mm": 6.5,
+        "needed_photo_px_per_mm": 13.0,
+        "share_found_at_factor": 0.9,
+        "share_without_limit": 0.1,
+    }
+    # (capped: beyond MAX_FINER the limit is not the photo's sampling)
+    assert (
+        coverage.finer_photo({"part_shift_limit_um": limit * 0 + 8000}, unc, 0.2, 6.5)["factor"] == coverage.MAX_FINER
+    )
+    assert coverage.finer_photo({"part_shift_limit_um": limit}, np.zeros((10, 10), bool), 0.2, 6.5) is None

@@ -442,7 +442,9 @@ def run(args) -> int:
             intrinsics,
             design.orbit_camera,
         )
-        part["coverage"], uncovered = part_coverage(maps, grid, combined, seen_from, opts)
+        px = [((e.get("dense") or {}).get("resolution") or {}).get("photo_px_per_mm") for e in entries]
+        px = max((v for v in px if v), default=None)
+        part["coverage"], uncovered = part_coverage(maps, grid, combined, seen_from, opts, px)
         if part["verdict"] == "PASS" and not part["coverage"]["complete"]:
             part["verdict"] = "INCOMPLETE"
             advice = next_photo_words(part["coverage"])

@@ -341,7 +341,9 @@ def next_photo(
     return {"orbit": [float(best[0]), float(best[1]), round(dist, 1)], "sees_share": round(best_n / len(X), 4)}
 
 
-def part_coverage(maps: dict, grid, combined: np.ndarray, photos, opts: CoverageOptions) -> tuple[dict, dict]:
+def part_coverage(
+    maps: dict, grid, combined: np.ndarray, photos, opts: CoverageOptions, photos_px_per_mm: float | None = None
+) -> tuple[dict, dict]:
     """The part's coverage per film and class, its uncovered regions and the next photo.
 
     Parameters
@@ -356,13 +358,16 @@ def part_coverage(maps: dict, grid, combined: np.ndarray, photos, opts: Coverage
         (V, F, camera centres (k, 3), intrinsics Camera or None, orbit_camera): what the next
         photo is sought from (:func:`next_photo`); None for no suggestion.
     opts : CoverageOptions
+    photos_px_per_mm : float, optional
+        The finest photo's photo pixels per print mm (median over what it scores): what a
+        finer photo is asked for against (:func:`finer_photo`).
 
     Returns
     -------
     coverage : dict
         ``min_coverage``, ``films`` (:func:`film_coverage`), ``complete``, ``uncovered``
-        (:func:`uncovered_regions`), ``next_photo`` (:func:`next_photo`, when incomplete), and
-        ``note``.
+        (:func:`uncovered_regions`), ``next_photo`` (:func:`next_photo`) and ``finer_photo``
+        (:func:`finer_photo`) when incomplete, and ``note``.
     uncovered : dict of (H, W) bool
         Per class, where it would show and no photo finds it.
     """
@@ -400,12 +405,65 @@ def part_coverage(maps: dict, grid, combined: np.ndarray, photos, opts: Coverage
         # for a finer photo or another angle; what none measured (hidden, oblique, at an edge,
         # under a highlight) for another angle
         out["uncovered"]["measured_share"] = round(float(np.isin(combined[anyc], dense.MEASURED).mean()), 4)
+    if not complete:
+        out["finer_photo"] = finer_photo(maps, uncovered["slide"], opts.tolerance_mm, photos_px_per_mm)
     if not complete and photos is not None:
         V, F, centres, intrinsics, orbit = photos
         ii, jj = np.nonzero(anyc)
         if intrinsics is not None:
             out["next_photo"] = next_photo(V, F, grid.X[ii, jj], grid.face[ii, jj], centres, intrinsics, orbit)
     return out, uncovered
+
+
+# a finer photo is asked for up to this many times the finest photo's pixels per mm: beyond it,
+# the slide limit there is not set by the photo's sampling
+MAX_FINER = 4.0
+
+
+def finer_photo(maps: dict, uncovered_slide: np.ndarray, tolerance_mm: float, px_per_mm: float | None) -> dict | None:
+    """How much finer a photo must sample the print to find a slide where the photos state they find only larger ones.
+
+    The smallest slide a photo finds is its flow's uncertainty times the significance over the
+    tolerance; the uncertainty is the photo's noise through the texture it resolves and the
+    flow's floor, both in photo pixels (``dense.PHOTO_FLOOR_PX``), so in mm it scales with the
+    photo's pixel on the print. Where the part's stated smallest slide is larger than the slide
+    the coverage asks for (SLIDE_TOLERANCES times the tolerance), a photo finer by their ratio
+    finds it; the figure is the ratio that covers 90 % of those pixels, and the pixels where no
+    slide is found at all (no texture the photo resolves) are counted apart.
+
+    Parameters
+    ----------
+    maps : dict
+        The detection maps (``part_shift_limit_um``).
+    uncovered_slide : (H, W) bool
+        Where a slide would show and no photo finds one.
+    tolerance_mm : float
+    px_per_mm : float or None
+        The finest photo's pixels per print mm.
+
+    Returns
+    -------
+    dict or None
+        ``factor`` (at most MAX_FINER), ``needed_photo_px_per_mm``, ``photo_px_per_mm``,
+        ``share_found_at_factor`` (of the uncovered slide area), ``share_without_limit`` (no slide
+        found there at any size); None when nothing is uncovered for a slide.
+    """
+    n = int(uncovered_slide.sum())
+    if n == 0:
+        return None
+    limit = maps["part_shift_limit_um"][uncovered_slide].astype(np.float64)
+    from workbench.validate.detection import NONE_UM
+
+    finite = limit < NONE_UM
+    ratio = limit[finite] / (SLIDE_TOLERANCES * tolerance_mm * 1000.0)
+    factor = float(min(np.percentile(ratio, 90), MAX_FINER)) if len(ratio) else MAX_FINER
+    return {
+        "factor": round(factor, 2),
+        "photo_px_per_mm": None if px_per_mm is None else round(px_per_mm, 2),
+        "needed_photo_px_per_mm": None if px_per_mm is None else round(px_per_mm * factor, 2),
+        "share_found_at_factor": round(float((ratio <= factor).sum()) / n, 4),
+        "share_without_limit": round(float((~finite).sum()) / n, 4),
+    }
 
 
 def coverage_words(films: list[dict], opts: CoverageOptions) -> str:
@@ -436,5 +494,12 @@ def next_photo_words(cov: dict) -> str:
         words.append(
             f"{100 * measured:.0f} % of what is uncovered was measured and is below the stated limit there: "
             "a finer photo (closer, or more pixels) or one without the lamp's glint there"
+        )
+    fine = cov.get("finer_photo")
+    if fine and fine.get("needed_photo_px_per_mm"):
+        words.append(
+            f"a slide is found on {100 * fine['share_found_at_factor']:.0f} % of where it is not yet with a photo "
+            f"{fine['factor']:g} times finer ({fine['needed_photo_px_per_mm']:g} photo px per print mm; the finest "
+            f"now: {fine['photo_px_per_mm']:g})"
         )
     return "; ".join(words)

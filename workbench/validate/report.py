@@ -273,6 +273,16 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
         c.setFont("Helvetica", 7)
         c.drawString(20 * mm, y, "azimuth 0: in front of the part (towards -y), counter-clockwise seen from above")
         y -= 5 * mm
+    fine = cov.get("finer_photo")
+    if fine and fine.get("needed_photo_px_per_mm"):
+        c.setFont("Helvetica", 8)
+        line = (
+            f"A photo {fine['factor']:g} times finer ({fine['needed_photo_px_per_mm']:g} photo px per print mm; the "
+            f"finest now {fine['photo_px_per_mm']:g}) finds a slide on {100 * fine['share_found_at_factor']:.0f} % of "
+            "where none is found yet"
+        )
+        c.drawString(20 * mm, y, line)
+        y -= 5 * mm
     unc = cov.get("uncovered") or {}
     if unc.get("measured_share"):
         c.setFont("Helvetica", 8)

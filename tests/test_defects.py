@@ -231,7 +231,10 @@ def test_parallel_photos_give_the_same_report(design, tmp_path):
         assert strip(report["photos"][0]) == strip(serial["photos"][0])
         assert strip(report["photos"][1]) == strip(one["photos"][0])
         assert report["part"]["verdict"] == "FAIL" and report["part"]["photos_scored"] == 2
-    assert forked["part"] == both["part"]
+    # (the part's own stage is timed: its seconds differ from run to run)
+    assert {k: v for k, v in forked["part"].items() if k != "seconds"} == {
+        k: v for k, v in both["part"].items() if k != "seconds"
+    }
     for picture in sorted((tmp_path / "one").glob("perfect_*.png")):
         for folder in ("pool", "fork"):
             assert (tmp_path / folder / picture.name).read_bytes() == picture.read_bytes(), (folder, picture.name)

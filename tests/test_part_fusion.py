@@ -60,7 +60,15 @@ def test_a_small_region_is_not_judged():
     assert light_in_one_photo(entries, states, maps, PPM, 16.0) == []
 
 
-def test_a_real_dropout_seen_by_two_photos_fails_the_part(tmp_path):
+# the second renderer: Mitsuba 3's path tracer, its own lamp, noise and gloss
+LOOKS = {
+    "workbench": ["--realistic"],
+    "mitsuba": ["--renderer", "mitsuba", "--spp", "8", "--gloss", "0.5", "--jpeg-quality", "90"],
+}
+
+
+@pytest.mark.parametrize("renderer", list(LOOKS))
+def test_a_real_dropout_seen_by_two_photos_fails_the_part(tmp_path, renderer):
     # the same dropout of 20 mm² on dark checker ink, photographed from two sides: both photos
     # show it where it is on the print, neither dismisses the other's
     d = tmp_path / "design"
@@ -68,17 +76,8 @@ def test_a_real_dropout_seen_by_two_photos_fails_the_part(tmp_path):
     photos = []
     for k, orbit in enumerate(("10,55,330", "-40,60,330")):
         p = tmp_path / f"p{k}.png"
-        args = [
-            "render",
-            str(d),
-            f"--orbit={orbit}",
-            "--size",
-            "2000x1500",
-            "--realistic",
-            "--defect",
-            "dropout:60,25,2.52",
-        ]
-        assert main([*args, "-o", str(p), "-q"]) == 0
+        args = ["render", str(d), f"--orbit={orbit}", "--size", "2000x1500", *LOOKS[renderer]]
+        assert main([*args, "--defect", "dropout:60,25,2.52", "-o", str(p), "-q"]) == 0
         photos.append(p)
     out = tmp_path / "v"
     args = [

@@ -165,7 +165,7 @@ def defect_centre(design: Path, view: str, defect: str) -> tuple[float, float] |
 def facing_view(design: Path, view: str, shape: tuple, max_deg: float = 60.0) -> np.ndarray:
     """Print pixels whose surface the view sees within ``max_deg`` of head-on; (rows, cols) bool at the print's size."""
     from workbench.design_dir import Design
-    from workbench.validate.dense import print_grid
+    from workbench.validate.print_warp import print_grid
 
     d = Design(design)
     p = d.info["print"]

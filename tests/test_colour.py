@@ -12,6 +12,7 @@ import pytest
 from conftest import ROOT
 
 from workbench.validate import colour as col
+from workbench.validate import print_warp
 
 SHIFT = (-6.0, 6.0, 8.0)  # the issue's wrong ink: L* -6, a* +6, b* +8
 WARM = (1.0, 0.9, 0.72)  # a warm light (linear gains; no channel clipped)
@@ -45,13 +46,12 @@ def scene(tmp_path_factory):
     from workbench.camera import Camera
     from workbench.cli import main
     from workbench.design_dir import Design
-    from workbench.validate import dense
 
     out = tmp_path_factory.mktemp("colour") / "design"
     assert main(["design", str(ROOT / "fixtures" / "default" / "job.toml"), "--out", str(out), "-q"]) == 0
     d = Design(out)
     p = d.info["print"]
-    grid = dense.print_grid(d.V, d.F, d.flat, p["height_mm"], d.rgb, p["dpi"], d.owner)
+    grid = print_warp.print_grid(d.V, d.F, d.flat, p["height_mm"], d.rgb, p["dpi"], d.owner)
     cam = Camera.look_at([0, -330, 380], [0, -45, 0], [0, 1, 0], 45, 1600, 1200)
     return d, grid, cam
 
@@ -69,14 +69,13 @@ def measure(scene, photo, chart="fixture", pose=True, **kw):
     """The colour entry of a photo as validate's hook would compute it: pose from the markers, warp, measure."""
     import cv2
 
-    from workbench.validate import dense
     from workbench.validate.pose import estimate_pose
 
     d, grid, cam = scene
     if pose:
         cam = estimate_pose(cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY), d.fixture, cam.K, cam.dist).camera
-    depth = dense.photo_buffers(cam, d.V, d.F)[1]
-    warped, state, _scale, _footprint = dense.warp_to_print(photo, cam, grid, d.V, d.F, depth)
+    depth = print_warp.photo_buffers(cam, d.V, d.F)[1]
+    warped, state, _scale, _footprint = print_warp.warp_to_print(photo, cam, grid, d.V, d.F, depth)
     names = [v["name"] for v in d.info["views"]]
     regions = {f"view {n}": grid.owner == k for k, n in enumerate(names)}
     return col.measure_colour(
@@ -84,7 +83,7 @@ def measure(scene, photo, chart="fixture", pose=True, **kw):
         cam,
         d.fixture.get("colour_chart") if chart == "fixture" else chart,
         warped,
-        state == dense.FULL,
+        state == print_warp.FULL,
         grid.reference,
         regions=regions,
         part_depth=depth,

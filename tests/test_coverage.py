@@ -12,7 +12,7 @@ from workbench.camera import Camera
 from workbench.cli import main
 from workbench.design_dir import Design
 from workbench.render.defects import FILM_RGB
-from workbench.validate import coverage, dense
+from workbench.validate import coverage, dense, print_warp
 from workbench.validate.photo import design_print_grid
 
 FILM = (255.0, 255.0, 255.0)
@@ -75,9 +75,9 @@ def test_each_films_share_is_counted_over_where_the_class_shows():
 
 def test_uncovered_regions_say_where_and_why():
     H, W = 120, 200
-    combined = np.full((H, W), dense.FULL, np.uint8)
-    combined[10:50, 10:60] = dense.HIGHLIGHT  # 4 x 5 mm under a glint
-    combined[70:110, 100:180] = dense.OCCLUDED  # 4 x 8 mm hidden
+    combined = np.full((H, W), print_warp.FULL, np.uint8)
+    combined[10:50, 10:60] = print_warp.HIGHLIGHT  # 4 x 5 mm under a glint
+    combined[70:110, 100:180] = print_warp.OCCLUDED  # 4 x 8 mm hidden
     unc = {c: np.zeros((H, W), bool) for c in coverage.CLASSES}
     unc["ink_gone"][10:50, 10:60] = True
     unc["slide"][70:110, 100:180] = True
@@ -109,7 +109,7 @@ def test_the_next_photo_sees_what_is_uncovered_from_elsewhere():
     nxt = coverage.next_photo(V, F, X, face, np.array([[0.0, 0.0, 400.0]]), cam, orbit)
     az, el, dist = nxt["orbit"]
     assert dist == pytest.approx(400.0) and nxt["sees_share"] == 1.0
-    assert el <= 90 - 2 * dense.MIRROR_DEG and el >= np.degrees(np.arcsin(1 / dense.MAX_GRAZING))
+    assert el <= 90 - 2 * dense.MIRROR_DEG and el >= np.degrees(np.arcsin(1 / print_warp.MAX_GRAZING))
     assert coverage.next_photo(V, F, X[:0], face[:0], np.zeros((0, 3)), cam, orbit) is None
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from test_uncertainty import shifted, texture
 
-from workbench.validate import dense, detection
+from workbench.validate import dense, detection, placement
 
 
 def test_a_photo_coarser_than_the_grid_is_compared_at_its_own_resolution():
@@ -142,7 +142,7 @@ def test_the_film_is_placed_from_edges_alone(with_full):
         px_per_mm = ppm
         surface_per_print = np.ones((rows, cols), np.float32)
 
-    got = dense.dense_placement(dr, Grid, 0.05, (cols / ppm, rows / ppm))
+    got = placement.dense_placement(dr, Grid, 0.05, (cols / ppm, rows / ppm))
     film = got["film"]
     assert film is not None and got["windows"] > 20
     assert np.allclose(film["offset_mm"], d, atol=1e-3)

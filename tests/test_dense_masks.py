@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.camera import Camera
-from workbench.validate import dense
+from workbench.validate import print_warp
 
 
 def quad_scene(flip: bool):
@@ -16,7 +16,7 @@ def quad_scene(flip: bool):
         F = F[:, ::-1].copy()
     uv = V[:, :2] + 50.0
     rgb = np.random.default_rng(0).integers(0, 255, (79, 79, 3), dtype=np.uint8)  # 20 dpi
-    grid = dense.print_grid(V, F, uv, 100.0, rgb, 20.0, None)
+    grid = print_warp.print_grid(V, F, uv, 100.0, rgb, 20.0, None)
     cam = Camera.look_at([0.0, 0.0, 500.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0], 30.0, 800, 800)
     photo = np.random.default_rng(1).integers(0, 255, (800, 800, 3), dtype=np.uint8)
     return V, F, grid, cam, photo
@@ -26,33 +26,33 @@ def test_a_surface_turned_away_from_the_camera_is_not_scored():
     # the same square seen from its decorated side is scored; turned over (its triangles
     # wound the other way), nothing of it is: it is the back of the part
     V, F, grid, cam, photo = quad_scene(flip=False)
-    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
+    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
     on = np.isfinite(grid.X[..., 0])
-    assert np.isin(state[on], (dense.FULL, dense.EDGE)).all() and (state == dense.FULL).mean() > 0.5
+    assert np.isin(state[on], (print_warp.FULL, print_warp.EDGE)).all() and (state == print_warp.FULL).mean() > 0.5
     V, F, grid, cam, photo = quad_scene(flip=True)
-    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
-    assert (state[on] == dense.OCCLUDED).all()
+    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    assert (state[on] == print_warp.OCCLUDED).all()
 
 
 def test_points_next_to_the_outline_in_the_photo_are_not_scored():
     # the photo's pixels along the square's outline mix it with the background: print pixels
     # seen within the band (3 photo pixels, plus twice the pre-blur) are EDGE, the rest FULL
     V, F, grid, cam, photo = quad_scene(flip=False)
-    _, state, scale, _ = dense.warp_to_print(photo, cam, grid, V, F)
+    _, state, scale, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
     xy, _ = cam.project(grid.X[np.isfinite(grid.X[..., 0])])
     lo, hi = cam.project(V)[0].min(axis=0), cam.project(V)[0].max(axis=0)
     to_outline = np.minimum(xy - lo, hi - xy).min(axis=1)
-    band = dense.DEPTH_STEP_BAND_PX + 2.0 * (0.5 * np.sqrt(scale * scale - 1.0) if scale > 1.5 else 0.0)
+    band = print_warp.DEPTH_STEP_BAND_PX + 2.0 * (0.5 * np.sqrt(scale * scale - 1.0) if scale > 1.5 else 0.0)
     st = state[np.isfinite(grid.X[..., 0])]
-    assert (st[to_outline < band - 1.5] == dense.EDGE).all()
-    assert (st[to_outline > band + 2.5] == dense.FULL).all()
+    assert (st[to_outline < band - 1.5] == print_warp.EDGE).all()
+    assert (st[to_outline > band + 2.5] == print_warp.FULL).all()
 
 
 def test_depth_steps_mark_outlines_and_folds_only():
     depth = np.full((60, 80), np.inf)
     depth[10:50, 10:70] = 100.0 + np.linspace(0.0, 3.0, 60)[None, :]  # a gently sloping surface
     depth[20:30, 20:40] = 60.0  # a surface in front of it
-    steps = dense.depth_steps(depth, 2.0)
+    steps = print_warp.depth_steps(depth, 2.0)
     assert steps[10, 30] and steps[49, 30] and steps[30, 10]  # the outline
     assert steps[20, 30] and steps[25, 40]  # the fold's edge
     assert not steps[40, 55] and not steps[25, 30]  # the slope and the front surface's inside
@@ -80,11 +80,11 @@ def test_a_steep_surface_is_no_step_and_a_jump_is():
     z = 500.0 + np.arange(120)[None, :] * np.tan(np.radians(75.0)) * 500.0 / fx
     depth = np.full((80, 160), np.inf)
     depth[20:60, 20:140] = np.repeat(z, 40, axis=0)
-    steps = dense.depth_steps(depth, 2.0, fx)
+    steps = print_warp.depth_steps(depth, 2.0, fx)
     assert not steps[25:55, 25:135].any()  # the slope's inside
     assert steps[20, 60] and steps[59, 60] and steps[40, 20] and steps[40, 139]  # its outline
     depth[20:60, 80:140] -= 2.0  # a ledge 2 mm nearer the camera from column 80 on
-    steps = dense.depth_steps(depth, 2.0, fx)
+    steps = print_warp.depth_steps(depth, 2.0, fx)
     assert steps[40, 79] and steps[40, 80] and not steps[40, 60] and not steps[40, 100]
 
 
@@ -98,7 +98,7 @@ def scan_scene(flipped: np.ndarray):
     F = np.concatenate([np.stack([i, i + 1, i + n + 1], -1), np.stack([i, i + n + 1, i + n], -1)]).reshape(-1, 3)
     F[flipped] = F[flipped][:, ::-1]
     rgb = np.random.default_rng(0).integers(0, 255, (394, 394, 3), dtype=np.uint8)  # 100 dpi
-    grid = dense.print_grid(V, F, V[:, :2] + 50.0, 100.0, rgb, 100.0, None)
+    grid = print_warp.print_grid(V, F, V[:, :2] + 50.0, 100.0, rgb, 100.0, None)
     cam = Camera.look_at([0.0, 0.0, 500.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0], 30.0, 800, 800)
     photo = np.random.default_rng(1).integers(0, 255, (800, 800, 3), dtype=np.uint8)
     return V, F, grid, cam, photo
@@ -110,31 +110,33 @@ def test_a_scans_folded_over_triangles_open_no_hole_in_what_is_seen():
     # sheet turned over is the back of the part
     flipped = np.random.default_rng(2).choice(5000, 40, replace=False)
     V, F, grid, cam, photo = scan_scene(flipped)
-    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
+    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
     on = np.isfinite(grid.X[..., 0])
-    assert not (state[on] == dense.OCCLUDED).any()
-    band = dense.rim_band(state)
+    assert not (state[on] == print_warp.OCCLUDED).any()
+    band = print_warp.rim_band(state)
     inner = np.zeros_like(on)
     inner[30:-30, 30:-30] = True  # farther than the rim band and the outline's from the film's outline
-    assert (band[inner] == dense.FULL).all()
+    assert (band[inner] == print_warp.FULL).all()
     V, F, grid, cam, photo = scan_scene(np.arange(5000))
-    _, state, _, _ = dense.warp_to_print(photo, cam, grid, V, F)
-    assert (state[on] == dense.OCCLUDED).all()
+    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    assert (state[on] == print_warp.OCCLUDED).all()
 
 
 def test_the_rim_band_follows_the_films_outline_and_the_frame_only():
     # a hole that is hidden or too oblique in the middle of what is seen opens no band; the
     # film's outline (off the part) and the photo's frame (not seen) do, EDGE_PX wide
-    state = np.full((100, 100), dense.FULL, np.uint8)
-    state[:, :10] = dense.OFF_PART
-    state[90:, :] = dense.NOT_SEEN
-    state[40:50, 40:50] = dense.OCCLUDED
-    state[60:70, 60:70] = dense.GRAZING
-    out = dense.rim_band(state)
-    e = dense.EDGE_PX
+    state = np.full((100, 100), print_warp.FULL, np.uint8)
+    state[:, :10] = print_warp.OFF_PART
+    state[90:, :] = print_warp.NOT_SEEN
+    state[40:50, 40:50] = print_warp.OCCLUDED
+    state[60:70, 60:70] = print_warp.GRAZING
+    out = print_warp.rim_band(state)
+    e = print_warp.EDGE_PX
     # (the grid's own border is a frame too)
-    assert (out[:90, 10 : 10 + e] == dense.EDGE).all() and (out[e : 90 - e, 10 + e : 100 - e] != dense.EDGE).all()
-    assert (out[90 - e : 90, 10:] == dense.EDGE).all()
-    assert (out[0:e, 10:] == dense.EDGE).all() and (out[:, 100 - e :][: 90 - e] == dense.EDGE).all()
-    assert (out[35:55, 35:55][state[35:55, 35:55] == dense.FULL] == dense.FULL).all()
-    assert (out[55:75, 55:75][state[55:75, 55:75] == dense.FULL] == dense.FULL).all()
+    assert (out[:90, 10 : 10 + e] == print_warp.EDGE).all() and (
+        out[e : 90 - e, 10 + e : 100 - e] != print_warp.EDGE
+    ).all()
+    assert (out[90 - e : 90, 10:] == print_warp.EDGE).all()
+    assert (out[0:e, 10:] == print_warp.EDGE).all() and (out[:, 100 - e :][: 90 - e] == print_warp.EDGE).all()
+    assert (out[35:55, 35:55][state[35:55, 35:55] == print_warp.FULL] == print_warp.FULL).all()
+    assert (out[55:75, 55:75][state[55:75, 55:75] == print_warp.FULL] == print_warp.FULL).all()

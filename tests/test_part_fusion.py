@@ -9,7 +9,7 @@ import pytest
 from conftest import ROOT
 
 from workbench.cli import main
-from workbench.validate import dense
+from workbench.validate import print_warp
 from workbench.validate.part import light_in_one_photo
 
 PPM = 10.0
@@ -18,9 +18,9 @@ PPM = 10.0
 def two_photos(b_state: int, b_finds: bool):
     """Photo A finds 40 x 40 grid px (16 mm²) of ink gone; photo B gives the region ``b_state``."""
     H, W = 100, 100
-    sa = np.full((H, W), dense.FULL, np.uint8)
-    sa[40:80, 30:70] = dense.DEFECT
-    sb = np.full((H, W), dense.FULL, np.uint8)
+    sa = np.full((H, W), print_warp.FULL, np.uint8)
+    sa[40:80, 30:70] = print_warp.DEFECT
+    sb = np.full((H, W), print_warp.FULL, np.uint8)
     sb[40:80, 30:70] = b_state
     maps = {}
     for k in (0, 1):
@@ -32,7 +32,7 @@ def two_photos(b_state: int, b_finds: bool):
 
 
 def test_ink_gone_in_one_photo_that_another_sees_intact_is_light():
-    entries, states, maps = two_photos(dense.FULL, True)
+    entries, states, maps = two_photos(print_warp.FULL, True)
     (d,) = light_in_one_photo(entries, states, maps, PPM, 4.0)
     assert d["photo_index"] == 0 and d["photo"] == "a.png" and d["area_mm2"] == 16.0
     assert d["decided_by"]["photo"] == "b.png" and d["decided_by"]["share"] == 1.0
@@ -43,10 +43,10 @@ def test_ink_gone_in_one_photo_that_another_sees_intact_is_light():
 @pytest.mark.parametrize(
     "b_state, b_finds, why",
     [
-        (dense.DEFECT, True, "the other photo finds it too: ink gone stays put"),
-        (dense.FULL, False, "the other photo cannot find ink gone there"),
-        (dense.HIGHLIGHT, True, "the other photo does not measure it"),
-        (dense.OCCLUDED, True, "the other photo does not see it"),
+        (print_warp.DEFECT, True, "the other photo finds it too: ink gone stays put"),
+        (print_warp.FULL, False, "the other photo cannot find ink gone there"),
+        (print_warp.HIGHLIGHT, True, "the other photo does not measure it"),
+        (print_warp.OCCLUDED, True, "the other photo does not see it"),
     ],
 )
 def test_ink_gone_stays_when_no_other_photo_shows_the_ink(b_state, b_finds, why):
@@ -56,7 +56,7 @@ def test_ink_gone_stays_when_no_other_photo_shows_the_ink(b_state, b_finds, why)
 
 def test_a_small_region_is_not_judged():
     # below the verdict's area a region fails nothing: it is left as found
-    entries, states, maps = two_photos(dense.FULL, True)
+    entries, states, maps = two_photos(print_warp.FULL, True)
     assert light_in_one_photo(entries, states, maps, PPM, 16.0) == []
 
 

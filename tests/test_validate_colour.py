@@ -20,7 +20,7 @@ from workbench.camera import Camera
 from workbench.cli import main
 from workbench.design_dir import Design, read_image
 from workbench.validate import colour as col
-from workbench.validate import dense
+from workbench.validate import dense, print_warp
 
 SHIFT = (-3.5, 3.5, 4.5)  # about 5 ΔE00 on this print (5.39 on the pixels a 1600 x 1200 photo compares)
 WARM = "1,0.9,0.72"
@@ -76,9 +76,9 @@ def truth(design, photo_path, entry, shift):
     prof = load_camera_profile(photo_path.with_suffix(".json"))
     cam = estimate_pose(cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY), design.fixture, prof.K, prof.dist).camera
     p = design.info["print"]
-    grid = dense.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
-    depth = dense.photo_buffers(cam, design.V, design.F)[1]
-    on_print, state, scale, footprint = dense.warp_to_print(photo, cam, grid, design.V, design.F, depth)
+    grid = print_warp.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
+    depth = print_warp.photo_buffers(cam, design.V, design.F)[1]
+    on_print, state, scale, footprint = print_warp.warp_to_print(photo, cam, grid, design.V, design.F, depth)
     dr = dense.analyse(grid, on_print, state, 0.5, scale, footprint)
     again, de_map = col.photo_colour(photo, cam, design, grid, on_print, dr.state, footprint, depth)
     # nearly the same pixels as validate's: validate also seats the part on its plate (a hair's motion here)

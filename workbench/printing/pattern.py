@@ -28,7 +28,7 @@ def pattern_for(rows: int, cols: int, dpi: float, definition: dict = PATTERN) ->
     a grid pixel there, or the flow sees no texture. The density falls with the square of the
     scale, so the pattern keeps its look at the grid's resolution.
     """
-    from workbench.validate.dense import MAX_GRID_PX
+    from workbench.validate.print_warp import MAX_GRID_PX
 
     factor = max(1, int(np.ceil(np.sqrt(rows * cols / MAX_GRID_PX))))
     grid_mm = 25.4 / dpi * factor

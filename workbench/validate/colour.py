@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 
 from workbench.camera import Camera
+from workbench.validate import print_warp
 
 # sRGB (IEC 61966-2-1) primaries, D65, and Bradford adaptation D65 → D50 (as ICC profiles do)
 _SRGB_TO_XYZ_D65 = np.array(
@@ -246,10 +247,10 @@ class ChartSample:
 def project_points(cam: Camera, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World points (n, 3) through the posed camera and its lens: pixels (n, 2) and depth (n,) mm.
 
-    :func:`workbench.validate.dense.project_through_lens` (one compiled pass: a print grid's
+    :func:`workbench.validate.print_warp.project_through_lens` (one compiled pass: a print grid's
     1.4 million points in tens of milliseconds, where ``cv2.projectPoints`` takes seconds).
     """
-    from workbench.validate.dense import project_through_lens
+    from workbench.validate.print_warp import project_through_lens
 
     _, z, lens = project_through_lens(cam, np.ascontiguousarray(X, dtype=np.float64))
     return lens, z
@@ -614,7 +615,7 @@ def measure_colour(
     chart : dict or None
         The fixture's ``colour_chart``; None: not measured.
     warped : (rows, cols, 3) uint8
-        The photo on the print's analysis grid (:func:`workbench.validate.dense.warp_to_print`).
+        The photo on the print's analysis grid (:func:`workbench.validate.print_warp.warp_to_print`).
     scored : (rows, cols) bool
         Grid pixels the photo shows well enough to judge (state FULL, outside defects).
     reference : (rows, cols, 3) uint8
@@ -624,7 +625,7 @@ def measure_colour(
     output_profile : bytes or None
         See :func:`soft_proof`.
     part_depth : (H, W) float, optional
-        The part's depth buffer in the photo (:func:`workbench.validate.dense.photo_buffers`):
+        The part's depth buffer in the photo (:func:`workbench.validate.print_warp.photo_buffers`):
         patches the part hides are left out.
     surface_mm : (rows, cols, 3) float, optional
         The surface point under each grid pixel (``PrintGrid.X``, NaN off the part): the
@@ -849,9 +850,9 @@ def photo_colour(
         light), its fixture (``colour_chart``, if any), its views (regions ``"view NAME"`` by
         the grid's owner) and films (design.json's ``films``, ``atlas_px``, ``width_px``,
         ``height_px`` in print pixels: regions ``"film NAME"``).
-    grid : workbench.validate.dense.PrintGrid
+    grid : workbench.validate.print_warp.PrintGrid
     warped, footprint : arrays
-        :func:`workbench.validate.dense.warp_to_print`'s photo on the grid and its footprint.
+        :func:`workbench.validate.print_warp.warp_to_print`'s photo on the grid and its footprint.
     state : (rows, cols) uint8
         The dense analysis's state per grid pixel: the measured pixels outside defects,
         highlights and shadows are compared.
@@ -866,9 +867,8 @@ def photo_colour(
     colour : dict
     delta_e_map : (rows, cols) float32 or None
     """
-    from workbench.validate import dense
 
-    scored = np.isin(state, (dense.COLOUR_ONLY, dense.UNRESOLVED, dense.NORMAL, dense.FULL))
+    scored = np.isin(state, (print_warp.COLOUR_ONLY, print_warp.UNRESOLVED, print_warp.NORMAL, print_warp.FULL))
     regions = {f"view {v['name']}": grid.owner == k for k, v in enumerate(design.info["views"])}
     for f in design.info.get("films") or []:
         box = np.zeros(scored.shape, bool)

@@ -38,7 +38,7 @@ import cv2
 import numpy as np
 
 from workbench.camera import Camera
-from workbench.validate import dense
+from workbench.validate import dense, print_warp
 from workbench.views.visibility import smoothed_face_normals, unoccluded_many
 
 MIN_COVERAGE = 0.95
@@ -233,8 +233,8 @@ def uncovered_regions(uncovered: dict, combined: np.ndarray, px_per_mm: float, o
         why = (
             "measured, but below the stated limit there (too little texture or ink contrast for the photos' "
             "noise and blur)"
-            if s in dense.MEASURED
-            else dense.STATE_NAMES[s]
+            if s in print_warp.MEASURED
+            else print_warp.STATE_NAMES[s]
         )
         regions.append(
             {
@@ -320,7 +320,7 @@ def next_photo(
             to_cam = cam.center - X
             cos = (n * to_cam).sum(axis=1) / np.maximum(np.linalg.norm(to_cam, axis=1), 1e-12)
             xy, z = cam.project(X)
-            ok = (cos >= 1.0 / dense.MAX_GRAZING) & (z > 0)
+            ok = (cos >= 1.0 / print_warp.MAX_GRAZING) & (z > 0)
             # (seen from where a photo already saw it, a point stays as it was: under the same
             # glint, at the same blur; the lamp's reflection leaves a point once the camera turns
             # by more than twice the mirror cone's half-width, dense.MIRROR_DEG)
@@ -330,7 +330,7 @@ def next_photo(
             ok &= (xy[:, 0] >= 0) & (xy[:, 1] >= 0) & (xy[:, 0] <= cam.width - 1) & (xy[:, 1] <= cam.height - 1)
             if ok.sum() <= best_n:
                 continue
-            depth = dense.photo_buffers(cam, V, F)[1]
+            depth = print_warp.photo_buffers(cam, V, F)[1]
             seen = np.zeros(len(X), bool)
             unoccluded_many(depth, cam.width, cam.height, cam.K[0, 0], xy, z, seen)
             k = int((ok & seen).sum())
@@ -404,7 +404,7 @@ def part_coverage(
         # low for its noise, detail finer than its pixels, the lamp's glint over uniform ink) asks
         # for a finer photo or another angle; what none measured (hidden, oblique, at an edge,
         # under a highlight) for another angle
-        out["uncovered"]["measured_share"] = round(float(np.isin(combined[anyc], dense.MEASURED).mean()), 4)
+        out["uncovered"]["measured_share"] = round(float(np.isin(combined[anyc], print_warp.MEASURED).mean()), 4)
     if not complete:
         out["finer_photo"] = finer_photo(maps, uncovered["slide"], opts.tolerance_mm, photos_px_per_mm)
     if not complete and photos is not None:

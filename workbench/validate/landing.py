@@ -19,15 +19,8 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from workbench.validate.dense import (
-    EDGE,
-    EDGE_PX,
-    MEASURED,
-    REGISTRATION_BLUR_PX,
-    DenseResult,
-    PrintGrid,
-    masked_normalise,
-)
+from workbench.validate.dense import REGISTRATION_BLUR_PX, DenseResult, masked_normalise
+from workbench.validate.print_warp import EDGE, EDGE_PX, MEASURED, PrintGrid
 
 SPACING_MM = 1.0  # block of the landing grid, print mm
 MIN_BLOCK_SHARE = 0.25  # a block is measured when this share of its pixels measures the full vector
@@ -217,7 +210,7 @@ def photo_landing(
         With several films, the film of each face (:func:`film_of_face`): each block then says
         which film it is on (``film``), since each film has its own forming field.
     scale : float
-        Photo pixels per grid pixel (:func:`workbench.validate.dense.warp_to_print`).
+        Photo pixels per grid pixel (:func:`workbench.validate.print_warp.warp_to_print`).
     rim : bool
         Measure the unscored band along the rim of what the photo sees too: for a print that
         is locally unique (the calibration film), see RIM_* above.

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.validate import dense
+from workbench.validate import dense, print_warp
 
 
 def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm: float, max_defect_mm2: float) -> list:
@@ -52,7 +52,7 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
                 continue
             x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
             box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
-            region = sa[box] == dense.DEFECT
+            region = sa[box] == print_warp.DEFECT
             n = int(region.sum())
             if n == 0:
                 continue
@@ -60,7 +60,7 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
                 if b == a or sb is None or f"photo{b}_dropout" not in maps:
                     continue
                 finds = maps[f"photo{b}_dropout"][box].astype(bool) | maps[f"photo{b}_scratch"][box].astype(bool)
-                clean = np.isin(sb[box], dense.MEASURED) & (sb[box] != dense.DEFECT)
+                clean = np.isin(sb[box], print_warp.MEASURED) & (sb[box] != print_warp.DEFECT)
                 share = float((region & finds & clean).sum()) / n
                 if share >= DROPOUT_SHARE:
                     seen_by, found_in = Path(entries[b]["photo"]).name, Path(ea["photo"]).name
@@ -126,7 +126,7 @@ def part_summary(
     if not scored:
         return {"verdict": verdict, "photos_scored": 0, "colour": colour_summary(entries)}, None, []
     combined = np.maximum.reduce(scored)
-    on = combined != dense.OFF_PART
+    on = combined != print_warp.OFF_PART
     n_on = max(int(on.sum()), 1)
     # one defect seen in several photos is one defect of the part: photos' defects whose
     # boxes on the print overlap are merged (the largest area, the centre of the largest)
@@ -162,9 +162,10 @@ def part_summary(
         "verdict": verdict,
         "photos_scored": len(scored),
         "coverage_print": {
-            dense.STATE_NAMES[k]: float((combined == k).sum() / n_on) for k in range(1, len(dense.STATE_NAMES))
+            print_warp.STATE_NAMES[k]: float((combined == k).sum() / n_on)
+            for k in range(1, len(print_warp.STATE_NAMES))
         },
-        "measured_share_of_part": float(np.isin(combined, dense.MEASURED).sum() / n_on),
+        "measured_share_of_part": float(np.isin(combined, print_warp.MEASURED).sum() / n_on),
         "coverage_by_view": dense.coverage_by_view(combined, grid.owner, names),
         "defects": defects,
         "colour": colour_summary(entries),

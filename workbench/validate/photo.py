@@ -21,11 +21,12 @@ from workbench.design_dir import Design, read_image
 from workbench.errors import WorkbenchError
 from workbench.export import png_bytes
 from workbench.raster import depth_buffer
-from workbench.validate import dense, detection, pictures
+from workbench.validate import dense, detection, pictures, print_warp
 from workbench.validate.colour import photo_colour
 from workbench.validate.films import film_seams, fit_per_film, seam_misregistration, seams_seen
 from workbench.validate.landing import film_of_face, photo_landing
 from workbench.validate.photo_quality import photo_quality, read_jpeg_quality
+from workbench.validate.placement import dense_placement
 from workbench.validate.pose import PoseError, estimate_pose
 from workbench.validate.report import page_names, page_picture
 from workbench.validate.rule import (
@@ -280,7 +281,7 @@ def _validate_photo(
     if vi not in cache:
         cache[vi] = side.submit(_view, design, vi)
     # one z-buffer of the part in the photo: for this check and for both warps
-    face_buffer, depth = dense.photo_buffers(pose.camera, design.V, design.F)
+    face_buffer, depth = print_warp.photo_buffers(pose.camera, design.V, design.F)
     hidden = markers_under_the_part(pose, design, face_buffer, board)
     if hidden:
         entry["reason"] = (
@@ -300,7 +301,7 @@ def _validate_photo(
         printed_rgb,
     )  # fmt: skip
     grid = cache["grid"] = _done(cache.pop("grid"))
-    on_print, state, scale, footprint = dense.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
+    on_print, state, scale, footprint = print_warp.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     clock.append(time.perf_counter())  # print warp
     dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center)
     sc, tiles_s = tiles.result()
@@ -339,7 +340,7 @@ def _validate_photo(
         # vector or the component across an edge (each within a third of the tolerance, as for
         # its defects), when together they hold MIN_DENSE_WINDOWS independent windows and place
         # the film as accurately as a tile: within TILE_SIGMA_SHARE of the tolerance
-        place = dense.dense_placement(
+        place = dense_placement(
             dr, grid, tolerance_mm / dense.SIGNIFICANCE_Z, (p["image_width_mm"], p["image_height_mm"])
         )
         entry["dense_windows"] = round(place["windows"], 1)
@@ -365,7 +366,7 @@ def _validate_photo(
         photo, pose.camera, design, grid, on_print, dr.state, footprint, depth, output_profile
     )
     entry["colour"]["verdict"] = colour_verdict(entry["colour"], max_delta_e)[0]
-    seen = state >= dense.GRAZING
+    seen = state >= print_warp.GRAZING
     entry["photo_quality"] = photo_quality(photo, on_print, grid.reference, seen, read_jpeg_quality(path))
     clock.append(time.perf_counter())  # colour
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
@@ -466,16 +467,16 @@ def _page(rgb: np.ndarray) -> bytes:
     return page_picture(Image.fromarray(rgb))
 
 
-def design_print_grid(design: Design) -> dense.PrintGrid:
-    """The print's analysis grid of ``design``, its films labelled (:func:`workbench.validate.dense.print_grid`)."""
+def design_print_grid(design: Design) -> print_warp.PrintGrid:
+    """The print's analysis grid of ``design``, its films labelled (:func:`print_warp.print_grid`)."""
     p = design.info["print"]
-    return dense.print_grid(
+    return print_warp.print_grid(
         design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner,
         film_of_face(design.info, len(design.F)),
     )  # fmt: skip
 
 
-def print_grid_of(cache: dict) -> dense.PrintGrid | None:
+def print_grid_of(cache: dict) -> print_warp.PrintGrid | None:
     """The print grid the photos of one command made (None when none did)."""
     if "grid" in cache:
         cache["grid"] = _done(cache.pop("grid"))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from workbench.validate import dense
+from workbench.validate import print_warp
 
 # one colour per state of a print pixel (RGB), in dense's order
 STATE_COLOURS = np.array(
@@ -119,11 +119,11 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
         (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.45 * u, _weight(u))
         _text(img, str(k + 1), (x - tw // 2, y + th // 2), 0.45 * u, (0, 0, 0), _weight(u))
     img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
-    on = state != dense.OFF_PART
+    on = state != print_warp.OFF_PART
     n_on = max(int(on.sum()), 1)
     entries = []
-    for k, name in enumerate(dense.STATE_NAMES):
-        if k == dense.OFF_PART:
+    for k, name in enumerate(print_warp.STATE_NAMES):
+        if k == print_warp.OFF_PART:
             continue
         share = float((state == k).sum()) / n_on
         if share > 0:

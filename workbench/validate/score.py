@@ -10,7 +10,7 @@ import numpy as np
 
 from workbench.camera import Camera
 from workbench.raster import depth_buffer
-from workbench.validate.dense import photo_buffers, surface_in_photo
+from workbench.validate.print_warp import photo_buffers, surface_in_photo
 
 TILE = 64
 # a tile counts when its registration's standard uncertainty, on the surface, is below this

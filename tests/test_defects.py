@@ -23,6 +23,7 @@ from workbench.cli import main
 from workbench.design_dir import Design
 from workbench.render.defects import Defect, apply_defects
 from workbench.validate import dense
+from workbench.validate.dense import LIGHT_RULES
 
 ORBIT = "--orbit=10,55,330"
 LOOK = ["--realistic", "--gloss", "0.5", "--distortion=-0.1,0,0,0,0"]
@@ -159,6 +160,9 @@ def test_a_perfect_glossy_part_passes_with_no_defect_and_is_measured(design, tmp
     # rough coating spreads it below white-out there)
     if renderer == "workbench":
         assert cov["logo"]["unmeasured"].get("highlight", 0) > 0.01
+        # and each highlight region over 1 mm² is listed with the test that took it for light
+        assert e["not_counted"] and all(x["area_mm2"] >= 1.0 for x in e["not_counted"])
+        assert {x["decided_by"]["rule"] for x in e["not_counted"]} <= set(LIGHT_RULES)
     # (seen: 0.078 mm, under half a photo pixel at this size; the tile p95 is 0.007 mm)
     assert e["dense"]["misregistration_mm"]["p95"] <= 0.1
     for name in ("coverage_print.png", "perfect_defects_print.png", "perfect_dense_print.png"):

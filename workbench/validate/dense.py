@@ -673,6 +673,10 @@ class DenseResult:
         The dominant edge's unit normal, where only the component across it is measured.
     scratch_found : (rows, cols) bool
         Where a scratch (a thin line of ink gone) is found.
+    not_counted : list of dict
+        The regions of the colour residual taken for light, not counted as defects
+        (:func:`not_counted_regions`): ``centre_mm``, ``area_mm2`` (print) and ``decided_by``
+        (``rule``, the test that decided, and ``words``).
     """
 
     warped: np.ndarray
@@ -695,6 +699,7 @@ class DenseResult:
     window_px: float = TENSOR_SIGMA_PX
     normal_dir: np.ndarray | None = None
     scratch_found: np.ndarray | None = None
+    not_counted: list | None = None
 
 
 def effective_samples(window_px: float, noise_corr_px) -> np.ndarray | float:
@@ -1197,6 +1202,8 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     base = float(np.median(excess[scored_fit])) if (scored_fit := weight > 0).any() else 0.0
     glare = excess - base > GLARE
     highlight = seen & (sat | ((glare | (_cmin(white) > 300)) & ~lost))
+    # (what decided each pixel taken for light, for validation.json's not_counted)
+    why_light = {"clipped": seen & sat, "glare": highlight & ~sat}
     shadow = seen & ~highlight & (_cmax(white) < SHADOW)
     state[highlight] = HIGHLIGHT
     state[shadow] = SHADOWED
@@ -1284,6 +1291,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     glossed, gone = light_or_ink(
         colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur, film
     )
+    why_light["light_or_ink"] = glossed.copy()
     # (a region stepped only part of the way towards the film is judged by the colour test
     # that allows shading, like any other colour)
     colour_bad = (colour_scored & (res > colour_limit)) | gone
@@ -1313,6 +1321,8 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         # (but a line that clips beside light is that light: text washed out under a broad glint)
         washed = clipped_beside_light(told_ink, pho, sat | glossed)
         told_ink &= ~washed
+        why_light["clipped_beside_light"] = washed
+        why_light["thin_told"] = (told == 1) & ~glossed
         glossed |= washed
         glossed &= ~told_ink
         gone |= told_ink
@@ -1323,7 +1333,9 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         # highlights, ink that is gone is not told from light (a line over uniform ink neither)
         # (needed only for the result: beside the rest, applied below)
         cone = later.submit(lamp_cone, sure, grid.X, camera_center, rg, grid.px_per_mm)
-        glossed |= mirrors_highlights(colour_bad & ~glossed & (told != 2), sure, grid.X, camera_center)
+        mirrored = mirrors_highlights(colour_bad & ~glossed & (told != 2), sure, grid.X, camera_center)
+        why_light["mirrors_highlights"] = mirrored
+        glossed |= mirrored
         colour_bad &= ~glossed
         gone &= ~glossed
     # light along a fold: where the surface folds, its two sides face the light differently and a
@@ -1336,6 +1348,10 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     glossed |= along
     colour_bad &= ~glossed
     gone &= ~glossed
+    why_light["along_fold"] = along
+    # what was taken for light, and by which test (the regions of the colour residual; a clipped or
+    # glaring area is listed where it covers a region too)
+    not_counted = not_counted_regions(why_light, glossed | highlight, grid.px_per_mm, MIN_DEFECT_MM2)
     state[glossed] = HIGHLIGHT
     colour_scored = colour_scored & ~glossed
     scored = scored & ~glossed
@@ -1509,7 +1525,71 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         win,
         np.where(normal[..., None], e1, np.float32(0.0)).astype(np.float32),
         thin_found & stated,
+        not_counted,
     )
+
+
+# each test that takes a region for light, in the words validation.json gives it
+LIGHT_RULES = {
+    "light_or_ink": "light added explains the region (the photo keeps the ink's texture, or steps towards the "
+    "light's colour or beyond the bare film's level), not ink gone",
+    "thin_told": "a thin line that keeps the ink's variation along it: a glint, not a scratch",
+    "clipped_beside_light": "a line clipped in the photo beside light: the same light, washed out",
+    "mirrors_highlights": "the surface mirrors the photo's lamp there as at its sure highlights: ink gone and light "
+    "are not told apart, and the region is not counted",
+    "along_fold": "light along a fold of the surface (its two sides face the lamp differently)",
+    "clipped": "clipped in the photo (a channel at its brightest): its colour is not known",
+    "glare": "light added over a broad area, beyond the exposure fit's offset (glare)",
+}
+MAX_NOT_COUNTED = 50  # regions listed at most (the largest); all of them are in the coverage map as highlight
+
+
+def not_counted_regions(why: dict, light: np.ndarray, px_per_mm: float, min_mm2: float) -> list[dict]:
+    """The regions taken for light, each with the test that decided it (:data:`LIGHT_RULES`).
+
+    Parameters
+    ----------
+    why : dict of str to (H, W) bool
+        Per test, the pixels it took for light (later tests win where they overlap).
+    light : (H, W) bool
+        Every pixel taken for light.
+    px_per_mm : float
+        The grid's resolution.
+    min_mm2 : float
+        Smaller regions are not listed.
+
+    Returns
+    -------
+    list of dict
+        At most MAX_NOT_COUNTED, largest first: ``centre_mm`` (print, x right, y down),
+        ``area_mm2`` (print) and ``decided_by`` (``rule`` and ``words``).
+    """
+    names = [k for k in why if k in LIGHT_RULES]
+    which = np.zeros(light.shape, np.uint8)
+    for i, name in enumerate(names):
+        which[why[name] & light] = i + 1
+    n, lab, st, cen = cv2.connectedComponentsWithStats(light.astype(np.uint8), connectivity=8)
+    mm2 = 1.0 / (px_per_mm * px_per_mm)
+    out = []
+    for r in np.argsort(-st[1:, cv2.CC_STAT_AREA], kind="stable") + 1:
+        area = float(st[r, cv2.CC_STAT_AREA]) * mm2
+        if area < min_mm2 or len(out) >= MAX_NOT_COUNTED:
+            break
+        x0, y0, w, h, _ = st[r]
+        box = (slice(y0, y0 + h), slice(x0, x0 + w))
+        votes = np.bincount(which[box][lab[box] == r], minlength=len(names) + 1)
+        if votes[1:].sum() == 0:
+            continue
+        rule = names[int(votes[1:].argmax())]
+        cx, cy = cen[r]
+        out.append(
+            {
+                "centre_mm": [round(float(cx + 0.5) / px_per_mm, 2), round(float(cy + 0.5) / px_per_mm, 2)],
+                "area_mm2": round(area, 2),
+                "decided_by": {"rule": rule, "words": LIGHT_RULES[rule]},
+            }
+        )
+    return out
 
 
 def stated_shift_limit(

@@ -386,6 +386,8 @@ def _validate_photo(
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
     for d in entry["defects"]:
         d["decided_by"] = defect_decision(d, max_defect_mm2)
+    # the regions taken for light, and the test that took each
+    entry["not_counted"] = dr.not_counted or []
     entry["placement"] = placement(entry, tolerance_mm)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
     clock.append(time.perf_counter())  # summary

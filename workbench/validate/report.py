@@ -238,7 +238,20 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
         for piece in simpleSplit(line, "Helvetica", 8, W - 40 * mm):
             c.drawString(20 * mm, y, piece)
             y -= 3.8 * mm
-    if part.get("dismissed"):
+    # what each photo took for light, the largest first, with the test that took it
+    light = sorted(
+        ((e.get("photo", ""), x) for e in report.get("photos", []) for x in e.get("not_counted") or []),
+        key=lambda px: -px[1]["area_mm2"],
+    )
+    for name, x in light[:8]:
+        line = (
+            f"Taken for light in {name}: {x['area_mm2']:.1f} mm² at ({x['centre_mm'][0]:.1f}, {x['centre_mm'][1]:.1f}) "
+            f"mm ({x['decided_by']['rule']}): {x['decided_by']['words']}"
+        )
+        for piece in simpleSplit(line, "Helvetica", 8, W - 40 * mm):
+            c.drawString(20 * mm, y, piece)
+            y -= 3.8 * mm
+    if part.get("dismissed") or light:
         y -= 2 * mm
     need = f"at least {100 * cov['min_coverage']:.0f} % of each film, per class, for a PASS"
     c.drawString(20 * mm, y, f"Where the part's photos together can find each defect class ({need}):")

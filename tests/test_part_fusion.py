@@ -132,3 +132,18 @@ def test_the_placement_names_the_move_when_it_explains_the_misregistration():
     # within the tolerance: placed well enough
     assert placement({**e, "misregistration_mm": {"p95": 0.2}}, 0.5)["verdict"] == "PASS"
     assert placement({**e, "film_offset_mm": None}, 0.5) is None
+
+
+def test_a_defect_seen_in_several_photos_is_sized_by_the_finest_that_sees_it_whole():
+    from workbench.validate.part import finest_view
+
+    views = [
+        {"photo": "top", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 15.8, "px_per_mm": 9.0},
+        {"photo": "side", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 26.1, "px_per_mm": 4.0},
+        {"photo": "edge", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 9.0, "px_per_mm": 12.0},
+        {"photo": "far", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 27.5, "px_per_mm": 3.0},
+    ]
+    # "edge" samples finest but finds under half the largest area: it sees a part of it only
+    assert finest_view(views)["photo"] == "top"
+    assert finest_view(views[1:])["photo"] == "side"
+    assert finest_view([views[3]])["photo"] == "far"

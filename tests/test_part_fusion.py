@@ -134,16 +134,18 @@ def test_the_placement_names_the_move_when_it_explains_the_misregistration():
     assert placement({**e, "film_offset_mm": None}, 0.5) is None
 
 
-def test_a_defect_seen_in_several_photos_is_sized_by_the_finest_that_sees_it_whole():
-    from workbench.validate.part import finest_view
+def test_a_defect_seen_in_several_photos_is_sized_by_the_median_of_those_that_see_it_whole():
+    from workbench.validate.part import fused_view
 
     views = [
         {"photo": "top", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 15.8, "px_per_mm": 9.0},
-        {"photo": "side", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 26.1, "px_per_mm": 4.0},
-        {"photo": "edge", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 9.0, "px_per_mm": 12.0},
-        {"photo": "far", "kind": "missing", "centre_mm": [1, 1], "area_mm2": 27.5, "px_per_mm": 3.0},
+        {"photo": "side", "kind": "missing", "centre_mm": [2, 1], "area_mm2": 26.1, "px_per_mm": 11.0},
+        {"photo": "edge", "kind": "missing", "centre_mm": [3, 1], "area_mm2": 9.0, "px_per_mm": 12.0},
+        {"photo": "a", "kind": "missing", "centre_mm": [4, 1], "area_mm2": 17.4, "px_per_mm": 8.0},
+        {"photo": "b", "kind": "missing", "centre_mm": [5, 1], "area_mm2": 27.5, "px_per_mm": 3.0},
     ]
     # "edge" samples finest but finds under half the largest area: it sees a part of it only
-    assert finest_view(views)["photo"] == "top"
-    assert finest_view(views[1:])["photo"] == "side"
-    assert finest_view([views[3]])["photo"] == "far"
+    got = fused_view(views)
+    assert got["photo"] == "side" and got["centre_mm"] == [2, 1]
+    assert got["area_mm2"] == pytest.approx(0.5 * (17.4 + 26.1))
+    assert fused_view([views[4]])["area_mm2"] == 27.5

@@ -545,12 +545,15 @@ def defect_entries(dr, grid, design: Design, cam: Camera) -> list[dict]:
         )
         vi = int(grid.owner[c_ij])
         px = np.full(2, np.nan)
-        radius = 0.0
+        radius = area_px2 = 0.0
         if len(X):
             proj, _ = cv2.projectPoints(np.ascontiguousarray(X[:: max(1, len(X) // 500)]), rvec, cam.t, cam.K, cam.dist)
             proj = proj.reshape(-1, 2)
             px = proj.mean(axis=0)
             radius = float(np.linalg.norm(proj - px, axis=1).max())
+            # (its area in the photo: the hull of its projected points, foreshortened where the photo sees it obliquely)
+            if len(proj) >= 3:
+                area_px2 = float(cv2.contourArea(cv2.convexHull(proj.astype(np.float32))))
         out.append(
             {
                 "id": k + 1,
@@ -558,6 +561,7 @@ def defect_entries(dr, grid, design: Design, cam: Camera) -> list[dict]:
                 "view": names[vi] if vi >= 0 else None,
                 "photo_px": px.tolist(),
                 "photo_radius_px": radius,
+                "photo_area_px2": round(area_px2, 1),
             }
         )
     return out

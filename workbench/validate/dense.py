@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from workbench.render.defects import FILM_RGB
-from workbench.validate import detection
+from workbench.validate import detection, photometric
 from workbench.validate.placement import placement_field
 from workbench.validate.print_warp import (
     COLOUR_ONLY,
@@ -105,14 +105,10 @@ PHOTO_FLOOR_PX = 0.15
 UNRESOLVED_KEEP = 0.25  # share of the print's gradient energy a photo must keep to resolve its detail
 EXPOSURE_SIGMA_PX = 40.0  # window of the local gain/offset fit: larger than any defect it must not absorb
 COLOUR_TOL = 40.0  # grey levels (0-255) beyond the exposure model that make a colour defect
-SATURATED = 250  # a channel this bright is clipped: a highlight
-# ink that is gone shows the bare film: a region is missing ink where at least MISSING_CORE of it
-# is within ALPHA_NEAR of the film's colour (measured: dropouts and scratches 0.61 to 0.94 of their
-# region, glossy highlights on pale ink 0 to 0.3, one that nearly clipped 0.49)
-MISSING_CORE = 0.5
-ALPHA_NEAR = 0.15
-# a glossy highlight over textured ink keeps the ink's texture (measured: correlation 0.85 to 0.97
-# between the photo and the design in highlights on checkers); bare film shows none of it
+SATURATED = 250  # a channel this bright is clipped (its colour is not known)
+# a glint along a thin line over textured ink keeps the ink's texture (thin_told; measured:
+# correlation 0.85 to 0.97 between the photo and the design in highlights on checkers); bare film
+# shows none of it
 KEPT_TEXTURE = 0.6
 # ... at a contrast of at least this share of the design's (a highlight near clipping compresses it:
 # 0.57 to 1.1 measured)
@@ -142,22 +138,7 @@ LOST_GAIN = 0.3
 # (measured: highlights on flat pale ink 0.6 to 3.7 deg from the photo's clipped or texture-keeping
 # ones; dropouts 16 to 103 deg)
 MIRROR_DEG = 8.0
-# a line of ink gone this share or more of whose pixels clip, touching light, is that light: a
-# clipped pixel's colour is not known, and text washed out under a broad glint on a glossy photo
-# clips in pieces beside it (measured at 6000 x 4000: such lines 0.55 to 0.88 clipped, one of
-# 0.42 left; the colour regions of dropouts and scratches 0 to 0.34, the most where the film itself
-# clips)
-CLIPPED_SHARE = 0.5
-# brighter than bare film: ink that is gone shows the film and no more, light on a glossy film
-# reaches beyond it. A region is light where its photo, on the median, lies beyond the film's
-# colour by BEYOND_FILM_STEP of the step from the design to the film and by BEYOND_FILM of the
-# film's own level, the film's estimate's error (measured at 6000 x 4000: dropouts and scratches
-# 0.95 to 1.10 of the step, at most 9 % over the film's level; glints along the lion's ridges
-# 1.66 to 2.39 of it, 14 to 28 % over)
-BEYOND_FILM_STEP = 1.4
-BEYOND_FILM = 0.1
 LOST_MIN_CONTRAST = 15.0
-GLARE = 35.0  # additive brightness (grey levels) beyond the exposure model's offset that is glare
 SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
 MIN_DEFECT_MM2 = 1.0  # smaller regions are noise, not defects
 SHIFT_CLOSE_MM = 1.0  # gaps between textured parts of a shifted region that are closed when sizing it
@@ -1194,16 +1175,21 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         cv2.GaussianBlur(moved * fw, (0, 0), EXPOSURE_SIGMA_PX), sw + 1e-6
     )
     lost = texture_lost(gain, determined, seen & ~sat, g0, brightness)
-    # glare: light added to every channel over a broad area, beyond the window's offset
-    white = gain * np.float32(255.0) + offset  # the film's white as the photo would show it here
-    # (the exposure fit's window is larger than any defect it must find, so a broad glare goes
-    # into its offset, a small dropout does not)
-    excess = _cmin(offset)
-    base = float(np.median(excess[scored_fit])) if (scored_fit := weight > 0).any() else 0.0
-    glare = excess - base > GLARE
-    highlight = seen & (sat | ((glare | (_cmin(white) > 300)) & ~lost))
+    white = gain * np.float32(255.0) + offset  # the film's white as the exposure fit extrapolates it
+    # the photometric model (:mod:`workbench.validate.photometric`): the bare film as the ink around
+    # each pixel shows it, in linear light (the exposure fit's white is extrapolated in grey levels
+    # from the ink's level to the film's, over dark ink wrong by tens of grey levels: a dropout
+    # there looked brighter than its film). Light for sure is what is brighter than the bare film
+    # could be, in every channel (a clipped channel where the film stays below clipping); what
+    # clips where the film may clip too, a white dropout included, is judged with its region below
+    noise0 = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
+    film_fit = film_colour(white, moved, weight > 0)
+    sheen = photometric.linear(np.maximum(_cmin(offset), 0.0))  # the light the exposure fit adds over the ink
+    film_lit = photometric.film_level(pho, moved, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, film_fit, sheen)
+    past_film = seen & photometric.beyond_film(pho, film_lit, noise0, SIGNIFICANCE_Z)
+    highlight = past_film & ~lost
     # (what decided each pixel taken for light, for validation.json's not_counted)
-    why_light = {"clipped": seen & sat, "glare": highlight & ~sat}
+    why_light = {"beyond_film": highlight}
     shadow = seen & ~highlight & (_cmax(white) < SHADOW)
     state[highlight] = HIGHLIGHT
     state[shadow] = SHADOWED
@@ -1283,15 +1269,22 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # the sharp edge of the ink's own rim
     # (the light's colour only where light_or_ink asks: at the failed pixels, which it closes by
     # a pixel; the whole image's took a twentieth of a second)
-    near = cv2.dilate(colour_bad.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    film = film_colour(white, moved, weight > 0, near)
-    light = np.zeros_like(film)
-    film_near = film[near]
-    light[near] = np.maximum(film_near, 1.0) / np.maximum(_cmax(film_near), 1.0)[..., None]
-    glossed, gone = light_or_ink(
-        colour_bad, gone, pho, pred, light, alpha, colour_limit, colour_noise, local_blur, film
-    )
-    why_light["light_or_ink"] = glossed.copy()
+    # each region judged by the photometric model: light added against ink gone, by the likelihood
+    # ratio on its core with the photo's own noise (one independent sample per photo pixel where
+    # the photo is coarser than the grid) and the model's error around it
+    light_rgb = np.median(film_lit.film[seen], axis=0) if seen.any() else np.ones(3, np.float32)
+    light_rgb = np.maximum(light_rgb, 1.0) / max(float(light_rgb.max()), 1.0)
+    verdicts = photometric.judge_regions(
+        colour_bad, gone, pho, pred, film_lit.film, light_rgb, colour_limit, colour_noise, film_lit.sigma,
+        colour_scored & ~colour_bad, local_blur, np.minimum(fp * fp, 1.0), SIGNIFICANCE_Z,
+    )  # fmt: skip
+    glossed = verdicts.light.copy()
+    gone = gone & ~glossed
+    why_light["photometric"] = glossed.copy()
+    told_gone = np.zeros_like(gone)  # regions the model tells for ink gone
+    for r, j in verdicts.judgements.items():
+        if j["hypothesis"] == "ink gone":
+            told_gone |= verdicts.labels == r
     # (a region stepped only part of the way towards the film is judged by the colour test
     # that allows shading, like any other colour)
     colour_bad = (colour_scored & (res > colour_limit)) | gone
@@ -1309,31 +1302,34 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         res = np.where(lost, res_lost, res)
         colour = np.where(colour_scored, res, np.nan).astype(np.float32)
     if camera_center is not None:
-        # a region the surface turns towards the lamp as the photo's sure highlights (clipped,
-        # or light over ink that keeps its texture) is one more of them: over flat pale ink,
-        # one photo cannot tell a highlight that reaches the film's white from ink gone there
-        # (a thin line over ink that varies along it is told by that: a glint keeps the ink's
-        # variation, a scratch shows the film; only one over uniform ink is left to the lamp)
+        # thin lines of ink gone are told by the ink along them: a glint keeps the ink's
+        # variation, a scratch shows the film; one over uniform ink is not told, and like a
+        # region the photometric model cannot tell, is left to the lamp (below)
         told = thin_told(thin, pho, pred, alpha >= 0.5, int(round(0.5 * MISSING_GAP_MM * grid.px_per_mm)))
-        # (a line told ink gone stays ink gone where light_or_ink took the region it joins for
+        # (a line told ink gone stays ink gone where the model took the region it joins for
         # light: a scratch across a glossy sheen is one region with it)
         told_ink = told == 2
-        # (but a line that clips beside light is that light: text washed out under a broad glint)
-        washed = clipped_beside_light(told_ink, pho, sat | glossed)
+        # (but a line brighter than the bare film could be is light: text washed out under a glint)
+        washed = regions_mostly_in(told_ink, past_film)
         told_ink &= ~washed
-        why_light["clipped_beside_light"] = washed
+        why_light["beyond_film_line"] = washed
         why_light["thin_told"] = (told == 1) & ~glossed
         glossed |= washed
         glossed &= ~told_ink
         gone |= told_ink
         colour_bad |= told_ink
         glossed |= told == 1
-        sure = sat | glossed
+        # the light the photo shows for sure: beyond the film, and regions light explains better
+        sure = highlight | glossed
         # the stated limit, honestly: where the surface mirrors the lamp of the photo's sure
         # highlights, ink that is gone is not told from light (a line over uniform ink neither)
         # (needed only for the result: beside the rest, applied below)
         cone = later.submit(lamp_cone, sure, grid.X, camera_center, rg, grid.px_per_mm)
-        mirrored = mirrors_highlights(colour_bad & ~glossed & (told != 2), sure, grid.X, camera_center)
+        # a region the photo cannot tell (ink gone or light) is taken for light only where the
+        # surface mirrors that lamp: elsewhere no light the photo shows can reach the camera from
+        # it, and it stays ink gone
+        not_told = (verdicts.not_told | (told == 3)) & colour_bad & ~glossed & ~told_ink
+        mirrored = mirrors_highlights(not_told, sure, grid.X, camera_center)
         why_light["mirrors_highlights"] = mirrored
         glossed |= mirrored
         colour_bad &= ~glossed
@@ -1344,14 +1340,16 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # normals turn 14 to 22° from their mean). A colour region that lies along one is light; ink
     # gone there is not told from it in one photo, and the stated limit says so (below)
     fold = grid_folds(grid)
-    along = along_fold(colour_bad & ~glossed & ~told_ink if camera_center is not None else colour_bad & ~glossed, fold)
+    # (never a region the model tells for ink gone)
+    folded = colour_bad & ~glossed & ~told_gone
+    along = along_fold(folded & ~told_ink if camera_center is not None else folded, fold)
     glossed |= along
     colour_bad &= ~glossed
     gone &= ~glossed
     why_light["along_fold"] = along
     # what was taken for light, and by which test (the regions of the colour residual; a clipped or
     # glaring area is listed where it covers a region too)
-    not_counted = not_counted_regions(why_light, glossed | highlight, grid.px_per_mm, MIN_DEFECT_MM2)
+    not_counted = not_counted_regions(why_light, glossed | highlight, grid.px_per_mm, MIN_DEFECT_MM2, verdicts)
     state[glossed] = HIGHLIGHT
     colour_scored = colour_scored & ~glossed
     scored = scored & ~glossed
@@ -1451,6 +1449,10 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         if more:
             labels = np.where((labels == 0) & (lab_ink > 0) & (lab_ink <= len(more)), lab_ink + len(defects), labels)
             defects = defects + more
+    for i, d in enumerate(defects):
+        # what the photometric model said of a region of ink gone
+        if d["kind"] == "missing" and (j := photometric.judgement_at(labels == i + 1, verdicts)) is not None:
+            d["photometric"] = j
     # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
     state[(labels > 0) & np.isin(state, (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL))] = DEFECT
     # how finely the photo samples the print, and what it cannot resolve
@@ -1531,20 +1533,19 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
 
 # each test that takes a region for light, in the words validation.json gives it
 LIGHT_RULES = {
-    "light_or_ink": "light added explains the region (the photo keeps the ink's texture, or steps towards the "
-    "light's colour or beyond the bare film's level), not ink gone",
+    "beyond_film": "brighter than the bare film could be there (as the ink around shows the film): light added",
+    "photometric": "light added over the ink explains the region significantly better than ink gone (the "
+    "photometric model's likelihood ratio: the photo keeps the ink's texture, or goes beyond the film)",
+    "beyond_film_line": "a thin line brighter than the bare film could be: light, not a scratch",
     "thin_told": "a thin line that keeps the ink's variation along it: a glint, not a scratch",
-    "clipped_beside_light": "a line clipped in the photo beside light: the same light, washed out",
-    "mirrors_highlights": "the surface mirrors the photo's lamp there as at its sure highlights: ink gone and light "
-    "are not told apart, and the region is not counted",
+    "mirrors_highlights": "ink gone and light look alike here (the photometric model tells neither) and the surface "
+    "mirrors the photo's lamp there as at its sure light: not counted, and not measured",
     "along_fold": "light along a fold of the surface (its two sides face the lamp differently)",
-    "clipped": "clipped in the photo (a channel at its brightest): its colour is not known",
-    "glare": "light added over a broad area, beyond the exposure fit's offset (glare)",
 }
 MAX_NOT_COUNTED = 50  # regions listed at most (the largest); all of them are in the coverage map as highlight
 
 
-def not_counted_regions(why: dict, light: np.ndarray, px_per_mm: float, min_mm2: float) -> list[dict]:
+def not_counted_regions(why: dict, light: np.ndarray, px_per_mm: float, min_mm2: float, verdicts=None) -> list[dict]:
     """The regions taken for light, each with the test that decided it (:data:`LIGHT_RULES`).
 
     Parameters
@@ -1557,12 +1558,15 @@ def not_counted_regions(why: dict, light: np.ndarray, px_per_mm: float, min_mm2:
         The grid's resolution.
     min_mm2 : float
         Smaller regions are not listed.
+    verdicts : photometric.RegionVerdicts, optional
+        The photometric model's judgements: the one under a region joins its ``decided_by``.
 
     Returns
     -------
     list of dict
         At most MAX_NOT_COUNTED, largest first: ``centre_mm`` (print, x right, y down),
-        ``area_mm2`` (print) and ``decided_by`` (``rule`` and ``words``).
+        ``area_mm2`` (print) and ``decided_by`` (``rule``, ``words`` and, where the model judged
+        it, ``judgement``).
     """
     names = [k for k in why if k in LIGHT_RULES]
     which = np.zeros(light.shape, np.uint8)
@@ -1581,12 +1585,18 @@ def not_counted_regions(why: dict, light: np.ndarray, px_per_mm: float, min_mm2:
         if votes[1:].sum() == 0:
             continue
         rule = names[int(votes[1:].argmax())]
+        decided = {"rule": rule, "words": LIGHT_RULES[rule]}
+        if verdicts is not None:
+            inside = np.zeros(light.shape, bool)
+            inside[box] = lab[box] == r
+            if (j := photometric.judgement_at(inside, verdicts)) is not None:
+                decided["judgement"] = j
         cx, cy = cen[r]
         out.append(
             {
                 "centre_mm": [round(float(cx + 0.5) / px_per_mm, 2), round(float(cy + 0.5) / px_per_mm, 2)],
                 "area_mm2": round(area, 2),
-                "decided_by": {"rule": rule, "words": LIGHT_RULES[rule]},
+                "decided_by": decided,
             }
         )
     return out
@@ -1745,45 +1755,6 @@ def colour_z(
     r = np.where(missing, res_raw, res)
     limit = colour_limit - np.where(thin, np.float32(COLOUR_TOL), np.float32(0))
     return ((r - limit) / max(noise, NOISE_FLOOR) + SIGNIFICANCE_Z).astype(np.float32)
-
-
-def additive_light(photo: np.ndarray, pred: np.ndarray, light: np.ndarray):
-    """Per pixel, the photo as the model under a gain of its own plus light added.
-
-    Fits photo ≈ k · pred + s · light per pixel by least squares over the three channels,
-    with k within [1 / SHADING, SHADING] (the shading the colour test allows) and s ≥ 0.
-
-    Parameters
-    ----------
-    photo, pred : (..., 3) float32
-        The photo on the print and the model (grey levels): images (H, W, 3), or the
-        pixels of interest (n, 3).
-    light : (..., 3) float32
-        The colour of light added, as the photo shows it (the film's white, largest channel 1).
-
-    Returns
-    -------
-    k : (...) float32
-        The gain.
-    s : (...) float32
-        The light added (grey levels of its largest channel).
-    residual : (...) float32
-        Largest channel residual of the fit (grey levels).
-    """
-    # normal equations of the two unknowns: [p·p p·u; p·u u·u] [k s]' = [p·y u·y]'
-    pp = _csum(pred * pred)
-    pu = _csum(pred * light)
-    uu = np.maximum(_csum(light * light), 1e-6)
-    py = _csum(pred * photo)
-    uy = _csum(light * photo)
-    det = pp * uu - pu * pu
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.where(det > 1e-3 * pp * uu, (py * uu - uy * pu) / det, py / np.maximum(pp, 1e-6))
-    k = np.clip(np.nan_to_num(k, nan=1.0), 1.0 / SHADING, SHADING).astype(np.float32)
-    # with k held at its bound, the best s given k, never negative (light is only added)
-    s = np.maximum((uy - k * pu) / uu, 0.0).astype(np.float32)
-    fit = k[..., None] * pred + s[..., None] * light
-    return k, s, _residual(photo, fit)
 
 
 def photo_gain(gain: np.ndarray, determined: np.ndarray, fitted: np.ndarray) -> np.ndarray | None:
@@ -2073,12 +2044,12 @@ def lamp_cone(highlights, X, camera_center, gray, px_per_mm) -> tuple[np.ndarray
     return cone, cone & uniform_ink(gray, px_per_mm)
 
 
-def along_fold(regions: np.ndarray, fold: np.ndarray) -> np.ndarray:
-    """The connected regions of ``regions`` that lie along a fold: half their pixels or more in ``fold``.
+def regions_mostly_in(regions: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """The connected regions of ``regions`` with half their pixels or more in ``mask``.
 
     Parameters
     ----------
-    regions, fold : (H, W) bool
+    regions, mask : (H, W) bool
 
     Returns
     -------
@@ -2088,10 +2059,15 @@ def along_fold(regions: np.ndarray, fold: np.ndarray) -> np.ndarray:
     if n <= 1:
         return np.zeros(regions.shape, bool)
     size = np.bincount(lab.ravel(), minlength=n)
-    on = np.bincount(lab[fold], minlength=n)
+    on = np.bincount(lab[mask], minlength=n)
     keep = on >= 0.5 * size
     keep[0] = False
     return keep[lab]
+
+
+def along_fold(regions: np.ndarray, fold: np.ndarray) -> np.ndarray:
+    """The connected regions of ``regions`` that lie along a fold: half their pixels or more in ``fold``."""
+    return regions_mostly_in(regions, fold)
 
 
 def crease_band(X: np.ndarray, px_per_mm: float, reach_mm: float = 0.75) -> np.ndarray:
@@ -2138,207 +2114,6 @@ def uniform_ink(gray: np.ndarray, px_per_mm: float) -> np.ndarray:
     m = cv2.GaussianBlur(gray, (0, 0), s)
     v = cv2.GaussianBlur(gray * gray, (0, 0), s) - m * m
     return np.sqrt(np.maximum(v, 0.0)) < LOST_MIN_CONTRAST
-
-
-def light_or_ink(
-    colour_bad: np.ndarray,
-    gone: np.ndarray,
-    photo: np.ndarray,
-    pred: np.ndarray,
-    light: np.ndarray,
-    alpha: np.ndarray,
-    colour_limit: np.ndarray,
-    noise: float,
-    blur_px: np.ndarray,
-    film: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Which regions of a colour residual are a highlight, and which show bare film.
-
-    Ink that is gone shows the bare film: in the region's core the photo reaches the film's
-    colour (``alpha`` near 1) with the sharp rim of the ink. A glossy film's highlight adds
-    the light's colour to the ink's: the photo steps part of the way towards white, and that
-    step is light added to the ink (``photo ≈ k · pred + s · light``, :func:`additive_light`).
-    A region that never reaches the film's colour over a share ``MISSING_CORE`` of it and
-    that added light explains is a highlight; one that reaches it is missing ink. Over
-    coloured ink the two differ in direction too (:func:`step_is_light`): a glint on green
-    ink whitens it, ink gone shows the film's colour through it; a region whose step only
-    light explains is light, however thin or bright. A region brighter than its bare film
-    could show (:func:`beyond_film`) is light too, clipped or not.
-
-    Parameters
-    ----------
-    colour_bad, gone : (H, W) bool
-        Pixels beyond the colour test, and those stepped towards the bare film's colour.
-    photo, pred : (H, W, 3) float32
-        The photo on the print and the model (grey levels).
-    light : (H, W, 3) float32
-        The colour of light added, as the photo shows it (largest channel 1).
-    alpha : (H, W) float32
-        Share of the step from the design's colour to the bare film's per pixel (0 to 1).
-    colour_limit : (H, W) float32
-        The colour test's limit per pixel (grey levels).
-    noise : float
-        The colour residual's noise (grey levels).
-    blur_px : (H, W) float32
-        The photo's blur on the grid (Gaussian sigma, grid px): a region narrower than about
-        twice that never reaches the film's colour, and is not asked to.
-    film : (H, W, 3) float32
-        The bare film's colour as the photo would show it (grey levels).
-
-    Returns
-    -------
-    highlight : (H, W) bool
-        Pixels of regions that are light added, not ink.
-    missing : (H, W) bool
-        ``gone`` kept only in regions that show bare film.
-    """
-    highlight = np.zeros(colour_bad.shape, bool)
-    missing = gone.copy()
-    bad = cv2.morphologyEx(colour_bad.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
-    n, lab, st, _ = cv2.connectedComponentsWithStats(bad, connectivity=8)
-    if n <= 1:
-        return highlight, missing
-    # the fit of light added, at the regions' pixels only (the rest of the image is not asked)
-    at = bad > 0
-    s, fit_res = np.zeros(bad.shape, np.float32), np.zeros(bad.shape, np.float32)
-    _, s[at], fit_res[at] = additive_light(photo[at], pred[at], light[at])
-    for r in range(1, n):
-        x0, y0, w, h, _ = st[r]
-        ys, xs = slice(y0, y0 + h), slice(x0, x0 + w)
-        region = lab[ys, xs] == r
-        core = float(np.mean(alpha[ys, xs][region] >= 1.0 - ALPHA_NEAR))
-        # (a region narrower than the photo's blur never reaches the film's colour: a
-        # scratch of 0.5 mm steps 60 % of the way; it keeps its ink gone)
-        inner = cv2.distanceTransform(np.pad(region, 1).astype(np.uint8), cv2.DIST_L2, 3).max()
-        thin = inner <= 2.0 * float(np.median(blur_px[ys, xs][region])) + 2.0
-        # ink that is gone takes the print's texture with it: where the design has texture
-        # beyond the noise, a photo that keeps it (correlated, at a good share of its
-        # contrast) still shows the ink, under light added
-        pr = _cmax(pred[ys, xs])[region]
-        ph = _cmax(photo[ys, xs])[region]
-        kept = False
-        if pr.std() > SIGNIFICANCE_Z * noise and ph.std() > 0:
-            cc = float(np.corrcoef(pr, ph)[0, 1])
-            kept = cc >= KEPT_TEXTURE and ph.std() >= KEPT_CONTRAST * pr.std()
-        d = (photo[ys, xs] - pred[ys, xs])[region]
-        film_step = (film[ys, xs] - pred[ys, xs])[region]
-        # (light that clips breaks the fit of light added: beyond the film it is light all the same)
-        beyond = beyond_film(d, film_step, ph, _cmax(film[ys, xs])[region], noise)
-        if not (kept or beyond) and (core >= MISSING_CORE or thin):
-            if not step_is_light(d, film_step, light[ys, xs][region], noise):
-                continue
-        missing[ys, xs][region] = False
-        explained = float(np.mean(fit_res[ys, xs][region] <= colour_limit[ys, xs][region]))
-        added = float(np.median(s[ys, xs][region]))
-        if beyond or (explained >= 0.9 and added > SIGNIFICANCE_Z * noise):
-            highlight[ys, xs] |= region
-    return highlight, missing
-
-
-def clipped_beside_light(regions: np.ndarray, photo: np.ndarray, light: np.ndarray) -> np.ndarray:
-    """The connected regions of ``regions`` that clip and touch light: part of that light.
-
-    Parameters
-    ----------
-    regions : (H, W) bool
-        Pixels of the regions to test (8-connected regions).
-    photo : (H, W, 3) float32
-        The photo on the print, grey levels.
-    light : (H, W) bool
-        Pixels taken for light (clipped highlights, regions of light added).
-
-    Returns
-    -------
-    (H, W) bool
-        Pixels of the regions with at least CLIPPED_SHARE of them clipped in a channel
-        (SATURATED) that touch ``light`` (8-connected).
-    """
-    if not regions.any() or not light.any():
-        return np.zeros(regions.shape, bool)
-    n, lab = cv2.connectedComponents(regions.astype(np.uint8), connectivity=8)
-    size = np.bincount(lab.ravel(), minlength=n)
-    # (the brightest channel at the regions' pixels only: they are a few lines of the grid)
-    at = lab[regions]
-    clipped = np.bincount(at[_cmax(photo[regions]) >= SATURATED], minlength=n)
-    near = cv2.dilate(light.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    touches = np.bincount(at[near[regions]], minlength=n) > 0
-    keep = touches & (clipped >= CLIPPED_SHARE * size)
-    keep[0] = False
-    return keep[lab]
-
-
-def beyond_film(
-    step: np.ndarray, film_step: np.ndarray, photo_level: np.ndarray, film_level: np.ndarray, noise: float
-) -> bool:
-    """Whether a region's photo is brighter than its bare film could show: light, not ink gone.
-
-    Ink that is gone moves a pixel to the film's colour, ``step ≈ a · film_step`` with a up to 1
-    (1 plus the film's estimate's error); only light added to a glossy film goes on beyond it.
-    The region is beyond the film when, on the median of its pixels, a exceeds BEYOND_FILM_STEP
-    and the photo's brightest channel exceeds the film's by the larger of BEYOND_FILM of the
-    film's level and the noise at SIGNIFICANCE_Z (over pale ink a small error of the film's
-    estimate is a large a; the excess in grey levels tells that apart).
-
-    Parameters
-    ----------
-    step : (n, 3) float32
-        The photo minus the model at the region's pixels (grey levels).
-    film_step : (n, 3) float32
-        The bare film's colour minus the model there (grey levels).
-    photo_level, film_level : (n,) float32
-        The photo's brightest channel and the film's there (grey levels).
-    noise : float
-        The colour residual's noise (grey levels).
-
-    Returns
-    -------
-    bool
-    """
-    if not len(step):
-        return False
-    # a: the least-squares share of the film's step each pixel takes, a = <step, film_step> / |film_step|²
-    a = _csum(step * film_step) / np.maximum(_csum(film_step * film_step), 1e-6)
-    excess = float(np.median(photo_level - film_level))
-    enough = max(SIGNIFICANCE_Z * noise, BEYOND_FILM * float(np.median(film_level)))
-    return float(np.median(a)) > BEYOND_FILM_STEP and excess > enough
-
-
-def step_is_light(step: np.ndarray, film_step: np.ndarray, light: np.ndarray, noise: float) -> bool:
-    """Whether a region's step from the model is light added rather than ink gone, by its direction.
-
-    Ink gone moves a pixel from the ink's colour towards the film's, ``step ≈ a · film_step``;
-    light added moves it along the light's colour, ``step ≈ s · light`` (a, s ≥ 0 per pixel).
-    Over neutral ink under white light the two are one direction and nothing is told (the
-    region stays ink gone); over coloured ink they part. The step is light when the ink's fit
-    leaves a residual beyond the light's by more than the noise at SIGNIFICANCE_Z: its excess
-    energy, √(r_ink² - r_light²) as RMS over the region's pixels, is what the direction tells.
-    (a is not held to 1: a film brighter than the exposure fit's estimate of it is still film.)
-
-    Parameters
-    ----------
-    step : (n, 3) float32
-        The photo minus the model at the region's pixels (grey levels).
-    film_step : (n, 3) float32
-        The bare film's colour minus the model there (grey levels).
-    light : (n, 3) float32
-        The colour of light added there (largest channel 1).
-    noise : float
-        The colour residual's noise (grey levels, largest channel).
-
-    Returns
-    -------
-    bool
-        True when only light explains the step.
-    """
-
-    def rms_of_fit(direction: np.ndarray) -> float:
-        # least squares of step ≈ c · direction per pixel, c ≥ 0; the largest channel's residual
-        c = np.maximum(_csum(step * direction) / np.maximum(_csum(direction * direction), 1e-6), 0.0)
-        r = _cmax(np.abs(step - c[:, None] * direction))
-        return float(np.mean(r * r))
-
-    excess = rms_of_fit(film_step) - rms_of_fit(light)
-    return excess > (SIGNIFICANCE_Z * noise) ** 2
 
 
 def shift_explained(

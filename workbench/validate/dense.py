@@ -1183,9 +1183,11 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # could be, in every channel (a clipped channel where the film stays below clipping); what
     # clips where the film may clip too, a white dropout included, is judged with its region below
     noise0 = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
-    film_fit = film_colour(white, moved, weight > 0)
     sheen = photometric.linear(np.maximum(_cmin(offset), 0.0))  # the light the exposure fit adds over the ink
-    film_lit = photometric.film_level(pho, moved, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, film_fit, sheen)
+    film_lit = photometric.film_level(pho, moved, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, white, sheen)
+    if (unknown := film_lit.sigma >= photometric.UNKNOWN).any():
+        # (where no ink around tells the film, the exposure fit's white in the film's one colour)
+        film_lit.film[unknown] = film_colour(white, moved, weight > 0, unknown)[unknown]
     past_film = seen & photometric.beyond_film(pho, film_lit, noise0, SIGNIFICANCE_Z)
     highlight = past_film & ~lost
     # (what decided each pixel taken for light, for validation.json's not_counted)
@@ -1202,7 +1204,9 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # the rest, and again below only where telling light from ink adds to it)
     r_lit = max(1, int(round(4 * win)))
     lit_disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_lit + 1,) * 2)
-    lit_now = cv2.dilate((state == HIGHLIGHT).astype(np.uint8), lit_disc).astype(bool)
+    # (white-out is no light for sure, the bare film may clip too, but its rim moves with the light
+    # that clips it, not with the print: the flow's windows leave it out as they leave out light)
+    lit_now = cv2.dilate(((state == HIGHLIGHT) | sat).astype(np.uint8), lit_disc).astype(bool)
     slide = later.submit(tensor_weighted_flow, rgb_, m, 4 * win, ~lit_now)
     # what the flow can know there: the photo's noise and what the model does not explain,
     # through the texture the photo resolves (the model is the print blurred like the photo,
@@ -1272,7 +1276,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # each region judged by the photometric model: light added against ink gone, by the likelihood
     # ratio on its core with the photo's own noise (one independent sample per photo pixel where
     # the photo is coarser than the grid) and the model's error around it
-    light_rgb = np.median(film_lit.film[seen], axis=0) if seen.any() else np.ones(3, np.float32)
+    light_rgb = np.median(film_lit.film[seen][::97], axis=0) if seen.any() else np.ones(3, np.float32)
     light_rgb = np.maximum(light_rgb, 1.0) / max(float(light_rgb.max()), 1.0)
     verdicts = photometric.judge_regions(
         colour_bad, gone, pho, pred, film_lit.film, light_rgb, colour_limit, colour_noise, film_lit.sigma,
@@ -1370,7 +1374,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # (light, not ink, moves an edge for the flow too: DIS follows a glint along a ridge as if
     # the print had slid under it, 0.5 mm on a glossy photo's perfect part; the windows leave
     # out what light covers and the reach of the flow's patches around it)
-    lit = cv2.dilate((state == HIGHLIGHT).astype(np.uint8), lit_disc).astype(bool)
+    lit = cv2.dilate(((state == HIGHLIGHT) | sat).astype(np.uint8), lit_disc).astype(bool)
     # (the slide computed beside the rest where the light is the same: the same numbers)
     m_wide = slide.result() if np.array_equal(lit, lit_now) else tensor_weighted_flow(rgb_, m, 4 * win, ~lit)
     # (local defects in the flow from the placed print; the misregistration reported is the whole of it)

@@ -68,7 +68,10 @@ def verdict_rule(
             f"differs from the design by more than {dense.COLOUR_TOL:g} grey levels beyond what the photo's "
             "noise, its local blur and a half-pixel placement explain, after a local gain and offset fit per "
             "channel; each defect carries its significance and confidence, and one whose significance as a "
-            f"region is below {z:g} does not fail the part. Highlights, deep shadows, "
+            f"region is below {z:g} does not fail the part. A colour region is ink gone or light by a "
+            "photometric model (a likelihood ratio with the photo's noise: light keeps the ink's texture or goes "
+            "beyond the bare film, ink gone shows the film); one the photo cannot tell is light only where the "
+            "surface mirrors the photo's lamp, and not measured there. Light beyond the bare film, deep shadows, "
             "surface turned away from the camera, the photo's pixels along the part's outline and its folds, "
             "and detail finer than the photo resolves are masked, not scored for misregistration." + part
         ),

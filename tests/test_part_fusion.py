@@ -146,6 +146,9 @@ def test_a_defect_seen_in_several_photos_is_sized_by_the_median_of_those_that_se
     ]
     # "edge" samples finest but finds under half the largest area: it sees a part of it only
     got = fused_view(views)
-    assert got["photo"] == "side" and got["centre_mm"] == [2, 1]
+    assert got["photo"] == "side" and got["centre_mm"] == [3.0, 1.0]  # the median of 1, 2, 4, 5
     assert got["area_mm2"] == pytest.approx(0.5 * (17.4 + 26.1))
     assert fused_view([views[4]])["area_mm2"] == 27.5
+    # ink gone that one photo finds is ink gone, where another finds a colour defect there
+    views[1]["kind"] = "colour"
+    assert fused_view(views[:2])["kind"] == "missing" and fused_view(views[1:2])["kind"] == "colour"

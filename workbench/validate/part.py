@@ -200,14 +200,17 @@ SIZES_SHARE = 0.5
 
 
 def fused_view(seen: list[dict]) -> dict:
-    """A defect seen in several photos: kind and centre from the photo that samples it finest, area the median.
+    """A defect seen in several photos: its kind, and the median of its centres and areas over the photos.
 
     A photo that finds less than SIZES_SHARE of the largest area any photo finds sees only part of
-    the defect (a band of it masked, at its edge or too oblique) and says nothing of its size. Each
-    of the others sizes it to within its rim's blur, which errs either way with the angle and the
-    sampling (a 20 mm² dropout on the scanned face came out at 15.8, 26.1, 17.4 and 27.5 mm² in four
-    photos; the largest, which the part took, 37 % over; the finest, 30 % over): the median of
-    those areas (21.8 mm² there). The centre is the finest view's (photo px per print mm).
+    the defect (a band of it masked, at its edge or too oblique) and says nothing of its size or
+    centre. Each of the others sizes it to within its rim's blur, which errs either way with the
+    angle and the sampling (a 20 mm² dropout on the scanned face came out at 15.8, 26.1, 17.4 and
+    27.5 mm² in four photos; the largest, which the part took, 37 % over; the finest, 30 % over):
+    the median of those areas (21.8 mm² there), and of their centres, coordinate by coordinate (one
+    photo's slid region may lie a millimetre off a 6 mm bubble's centre where another's does not).
+    Ink gone that any photo finds is ink gone ("missing"): a photo of a glossy film that shows it
+    partly under light finds a "colour" defect there.
 
     Parameters
     ----------
@@ -217,12 +220,15 @@ def fused_view(seen: list[dict]) -> dict:
     Returns
     -------
     dict
-        ``photo`` (the finest view's), ``kind``, ``centre_mm`` and ``area_mm2``.
+        ``photo`` (the finest view's: photo px per print mm), ``kind``, ``centre_mm`` and ``area_mm2``.
     """
     largest = max(x["area_mm2"] for x in seen)
     whole = [x for x in seen if x["area_mm2"] >= SIZES_SHARE * largest]
     finest = max(whole, key=lambda x: (x["px_per_mm"], x["area_mm2"]))
-    return {**finest, "area_mm2": float(np.median([x["area_mm2"] for x in whole]))}
+    kinds = [x["kind"] for x in seen]
+    kind = "missing" if "missing" in kinds else finest["kind"]
+    centre = np.median(np.array([x["centre_mm"] for x in whole], np.float64), axis=0).tolist()
+    return {**finest, "kind": kind, "centre_mm": centre, "area_mm2": float(np.median([x["area_mm2"] for x in whole]))}
 
 
 def colour_summary(entries: list[dict]) -> dict:

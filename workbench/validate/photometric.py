@@ -43,7 +43,7 @@ SHADING = 1.6  # the light hypothesis' gain per region is within [1 / SHADING, S
 # the blur's mixing, a black level, a glossy film's sheen) adds O / (A F) (see film_level): over ink
 # of 0.01 to 0.03 the photo was 1.0 to 1.6 times it, and the film's level there erred by 8 to 9 %
 # (MAD), up to 25 % (5th and 95th percentiles); a spherical-harmonic shading of the surface's normal,
-# fitted over the whole part, erred as much, a local affine fit of photo to design more
+# fitted over the whole part, and a local affine fit of photo to design erred as much
 FILM_ERR_PALE = 0.05
 FILM_PRIOR_DOF = 3.0  # the film brightness prior's degrees of freedom (a heavy tail: see judge_region)
 MAX_REL_NOISE = 0.5  # a pixel whose photo has more relative noise than this says nothing of the film's level

@@ -2357,16 +2357,6 @@ def _hull_box(ii: np.ndarray, jj: np.ndarray, reach_px: int, shape) -> tuple[tup
     return (slice(y0, y1), slice(x0, x1)), cv2.dilate(sub, disc).astype(bool)
 
 
-def _hull(region: np.ndarray, reach_px: int) -> np.ndarray:
-    """The convex hull of a region's pixels, grown by ``reach_px``; (H, W) bool."""
-    ii, jj = np.nonzero(region)
-    out = np.zeros(region.shape, bool)
-    if len(ii):
-        box, hull = _hull_box(ii, jj, reach_px, region.shape)
-        out[box] = hull
-    return out
-
-
 def _full(shape, mask) -> np.ndarray:
     """A mask as a whole image: ``mask`` itself, or a ``(box, pixels)`` pair made whole (a new array)."""
     if isinstance(mask, np.ndarray):

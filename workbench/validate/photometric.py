@@ -31,10 +31,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from workbench.validate.colour import srgb_decode
-
 SATURATED = 250  # a channel this bright is clipped (the photo says only "at least this")
-SATURATED_LIN = float(srgb_decode(np.float64(SATURATED / 255.0)))  # the clipping level in linear light
+SATURATED_LIN = float(((SATURATED / 255.0 + 0.055) / 1.055) ** 2.4)  # the clipping level in linear light
 SHADING = 1.6  # the light hypothesis' gain per region is within [1 / SHADING, SHADING] (as the colour test's)
 # the film's level as pale ink shows it errs by this much (log units, one standard deviation) beyond
 # its noise: measured against renders of the bare film from the same pose (a dark photograph printed

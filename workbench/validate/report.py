@@ -213,6 +213,17 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     c.showPage()
 
 
+def _wrapped(c, line: str, y: float, W: float) -> float:
+    """One line of 8 pt text wrapped to the page's width at 20 mm margins; returns the y below it (points)."""
+    from reportlab.lib.units import mm
+    from reportlab.lib.utils import simpleSplit
+
+    for piece in simpleSplit(line, "Helvetica", 8, W - 40 * mm):
+        c.drawString(20 * mm, y, piece)
+        y -= 3.8 * mm
+    return y
+
+
 def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
     """What the part's photos cover per film and defect class, the uncovered regions and why, the next photo, and
     what one photo found that another showed to be light (not counted)."""
@@ -235,9 +246,7 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
             f"Not counted: {x['photo']}'s {x['kind']} of {x['area_mm2']:.1f} mm² at ({x['centre_mm'][0]:.1f}, "
             f"{x['centre_mm'][1]:.1f}) mm: {x['decided_by']['words']}"
         )
-        for piece in simpleSplit(line, "Helvetica", 8, W - 40 * mm):
-            c.drawString(20 * mm, y, piece)
-            y -= 3.8 * mm
+        y = _wrapped(c, line, y, W)
     # what each photo took for light, the largest first, with the test that took it
     light = sorted(
         ((e.get("photo", ""), x) for e in report.get("photos", []) for x in e.get("not_counted") or []),
@@ -248,9 +257,7 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
             f"Taken for light in {name}: {x['area_mm2']:.1f} mm² at ({x['centre_mm'][0]:.1f}, {x['centre_mm'][1]:.1f}) "
             f"mm ({x['decided_by']['rule']}): {x['decided_by']['words']}"
         )
-        for piece in simpleSplit(line, "Helvetica", 8, W - 40 * mm):
-            c.drawString(20 * mm, y, piece)
-            y -= 3.8 * mm
+        y = _wrapped(c, line, y, W)
     if part.get("dismissed") or light:
         y -= 2 * mm
     need = f"at least {100 * cov['min_coverage']:.0f} % of each film, per class, for a PASS"

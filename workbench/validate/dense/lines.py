@@ -1,0 +1,159 @@
+"""Thin lines of ink gone (scratches), and telling them from a glint."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from workbench.validate.dense.options import (
+    KEPT_CONTRAST,
+    KEPT_TEXTURE,
+    LOST_MIN_CONTRAST,
+    MIN_CORE_PX,
+    NOISE_FLOOR,
+    SCRATCH_MM,
+    SIGNIFICANCE_Z,
+)
+from workbench.validate.print_warp import _csum, _length
+
+
+def thin_ink_loss(
+    photo: np.ndarray, pred: np.ndarray, film: np.ndarray, scored: np.ndarray, px_per_mm: float, limit: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a line thinner than a scratch's width steps the photo towards the bare film, over any ink.
+
+    t = (photo - pred) · u, u the unit step from the design's colour to the film's: how far
+    the photo moved towards the film, grey levels. Shading, a highlight or an exposure error
+    change t over areas much broader than a scratch; a white top-hat of t (t less its
+    opening by a disc of SCRATCH_MM) keeps what is thinner than about half the disc. A pixel
+    has lost its ink where that reaches half the step to the film and exceeds ``limit`` (the
+    noise, and half a pixel's placement at the design's edges) and t itself exceeds
+    ``limit`` (beside ink the photo shows darker than the model, the opening sinks): over
+    pale ink too, where a broad step of that size is shading or light. (The colour test's fixed tolerance is for
+    what is broad; a thin line of film over a light grey square is what a scratch across a
+    checker shows.)
+
+    Parameters
+    ----------
+    photo, pred, film : (H, W, 3) float32
+        The photo on the print, the model, and the bare film's colour as the photo would show it.
+    scored : (H, W) bool
+    px_per_mm : float
+    limit : (H, W) float32
+        Grey levels.
+
+    Returns
+    -------
+    found : (H, W) bool
+        Ink gone along a thin line.
+    findable : (H, W) bool
+        Where a scratch is found (the step to the film at least twice ``limit`` and twice
+        LOST_MIN_CONTRAST): the detection limit's scratch map.
+    alpha : (H, W) float32
+        Where findable, the share of the step to the film the line takes against its
+        surroundings (0 to 1); 0 elsewhere.
+    """
+    step = film - pred
+    size = _length(step)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = _csum((photo - pred) * step) / np.maximum(size, 1e-3)
+    t = np.where(scored, t, 0.0).astype(np.float32)
+    r = max(1, int(round(0.5 * SCRATCH_MM * px_per_mm)))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    hat = cv2.morphologyEx(t, cv2.MORPH_TOPHAT, disc)
+    # (a step to the film under LOST_MIN_CONTRAST twice over is pale ink a line of film barely
+    # changes: a perfect render's antialiased edges reach half of it, measured 6 grey levels)
+    findable = scored & (size >= 2.0 * np.maximum(limit, LOST_MIN_CONTRAST))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        alpha = np.where(findable, np.clip(hat / np.maximum(size, 1e-3), 0.0, 1.0), 0.0).astype(np.float32)
+    # (and the line itself beyond the limit: beside ink the photo shows darker than the model,
+    # the opening sinks and a pale gap that matches the model stands 20 grey levels above it)
+    # (and beyond what the top-hat makes of the photo's own noise: the opening follows the noise's
+    # troughs, so the hat of a sound photo sits a few noise levels up, and a path tracer's
+    # correlated noise over pale ink passed the pixel's limit in 55 places of one perfect part;
+    # the hat's median and spread over the scored print, where lines are a minute share, are
+    # that noise's own)
+    ref = hat[scored]
+    med, spread = 0.0, 1.0
+    if ref.size:
+        med = float(np.median(ref))
+        spread = max(1.4826 * float(np.median(np.abs(ref - med))), NOISE_FLOOR)
+    floor = med + SIGNIFICANCE_Z * spread
+    excess = np.where(
+        findable, np.minimum(np.minimum(hat - np.maximum(0.5 * size, limit), t - limit), hat - floor), np.nan
+    )
+    excess = excess.astype(np.float32)
+    # a line, not speckles: a component at least SCRATCH_MM long (a path tracer's noise in a
+    # glossy highlight sparkles in single pixels, which the bridging of ink gone would join)
+    found = findable & (excess > 0)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(found.astype(np.uint8), connectivity=8)
+    span = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    keep = span >= SCRATCH_MM * px_per_mm
+    keep[0] = False
+    return keep[lab], findable, alpha
+
+
+def thin_told(
+    thin: np.ndarray, photo: np.ndarray, pred: np.ndarray, core: np.ndarray | None = None, gap_px: int = 0
+) -> np.ndarray:
+    """Each thin line of film-ward step told as light or as ink gone, where the ink under it varies.
+
+    Light added to the ink (a glint along a ridge) keeps the ink's variation along the line:
+    the photo follows the design there (correlation KEPT_TEXTURE at least, at a gain of
+    KEPT_CONTRAST at least), as a highlight over a checker does. Ink that is gone shows the
+    film all along it, whatever ink it crosses. Where the ink under the line is uniform (its
+    grey levels' spread below LOST_MIN_CONTRAST) nothing tells them apart in one photo.
+    Judged on the line's ``core`` where it holds MIN_CORE_PX: a scratch two photo pixels wide
+    is blurred into its flanks, where the photo keeps most of the ink's variation (a gain of
+    0.4 to 0.6 over a line whose core keeps a quarter), while added light keeps it in its core
+    too.
+
+    Parameters
+    ----------
+    thin : (H, W) bool
+        :func:`thin_ink_loss`'s lines.
+    photo, pred : (H, W, 3) float32
+    core : (H, W) bool, optional
+        The lines' pixels that take at least half the step to the film.
+    gap_px : int
+        Pieces of line this close are one line (a scratch across a checker is found in pieces,
+        over the dark squares, each over uniform ink; as one it crosses the checker).
+
+    Returns
+    -------
+    (H, W) uint8
+        Per pixel of a line: 1 light, 2 ink gone, 3 not told (uniform ink); 0 off the lines.
+    """
+    out = np.zeros(thin.shape, np.uint8)
+    joined = thin.astype(np.uint8)
+    if gap_px > 0:
+        joined = cv2.dilate(joined, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap_px + 1,) * 2))
+    n, lab = cv2.connectedComponents(joined, connectivity=8)
+    if n <= 1:
+        return out
+    use = thin
+    if core is not None:
+        # (a line's core where it has one: MIN_CORE_PX of its pixels; its whole elsewhere)
+        n_core = np.bincount(lab[thin & core], minlength=n)
+        use = thin & (core | (n_core[lab] < MIN_CORE_PX))
+    g_ph = cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY)[use].astype(np.float64)
+    g_pr = cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY)[use].astype(np.float64)
+    k = lab[use]
+
+    def per(v):
+        return np.bincount(k, v, n)
+
+    cnt = np.maximum(per(np.ones_like(g_ph)), 1.0)
+    mx, my = per(g_pr) / cnt, per(g_ph) / cnt
+    vx = per(g_pr * g_pr) / cnt - mx * mx
+    vy = per(g_ph * g_ph) / cnt - my * my
+    cxy = per(g_pr * g_ph) / cnt - mx * my
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cxy / np.sqrt(vx * vy)
+        gain = cxy / vx
+    varied = np.sqrt(np.maximum(vx, 0.0)) >= LOST_MIN_CONTRAST
+    light = varied & (corr >= KEPT_TEXTURE) & (gain >= KEPT_CONTRAST)
+    verdict = np.where(varied, np.where(light, 1, 2), 3).astype(np.uint8)
+    verdict[0] = 0
+    out[thin] = verdict[lab[thin]]
+    return out

@@ -1,0 +1,550 @@
+"""The analysis of one photo on the print, stage by stage (:func:`analyse`)."""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import cv2
+import numpy as np
+
+from workbench.validate import detection, photometric
+from workbench.validate.dense._channels import _cmax, _cmin
+from workbench.validate.dense.blur import blur_locally, estimate_blur, local_psf, unresolved_detail
+from workbench.validate.dense.defects import find_defects, shift_explained
+from workbench.validate.dense.exposure import (
+    _residual,
+    colour_residuals,
+    colour_z,
+    exposure_fit,
+    film_colour,
+    photo_gain,
+    texture_lost,
+)
+from workbench.validate.dense.flow import dis_flow, flow_start, median_flow, tensor_weighted_flow
+from workbench.validate.dense.light import (
+    along_fold,
+    grid_folds,
+    lamp_cone,
+    mirrors_highlights,
+    not_counted_regions,
+    regions_mostly_in,
+)
+from workbench.validate.dense.lines import thin_told
+from workbench.validate.dense.options import (
+    COLOUR_TOL,
+    EXPOSURE_SIGMA_PX,
+    LOST_MIN_CONTRAST,
+    MIN_DEFECT_MM2,
+    MIN_EDGE,
+    MIN_TWO_WAY,
+    MISSING_GAP_MM,
+    NOISE_FLOOR,
+    SHADOW,
+    SHIFT_EXPLAINS,
+    SIGNIFICANCE_Z,
+    THIN_MAX_STRETCH,
+)
+from workbench.validate.dense.result import DenseResult
+from workbench.validate.dense.uncertainty import (
+    effective_samples,
+    flow_floor,
+    flow_uncertainty,
+    forward_backward,
+    noise_correlation,
+    stated_shift_limit,
+)
+from workbench.validate.placement import placement_field
+from workbench.validate.print_warp import (
+    COLOUR_ONLY,
+    DEFECT,
+    EDGE,
+    FULL,
+    HIGHLIGHT,
+    NORMAL,
+    OFF_PART,
+    SHADOWED,
+    UNRESOLVED,
+    PrintGrid,
+    _csum,
+    rim_band,
+)
+
+
+def analyse(
+    grid: PrintGrid,
+    warped: np.ndarray,
+    state: np.ndarray,
+    tolerance_mm: float,
+    scale: float = 1.0,
+    footprint: np.ndarray | None = None,
+    camera_center: np.ndarray | None = None,
+) -> DenseResult:
+    """Dense misregistration with its uncertainty, colour residuals, masks and defects of one photo on the print.
+
+    Parameters
+    ----------
+    grid : PrintGrid
+    warped : (rows, cols, 3) uint8
+        The photo on the print (:func:`warp_to_print`).
+    state : (rows, cols) uint8
+        Its visibility states.
+    tolerance_mm : float
+        Misregistration beyond this (mm on the surface) by more than SIGNIFICANCE_Z of its
+        uncertainty is a defect.
+    scale : float
+        Photo pixels per grid pixel (:func:`warp_to_print`): where the photo is coarser than
+        the grid, both images are smoothed to its resolution before the flow (detail the photo
+        cannot resolve would otherwise move edges).
+    footprint : (rows, cols) float, optional
+        Photo pixels per grid pixel at each grid pixel (:func:`warp_to_print`); ``scale``
+        everywhere when not given.
+    camera_center : (3,) float, optional
+        The photo's camera centre, mm in the mesh frame: a colour region that mirrors the
+        lamp like the photo's own highlights is one of them (:func:`mirrors_highlights`).
+
+    Returns
+    -------
+    DenseResult
+    """
+    # what needs neither the flow nor the photo's fit (the flow back, the print's own texture, its
+    # unresolved detail) is computed on a second thread meanwhile: numpy and OpenCV release the
+    # GIL in their loops, so on two cores that work costs little wall time; the same numbers
+    with ThreadPoolExecutor(max_workers=1) as later:
+        return _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later)
+
+
+def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later) -> DenseResult:
+    """:func:`analyse`, with ``later`` the executor of the work that can run beside it."""
+    state = rim_band(state)
+    pho = warped.astype(np.float32)
+    ref = grid.reference.astype(np.float32)
+    fs = flow_start(ref, pho, warped, state, scale, later)
+    H, W = state.shape
+    jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
+    # (surface mm per grid px: print mm times the film's local stretch)
+    mm_per_px = (grid.surface_per_print / grid.px_per_mm).astype(np.float32)
+    # placement is not a defect: each film's placement (an affine field over the film, fitted to
+    # this first flow where the print has texture both ways) is judged as placement, and the
+    # analysis starts again from the print placed so, when that placement moves it anywhere by
+    # more than a measuring pixel's uncertainty may be. Local defects are then what remains: a
+    # film 0.8 mm off is no 10,000 mm² "shift", a bubble on it is still found, and the print's
+    # texture the flow and its windows weigh is the texture the photo shows there (the print
+    # where it is, 9 grid px from it, drew a slide along every rim)
+    two_way = fs.seen & ~fs.sat & (fs.texture.result()[1] >= MIN_TWO_WAY)
+    ones = np.ones((H, W), np.float32)
+    early, _ = placement_field(
+        fs.m, np.zeros_like(fs.m), two_way, np.zeros_like(two_way), ones, grid.film, np.inf, fs.win
+    )
+    if np.any(np.hypot(early[..., 0], early[..., 1]) * mm_per_px > tolerance_mm / SIGNIFICANCE_Z):
+        mx, my = jj - early[..., 0], ii - early[..., 1]
+        ref = cv2.remap(ref, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        # (what the placement brings in from beyond the film's outline is no print: the film's rim as placed)
+        on = np.isfinite(grid.X[..., 0]).astype(np.uint8)
+        from_film = cv2.remap(on, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+        state[(state == FULL) & ~from_film] = OFF_PART
+        state = rim_band(state)
+        state[(state == OFF_PART) & on.astype(bool)] = EDGE
+        fs = flow_start(ref, pho, warped, state, scale, later)
+    else:
+        early = np.zeros_like(early)
+    seen, sat, inner, rg, pg, rgb_, pgb_ = fs.seen, fs.sat, fs.inner, fs.rg, fs.pg, fs.rgb_, fs.pgb_
+    ref_n, pho_n, texture, m, reg, flow_k, win = fs.ref_n, fs.pho_n, fs.texture, fs.m, fs.reg, fs.flow_k, fs.win
+    back = later.submit(dis_flow, ref_n, pho_n)
+    # the print moved by the flow: what the photo shows if only misregistration happened;
+    # then the photo's blur, measured on the aligned pair
+    # (the colour's model follows the flow's median over about 2 mm: a film's slide is smooth at
+    # that scale, and the flow's own wiggle along a scratch or a dropout's rim, which pulls the
+    # neighbouring ink over the bare film, would explain the ink that is gone away)
+    mc = median_flow(m, grid.px_per_mm)
+    moved = cv2.remap(ref, jj - mc[..., 0], ii - mc[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat)
+    # the blur where the photo samples the print coarser than its median (a surface seen
+    # obliquely or from farther): a photo pixel spans 1 / footprint grid pixels there, so its
+    # blur on the grid grows in proportion (one blur for a whole photo of a deep part made
+    # the creases seen at a slant "colour defects": the print's detail the photo cannot show)
+    fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
+    # (rounded to the level of the median where the photo is not scored: nothing there asks for more)
+    local_blur = np.where(inner, local_psf(blur, scale, fp), np.float32(blur))
+    # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
+    detail = later.submit(unresolved_detail, rg, local_blur, MIN_EDGE)
+    moved = blur_locally(moved, local_blur)
+    # exposure: a robust local fit (a second pass without the first pass's outliers)
+    weight = (inner & ~sat).astype(np.float32)
+    gain, offset, _ = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
+    res = _residual(pho, gain * moved + offset)
+    weight = weight * (res < COLOUR_TOL)
+    gain, offset, contrast = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
+    pred = gain * moved + offset
+    res = _residual(pho, pred)
+    # the design's texture gone from the photo: light scales it (shading, vignetting) or adds
+    # to it (glare), never takes it away; where the window's design has contrast, a local gain
+    # that collapses against the photo's own is the decoration painted over, covered or torn
+    # off, which the fit would otherwise absorb into its offset
+    determined = contrast >= LOST_MIN_CONTRAST
+    g0 = photo_gain(gain, determined, seen & ~sat)
+    # (the light that is there: the photo's local mean over the design's, in the fit's window; the
+    # weights cancel in the ratio, and a design darker than a grey level there is taken as one)
+    fw = (seen & ~sat).astype(np.float32)[..., None]
+    sw = cv2.GaussianBlur(fw, (0, 0), EXPOSURE_SIGMA_PX)[..., None]
+    brightness = cv2.GaussianBlur(pho * fw, (0, 0), EXPOSURE_SIGMA_PX) / np.maximum(
+        cv2.GaussianBlur(moved * fw, (0, 0), EXPOSURE_SIGMA_PX), sw + 1e-6
+    )
+    lost = texture_lost(gain, determined, seen & ~sat, g0, brightness)
+    white = gain * np.float32(255.0) + offset  # the film's white as the exposure fit extrapolates it
+    # the photometric model (:mod:`workbench.validate.photometric`): the bare film as the ink around
+    # each pixel shows it, in linear light (the exposure fit's white is extrapolated in grey levels
+    # from the ink's level to the film's, over dark ink wrong by tens of grey levels: a dropout
+    # there looked brighter than its film). Light for sure is what is brighter than the bare film
+    # could be, in every channel (a clipped channel where the film stays below clipping); what
+    # clips where the film may clip too, a white dropout included, is judged with its region below
+    noise0 = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
+    sheen = photometric.linear(np.maximum(_cmin(offset), 0.0))  # the light the exposure fit adds over the ink
+    film_lit = photometric.film_level(pho, moved, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, white, sheen)
+    if (unknown := film_lit.sigma >= photometric.UNKNOWN).any():
+        # (where no ink around tells the film, the exposure fit's white in the film's one colour)
+        film_lit.film[unknown] = film_colour(white, moved, weight > 0, unknown)[unknown]
+    past_film = seen & photometric.beyond_film(pho, film_lit, noise0, SIGNIFICANCE_Z)
+    highlight = past_film & ~lost
+    # (what decided each pixel taken for light, for validation.json's not_counted)
+    why_light = {"beyond_film": highlight}
+    shadow = seen & ~highlight & (_cmax(white) < SHADOW)
+    state[highlight] = HIGHLIGHT
+    state[shadow] = SHADOWED
+    scored = state == FULL
+    # the colour test (with the scratch test and where ink that is gone would be found) needs
+    # nothing of the flow's uncertainty: beside it; and after it a window's slide (below)
+    colour_test = later.submit(colour_residuals, pho, pred, gain, offset, res, weight, scored, fp, grid.px_per_mm)
+    # (the slide's windows leave out the light known by then and the flow's reach around it,
+    # below; the light known now is most often all of it: the slide for it is computed beside
+    # the rest, and again below only where telling light from ink adds to it)
+    r_lit = max(1, int(round(4 * win)))
+    lit_disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_lit + 1,) * 2)
+    # (white-out is no light for sure, the bare film may clip too, but its rim moves with the light
+    # that clips it, not with the print: the flow's windows leave it out as they leave out light)
+    lit_now = cv2.dilate(((state == HIGHLIGHT) | sat).astype(np.uint8), lit_disc).astype(bool)
+    slide = later.submit(tensor_weighted_flow, rgb_, m, 4 * win, ~lit_now)
+    # what the flow can know there: the photo's noise and what the model does not explain,
+    # through the texture the photo resolves (the model is the print blurred like the photo,
+    # in the photo's own contrast), and where the flow back disagrees, half that disagreement
+    pred_s = cv2.GaussianBlur(cv2.cvtColor(pred, cv2.COLOR_RGB2GRAY), (0, 0), reg)
+    corr = noise_correlation(reg, fp)
+    floor = flow_floor(fp, flow_k)
+    weak, strong, e1, noise, l1, l2 = flow_uncertainty(
+        pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, floor
+    )
+    fb = forward_backward(m, ref_n, pho_n, flow_k, back.result())
+    weak = np.hypot(weak, 0.5 * fb)
+    strong = np.hypot(strong, 0.5 * fb)
+    # a pixel measures misregistration where the flow there is its own (MIN_EDGE) and its
+    # uncertainty lets a shift of twice the tolerance stand out at SIGNIFICANCE_Z
+    # (σ ≤ tolerance / Z); the full vector where the weakest direction does, the component
+    # across the edge where only that one does
+    usable = tolerance_mm / SIGNIFICANCE_Z
+    # (p1, p2 in grey levels² per pixel of the flow's grid: the gates hold for the images the
+    # flow compares)
+    p1, p2, l1_wide, l2_wide = texture.result()
+    full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
+    normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
+    unresolved, needed_blur = detail.result()
+    unresolved &= scored
+    full &= ~unresolved
+    normal &= ~unresolved
+    stated = scored.copy()  # (before light is told from ink: that depends on the defect)
+    measurable = stated & ~unresolved
+    # a window of about a millimetre's slide (below): its uncertainty is the photo's noise
+    # through the window's weaker direction, and the floor, none of it raised by a defect
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wide_sigma = np.sqrt(noise * noise / (effective_samples(4 * win, corr) * l2_wide) + floor * floor) * mm_per_px
+    wide_sigma = np.nan_to_num(wide_sigma, nan=np.inf).astype(np.float32)
+    # the detection limit, stated for a sound part (needed only for the result: beside the rest)
+    shift_limit = later.submit(
+        stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px, wide_sigma,
+        measurable & (p2 >= MIN_TWO_WAY), measurable, usable, l1_wide, l2_wide,
+    )  # fmt: skip
+    # (the misregistration reported is the whole of it: the placement's and the rest)
+    m_total = m + early
+    shift = np.full((H, W, 2), np.nan, np.float32)
+    np.copyto(shift, m_total, where=full[..., None])
+    mn = _csum(m_total * e1)[..., None] * e1  # the component across the edge
+    np.copyto(shift, mn, where=normal[..., None])
+    state[scored & ~full & ~normal] = COLOUR_ONLY
+    state[unresolved] = UNRESOLVED
+    state[full] = FULL
+    state[normal] = NORMAL
+    texture = np.zeros((H, W), np.uint8)
+    texture[normal] = 1
+    texture[full] = 2
+    shift_mm = np.hypot(shift[..., 0], shift[..., 1]) * mm_per_px
+    sigma_mm = np.full((H, W), np.nan, np.float32)
+    np.copyto(sigma_mm, weak * mm_per_px, where=full)
+    np.copyto(sigma_mm, strong * mm_per_px, where=normal)
+    colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
+    ct = colour_test.result()
+    alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad = ct[:7]
+    inked, dropout_found, thin, thin_found = ct[7:]
+    colour = np.where(colour_scored, res, np.nan).astype(np.float32)
+    # light, not ink, again: a glossy film's highlight adds the light's colour over the ink's,
+    # broad and soft-edged; ink that is gone replaces the ink's colour by the film's, with
+    # the sharp edge of the ink's own rim
+    # (the light's colour only where light_or_ink asks: at the failed pixels, which it closes by
+    # a pixel; the whole image's took a twentieth of a second)
+    # each region judged by the photometric model: light added against ink gone, by the likelihood
+    # ratio on its core with the photo's own noise (one independent sample per photo pixel where
+    # the photo is coarser than the grid) and the model's error around it
+    light_rgb = np.median(film_lit.film[seen][::97], axis=0) if seen.any() else np.ones(3, np.float32)
+    light_rgb = np.maximum(light_rgb, 1.0) / max(float(light_rgb.max()), 1.0)
+    verdicts = photometric.judge_regions(
+        colour_bad, gone, pho, pred, film_lit.film, light_rgb, colour_limit, colour_noise, film_lit.sigma,
+        colour_scored & ~colour_bad, local_blur, np.minimum(fp * fp, 1.0), SIGNIFICANCE_Z,
+    )  # fmt: skip
+    glossed = verdicts.light.copy()
+    gone = gone & ~glossed
+    why_light["photometric"] = glossed.copy()
+    told_gone = np.zeros_like(gone)  # regions the model tells for ink gone
+    for r, j in verdicts.judgements.items():
+        if j["hypothesis"] == "ink gone":
+            told_gone |= verdicts.labels == r
+    # (a region stepped only part of the way towards the film is judged by the colour test
+    # that allows shading, like any other colour)
+    colour_bad = (colour_scored & (res > colour_limit)) | gone
+    colour_bad &= ~glossed
+    if lost.any():
+        # judged against the design at the photo's own gain: the fit's collapsed gain would
+        # have explained the lost texture away
+        local_mean = cv2.GaussianBlur(moved, (0, 0), EXPOSURE_SIGMA_PX)
+        res_lost = _residual(pho, pred + (g0 - gain) * (moved - local_mean))
+        beyond = (lost & colour_scored & ~glossed & (res_lost > colour_limit)).astype(np.uint8)
+        # (the limit's allowance at the design's edges cuts a painted-over checker into its
+        # squares; the lost texture between them is one region)
+        lost &= cv2.morphologyEx(beyond, cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8)).astype(bool) & colour_scored
+        colour_bad |= lost
+        res = np.where(lost, res_lost, res)
+        colour = np.where(colour_scored, res, np.nan).astype(np.float32)
+    if camera_center is not None:
+        # thin lines of ink gone are told by the ink along them: a glint keeps the ink's
+        # variation, a scratch shows the film; one over uniform ink is not told, and like a
+        # region the photometric model cannot tell, is left to the lamp (below)
+        told = thin_told(thin, pho, pred, alpha >= 0.5, int(round(0.5 * MISSING_GAP_MM * grid.px_per_mm)))
+        # (a line told ink gone stays ink gone where the model took the region it joins for
+        # light: a scratch across a glossy sheen is one region with it)
+        told_ink = told == 2
+        # (but a line brighter than the bare film could be is light: text washed out under a glint)
+        washed = regions_mostly_in(told_ink, past_film)
+        told_ink &= ~washed
+        why_light["beyond_film_line"] = washed
+        why_light["thin_told"] = (told == 1) & ~glossed
+        glossed |= washed
+        glossed &= ~told_ink
+        gone |= told_ink
+        colour_bad |= told_ink
+        glossed |= told == 1
+        # the light the photo shows for sure: beyond the film, and regions light explains better
+        sure = highlight | glossed
+        # the stated limit, honestly: where the surface mirrors the lamp of the photo's sure
+        # highlights, ink that is gone is not told from light (a line over uniform ink neither)
+        # (needed only for the result: beside the rest, applied below)
+        cone = later.submit(lamp_cone, sure, grid.X, camera_center, rg, grid.px_per_mm)
+        # a region the photo cannot tell (ink gone or light) is taken for light only where the
+        # surface mirrors that lamp: elsewhere no light the photo shows can reach the camera from
+        # it, and it stays ink gone
+        not_told = (verdicts.not_told | (told == 3)) & colour_bad & ~glossed & ~told_ink
+        mirrored = mirrors_highlights(not_told, sure, grid.X, camera_center)
+        why_light["mirrors_highlights"] = mirrored
+        glossed |= mirrored
+        colour_bad &= ~glossed
+        gone &= ~glossed
+    # light along a fold: where the surface folds, its two sides face the light differently and a
+    # ridge catches it in a line, sharper than the exposure fit follows and, over uniform ink, as
+    # bright as film (perfect photos of the scanned lion: lines of 5 to 14 mm² along folds whose
+    # normals turn 14 to 22° from their mean). A colour region that lies along one is light; ink
+    # gone there is not told from it in one photo, and the stated limit says so (below)
+    fold = grid_folds(grid)
+    # (never a region the model tells for ink gone)
+    folded = colour_bad & ~glossed & ~told_gone
+    along = along_fold(folded & ~told_ink if camera_center is not None else folded, fold)
+    glossed |= along
+    colour_bad &= ~glossed
+    gone &= ~glossed
+    why_light["along_fold"] = along
+    # what was taken for light, and by which test (the regions of the colour residual; a clipped or
+    # glaring area is listed where it covers a region too)
+    not_counted = not_counted_regions(why_light, glossed | highlight, grid.px_per_mm, MIN_DEFECT_MM2, verdicts)
+    state[glossed] = HIGHLIGHT
+    colour_scored = colour_scored & ~glossed
+    scored = scored & ~glossed
+    full &= ~glossed
+    normal &= ~glossed
+    for a in (shift, shift_mm, sigma_mm, colour):
+        a[glossed] = np.nan
+    texture[glossed] = 0
+    missing = gone
+    # a slide over a window of about a millimetre: the least-squares vector its pixels' texture
+    # supports (each pixel's flow through its gradients: :func:`tensor_weighted_flow`), with the
+    # window's own uncertainty (the photo's noise through its weaker direction, and the
+    # floor, which no window averages away). Along an edge a pixel knows only the component
+    # across it, which a slide parallel to it leaves 0 (a bubble cut into stripes), and DIS's
+    # own vector there is its guess (it drifted 13 px over a photograph's soft background); a
+    # window whose edges turn knows the whole slide. Usable where its uncertainty is, as a
+    # pixel's (no gate on the texture's grey levels: a photograph's soft edges measure well)
+    # (light, not ink, moves an edge for the flow too: DIS follows a glint along a ridge as if
+    # the print had slid under it, 0.5 mm on a glossy photo's perfect part; the windows leave
+    # out what light covers and the reach of the flow's patches around it)
+    lit = cv2.dilate(((state == HIGHLIGHT) | sat).astype(np.uint8), lit_disc).astype(bool)
+    # (the slide computed beside the rest where the light is the same: the same numbers)
+    m_wide = slide.result() if np.array_equal(lit, lit_now) else tensor_weighted_flow(rgb_, m, 4 * win, ~lit)
+    # (local defects in the flow from the placed print; the misregistration reported is the whole of it)
+    local_shift = np.where(normal[..., None], _csum(m * e1)[..., None] * e1, m)
+    local_mm = np.where(full | normal, np.hypot(local_shift[..., 0], local_shift[..., 1]) * mm_per_px, np.nan)
+    wide_ok = scored & ~unresolved & ~lit & (wide_sigma <= usable)
+    wide_mm = np.hypot(m_wide[..., 0], m_wide[..., 1]) * mm_per_px
+    z_wide = np.where(wide_ok, (wide_mm - tolerance_mm) / wide_sigma, np.nan)
+    # the honest measures (the full vector, the component across an edge, a window's slide)
+    # significantly beyond the tolerance: a region without any is the flow's guess, not a defect
+    z_shift = (local_mm - tolerance_mm) / sigma_mm
+    # (a window's slide spreads past a slid region's rim by about its own radius: eroded by
+    # half the window's width, the window's evidence stays inside the region it measured)
+    e = max(1, int(round(2 * win)))
+    wide_evidence = cv2.erode(
+        (wide_ok & (z_wide > SIGNIFICANCE_Z)).astype(np.uint8),
+        cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * e + 1, 2 * e + 1)),
+    ).astype(bool)
+    own_evidence = (full | normal) & ~lit & (z_shift > SIGNIFICANCE_Z)
+    evidence = own_evidence | wide_evidence
+    shift_bad = evidence
+    z_region = np.fmax(z_shift, z_wide)
+    # (sized by the flow's own vector, whose edges are sharp: the window's blurs a bubble's rim)
+    m_mm = np.hypot(m[..., 0], m[..., 1]) * mm_per_px
+    # (a line is thin on the part only where the film is not spread out: the thin test works on
+    # the print, and where the film stretches 6 to 11-fold over the face mask's nose 0.75 mm of
+    # print is 4 to 8 mm of surface, which shading crosses: a perfect photo's lines there came
+    # out at z 8.8 to 9.8 without the broad allowance, 2.0 to 2.5 with it; the scratch that
+    # needed it lies where the film is 0.76 of the print)
+    line = thin & missing & (grid.surface_per_print <= THIN_MAX_STRETCH)
+    z_colour = colour_z(res, res_raw, missing, line, colour_limit, colour_noise)
+    labels, defects = find_defects(
+        shift_bad,
+        colour_bad,
+        missing,
+        local_mm,
+        res,
+        grid,
+        alpha,
+        evidence,
+        z_region,
+        z_colour,
+        win,
+        m_mm,
+        scored,
+        own_evidence,
+    )
+    # a moved film explains the photo: the print moved by the region's flow must take most of
+    # the residual away; a flow that explains little follows shading, gloss or the photo's
+    # blur over faint texture, not the film
+    keep = []
+    ink_left = np.zeros_like(missing)
+    for i, d in enumerate(defects):
+        if d["kind"] == "shift":
+            d["explained_share"] = shift_explained(
+                ref_n, pho_n, m, (labels == i + 1) & (full | normal | wide_ok), flow_k
+            )
+            if d["explained_share"] is not None and d["explained_share"] < SHIFT_EXPLAINS:
+                # (its ink that is gone is still gone: a scratch drags the flow around it over
+                # five times its own area, and the region took the flow's kind; 12.6 mm² of a
+                # 20 mm scratch went with a 72 mm² region its flow did not explain)
+                ink_left |= (labels == i + 1) & colour_bad & missing
+                continue
+        keep.append(i)
+    if len(keep) < len(defects):
+        relabel = np.zeros(len(defects) + 1, np.int32)
+        relabel[np.asarray(keep, np.int64) + 1] = np.arange(1, len(keep) + 1)
+        labels = relabel[labels]
+        defects = [defects[i] for i in keep]
+    if ink_left.any():
+        # the ink that is gone under shift regions set aside, as regions of its own
+        lab_ink, more = find_defects(
+            np.zeros_like(ink_left), ink_left, ink_left, shift_mm, res, grid, alpha, None, None, z_colour, win
+        )
+        more = [d for d in more if d["kind"] == "missing"]
+        if more:
+            labels = np.where((labels == 0) & (lab_ink > 0) & (lab_ink <= len(more)), lab_ink + len(defects), labels)
+            defects = defects + more
+    for i, d in enumerate(defects):
+        # what the photometric model said of a region of ink gone
+        if d["kind"] == "missing" and (j := photometric.judgement_at(labels == i + 1, verdicts)) is not None:
+            d["photometric"] = j
+    # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
+    state[(labels > 0) & np.isin(state, (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL))] = DEFECT
+    # how finely the photo samples the print, and what it cannot resolve
+    photo_px_per_mm = np.where(scored, fp / mm_per_px, np.nan)
+    median_res = float(np.nanmedian(photo_px_per_mm)) if scored.any() else None
+    needed, factor = None, None
+    if unresolved.any():
+        # the photo's blur scales with its pixel: to bring it from ``blur`` down to what the
+        # detail needs, the photo needs blur / needed_blur times as many pixels per mm
+        k = local_blur[unresolved] / needed_blur[unresolved]
+        factor = float(np.percentile(k, 90))
+        needed = median_res * factor if median_res else None
+    n_scored = max(int(scored.sum()), 1)
+    resolution = {
+        "photo_px_per_mm": median_res,
+        "unresolved_share": float(unresolved.sum() / n_scored),
+        "needed_resolution_factor": factor,
+        "needed_photo_px_per_mm": needed,
+        "note": (
+            "detail of the print finer than about two photo pixels (strokes of small text) is "
+            "'unresolved': its misregistration is not measured; a photo needed_resolution_factor times as "
+            "fine (needed_photo_px_per_mm on the median) would resolve 90 % of it"
+        ),
+    }
+    med_sigma = float(np.nanmedian(sigma_mm)) if np.isfinite(sigma_mm).any() else None
+    # a defect must cover MIN_DEFECT_MM2 and span a few photo pixels each way (the opening
+    # and closing in find_defects work on 3 x 3 grid pixels) to be found
+    px_mm = (1.0 / median_res) if median_res else None
+    limit_mm = shift_limit.result()
+    limit_mm[lit] = np.nan  # (the flow near light is not the print's: see lit above)
+    if camera_center is not None:
+        in_cone, flat_in_cone = cone.result()
+        dropout_found &= ~in_cone
+        thin_found &= ~flat_in_cone
+    dropout_found &= ~fold
+    thin_found &= ~fold
+    ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
+    limit = {
+        "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),
+        "min_shift_mm": (tolerance_mm + SIGNIFICANCE_Z * med_sigma) if med_sigma is not None else None,
+        "significance_z": SIGNIFICANCE_Z,
+        **detection.summary(
+            limit_mm, dropout_found & stated, stated, inked & stated, max(2 * COLOUR_TOL, ink_step), thin_found & stated
+        ),
+        "note": (
+            "stated for a sound part from the design, the photo's noise, blur and sampling: a slide of the film is "
+            "found where the print has texture the photo resolves (min_shift_mm_*: over the pixels that find one), "
+            "ink that is gone where its step to the bare film exceeds min_ink_step_grey_levels, a scratch (a line of "
+            "ink gone, thinner than about 0.7 mm) wherever the ink differs from the film by twice the noise and "
+            "placement (but over uniform ink within the lamp's reflection, where a glint looks the same); the maps "
+            "are in detection.npz"
+        ),
+    }
+    return DenseResult(
+        warped,
+        state,
+        shift,
+        shift_mm.astype(np.float32),
+        colour,
+        missing,
+        labels,
+        defects,
+        blur,
+        m_total,
+        texture,
+        sigma_mm,
+        noise,
+        resolution,
+        limit,
+        limit_mm,
+        dropout_found & stated,
+        win,
+        np.where(normal[..., None], e1, np.float32(0.0)).astype(np.float32),
+        thin_found & stated,
+        not_counted,
+    )

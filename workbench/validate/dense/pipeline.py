@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -20,7 +21,7 @@ from workbench.validate.dense.exposure import (
     photo_gain,
     texture_lost,
 )
-from workbench.validate.dense.flow import dis_flow, flow_start, median_flow, tensor_weighted_flow
+from workbench.validate.dense.flow import FlowStart, dis_flow, flow_start, median_flow, tensor_weighted_flow
 from workbench.validate.dense.light import (
     along_fold,
     grid_folds,
@@ -113,16 +114,291 @@ def analyse(
         return _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later)
 
 
+@dataclass
+class _Frame:
+    """What every stage reads: the grid, the photo on it and the analysis's settings.
+
+    Attributes
+    ----------
+    grid : PrintGrid
+    warped : (H, W, 3) uint8
+        The photo on the print.
+    pho : (H, W, 3) float32
+        The same in floats.
+    tolerance_mm, scale : float
+        As :func:`analyse` takes them.
+    fp : (H, W) float32
+        Photo pixels per grid pixel at each grid pixel (``scale`` everywhere when not given).
+    camera_center : (3,) float or None
+    later : Executor
+        Where the work that can run beside the rest goes.
+    jj, ii : (H, W) float32
+        Each grid pixel's column and row.
+    mm_per_px : (H, W) float32
+        Surface mm per grid px: print mm times the film's local stretch.
+    """
+
+    grid: PrintGrid
+    warped: np.ndarray
+    pho: np.ndarray
+    tolerance_mm: float
+    scale: float
+    fp: np.ndarray
+    camera_center: np.ndarray | None
+    later: object
+    jj: np.ndarray
+    ii: np.ndarray
+    mm_per_px: np.ndarray
+
+
+@dataclass
+class _Start:
+    """The flow from the print as the film's placement puts it (:func:`_placed_flow`).
+
+    Attributes
+    ----------
+    fs : FlowStart
+        The masks, the images the flow compares and the flow, from the placed print.
+    state : (H, W) uint8
+        The visibility states (the film's rim as placed); the later stages write into it.
+    ref : (H, W, 3) float32
+        The print as placed.
+    early : (H, W, 2) float32
+        The placement's misregistration, grid px (0 where it moves the print by less than a
+        measuring pixel's uncertainty may be).
+    """
+
+    fs: FlowStart
+    state: np.ndarray
+    ref: np.ndarray
+    early: np.ndarray
+
+
+@dataclass
+class _Model:
+    """The model of the photo: the print moved by the flow, blurred like the photo, in its exposure.
+
+    Attributes
+    ----------
+    back, detail : Future
+        The flow back (:func:`dis_flow`) and the print's unresolved detail (:func:`unresolved_detail`).
+    blur : float
+        The photo's blur on the grid, grid px.
+    local_blur : (H, W) float32
+        Its blur at each grid pixel (:func:`local_psf`).
+    moved : (H, W, 3) float32
+        The print moved by the flow's median and blurred like the photo.
+    weight : (H, W) float32
+        The exposure fit's weights (its inliers).
+    gain, offset : (H, W, 3) float32
+        The exposure fit.
+    pred : (H, W, 3) float32
+        The model: ``gain · moved + offset``.
+    res : (H, W) float32
+        Its largest channel residual.
+    g0 : (3,) float or None
+        The photo's own gain (:func:`photo_gain`).
+    lost : (H, W) bool
+        Where the photo has lost the design's texture (:func:`texture_lost`).
+    white : (H, W, 3) float32
+        The film's white as the exposure fit extrapolates it.
+    """
+
+    back: object
+    detail: object
+    blur: float
+    local_blur: np.ndarray
+    moved: np.ndarray
+    weight: np.ndarray
+    gain: np.ndarray
+    offset: np.ndarray
+    pred: np.ndarray
+    res: np.ndarray
+    g0: np.ndarray | None
+    lost: np.ndarray
+    white: np.ndarray
+
+
+@dataclass
+class _SureLight:
+    """The light the photo shows for sure, beyond the bare film (:func:`_sure_light`).
+
+    Attributes
+    ----------
+    film_lit : photometric film level
+        The bare film as the ink around each pixel shows it (:func:`photometric.film_level`).
+    past_film : (H, W) bool
+        Brighter than the bare film could be.
+    highlight : (H, W) bool
+        ``past_film`` where the texture is not lost.
+    why_light : dict of str to (H, W) bool
+        What decided each pixel taken for light (:func:`not_counted_regions`); later stages add to it.
+    scored : (H, W) bool
+        The pixels still scored (FULL) after highlights and deep shadows.
+    """
+
+    film_lit: object
+    past_film: np.ndarray
+    highlight: np.ndarray
+    why_light: dict
+    scored: np.ndarray
+
+
+@dataclass
+class _Measures:
+    """What the flow measures where, with its uncertainty (:func:`_flow_measures`).
+
+    Attributes
+    ----------
+    lit_disc : (k, k) uint8
+        The flow's reach around light.
+    lit_now : (H, W) bool
+        The light known before light is told from ink, with that reach.
+    slide, shift_limit : Future
+        The window's slide with ``lit_now`` left out (:func:`tensor_weighted_flow`) and the
+        stated slide limit (:func:`stated_shift_limit`).
+    noise : float
+        The photo's noise at the flow's scale, grey levels.
+    e1 : (H, W, 2) float32
+        The dominant edge's normal.
+    usable : float
+        The largest uncertainty a measuring pixel may have, mm on the surface.
+    full, normal : (H, W) bool
+        Where the full vector, and only the component across the edge, is measured.
+    unresolved : (H, W) bool
+        The print's detail the photo does not resolve.
+    needed_blur : (H, W) float32
+        The blur that would resolve it (:func:`unresolved_detail`).
+    stated : (H, W) bool
+        The pixels the detection limit is stated over.
+    wide_sigma : (H, W) float32
+        The window's slide's uncertainty, mm on the surface.
+    m_total : (H, W, 2) float32
+        The whole misregistration: the placement's and the rest, grid px.
+    shift : (H, W, 2) float32
+        The misregistration where measured (NaN elsewhere), grid px.
+    texture : (H, W) uint8
+        2 the full vector, 1 the component across an edge, 0 nothing.
+    shift_mm, sigma_mm : (H, W) float32
+        The misregistration's length and its uncertainty, mm on the surface.
+    """
+
+    lit_disc: np.ndarray
+    lit_now: np.ndarray
+    slide: object
+    shift_limit: object
+    noise: float
+    e1: np.ndarray
+    usable: float
+    full: np.ndarray
+    normal: np.ndarray
+    unresolved: np.ndarray
+    needed_blur: np.ndarray
+    stated: np.ndarray
+    wide_sigma: np.ndarray
+    m_total: np.ndarray
+    shift: np.ndarray
+    texture: np.ndarray
+    shift_mm: np.ndarray
+    sigma_mm: np.ndarray
+
+
+@dataclass
+class _Colour:
+    """The colour test with light told from ink (:func:`_light_or_ink`).
+
+    Attributes
+    ----------
+    alpha, colour_limit, colour_noise, res_raw : as :func:`colour_residuals` returns them
+    res : (H, W) float32
+        The colour residual (against the photo's own gain where texture is lost).
+    colour : (H, W) float32
+        ``res`` where colour is judged, NaN elsewhere.
+    colour_bad : (H, W) bool
+        Beyond the colour test, light taken out.
+    missing : (H, W) bool
+        Ink that is gone.
+    inked, dropout_found, thin, thin_found : as :func:`colour_residuals` returns them
+    verdicts : photometric region verdicts
+    scored : (H, W) bool
+        The pixels scored, light taken out.
+    cone : Future or None
+        The lamp's mirror cone (:func:`lamp_cone`), with a camera centre.
+    fold : (H, W) bool
+        Where the surface folds (:func:`grid_folds`).
+    not_counted : list of dict
+        The regions taken for light (:func:`not_counted_regions`).
+    """
+
+    alpha: np.ndarray
+    colour_limit: np.ndarray
+    colour_noise: float
+    res_raw: np.ndarray
+    res: np.ndarray
+    colour: np.ndarray
+    colour_bad: np.ndarray
+    missing: np.ndarray
+    inked: np.ndarray
+    dropout_found: np.ndarray
+    thin: np.ndarray
+    thin_found: np.ndarray
+    verdicts: object
+    scored: np.ndarray
+    cone: object
+    fold: np.ndarray
+    not_counted: list
+
+
+@dataclass
+class _Found:
+    """The defects (:func:`_defects`).
+
+    Attributes
+    ----------
+    labels : (H, W) int32
+        Defect number + 1 per pixel (0: none).
+    defects : list of dict
+    lit : (H, W) bool
+        The light known at the end, with the flow's reach around it.
+    """
+
+    labels: np.ndarray
+    defects: list
+    lit: np.ndarray
+
+
 def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later) -> DenseResult:
     """:func:`analyse`, with ``later`` the executor of the work that can run beside it."""
     state = rim_band(state)
     pho = warped.astype(np.float32)
-    ref = grid.reference.astype(np.float32)
-    fs = flow_start(ref, pho, warped, state, scale, later)
     H, W = state.shape
     jj, ii = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     # (surface mm per grid px: print mm times the film's local stretch)
     mm_per_px = (grid.surface_per_print / grid.px_per_mm).astype(np.float32)
+    fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
+    on = _Frame(grid, warped, pho, tolerance_mm, scale, fp, camera_center, later, jj, ii, mm_per_px)
+    start = _placed_flow(on, state)
+    model = _photo_model(on, start)
+    light = _sure_light(on, start, model)
+    # the colour test (with the scratch test and where ink that is gone would be found) needs
+    # nothing of the flow's uncertainty: beside it; and after it a window's slide (below)
+    colour_test = later.submit(
+        colour_residuals, pho, model.pred, model.gain, model.offset, model.res, model.weight, light.scored, fp,
+        grid.px_per_mm,
+    )  # fmt: skip
+    measures = _flow_measures(on, start, model, light)
+    colour = _light_or_ink(on, start, model, light, measures, colour_test.result())
+    found = _defects(on, start, measures, colour)
+    return _result(on, start, model, measures, colour, found)
+
+
+def _placed_flow(on: _Frame, state: np.ndarray) -> _Start:
+    """The flow from the print, and again from the print as the film's placement puts it where that moves it."""
+    grid, pho, warped, scale, later = on.grid, on.pho, on.warped, on.scale, on.later
+    jj, ii, mm_per_px, tolerance_mm = on.jj, on.ii, on.mm_per_px, on.tolerance_mm
+    ref = grid.reference.astype(np.float32)
+    fs = flow_start(ref, pho, warped, state, scale, later)
+    H, W = state.shape
     # placement is not a defect: each film's placement (an affine field over the film, fitted to
     # this first flow where the print has texture both ways) is judged as placement, and the
     # analysis starts again from the print placed so, when that placement moves it anywhere by
@@ -139,30 +415,35 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         mx, my = jj - early[..., 0], ii - early[..., 1]
         ref = cv2.remap(ref, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         # (what the placement brings in from beyond the film's outline is no print: the film's rim as placed)
-        on = np.isfinite(grid.X[..., 0]).astype(np.uint8)
-        from_film = cv2.remap(on, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+        on_film = np.isfinite(grid.X[..., 0]).astype(np.uint8)
+        from_film = cv2.remap(on_film, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
         state[(state == FULL) & ~from_film] = OFF_PART
         state = rim_band(state)
-        state[(state == OFF_PART) & on.astype(bool)] = EDGE
+        state[(state == OFF_PART) & on_film.astype(bool)] = EDGE
         fs = flow_start(ref, pho, warped, state, scale, later)
     else:
         early = np.zeros_like(early)
-    seen, sat, inner, rg, pg, rgb_, pgb_ = fs.seen, fs.sat, fs.inner, fs.rg, fs.pg, fs.rgb_, fs.pgb_
-    ref_n, pho_n, texture, m, reg, flow_k, win = fs.ref_n, fs.pho_n, fs.texture, fs.m, fs.reg, fs.flow_k, fs.win
-    back = later.submit(dis_flow, ref_n, pho_n)
+    return _Start(fs, state, ref, early)
+
+
+def _photo_model(on: _Frame, start: _Start) -> _Model:
+    """The model of the photo: the print moved by the flow's median, blurred like the photo, in its exposure."""
+    grid, pho, scale, fp, later, jj, ii = on.grid, on.pho, on.scale, on.fp, on.later, on.jj, on.ii
+    fs, ref = start.fs, start.ref
+    seen, sat, inner, rg, pg = fs.seen, fs.sat, fs.inner, fs.rg, fs.pg
+    back = later.submit(dis_flow, fs.ref_n, fs.pho_n)
     # the print moved by the flow: what the photo shows if only misregistration happened;
     # then the photo's blur, measured on the aligned pair
     # (the colour's model follows the flow's median over about 2 mm: a film's slide is smooth at
     # that scale, and the flow's own wiggle along a scratch or a dropout's rim, which pulls the
     # neighbouring ink over the bare film, would explain the ink that is gone away)
-    mc = median_flow(m, grid.px_per_mm)
+    mc = median_flow(fs.m, grid.px_per_mm)
     moved = cv2.remap(ref, jj - mc[..., 0], ii - mc[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat)
     # the blur where the photo samples the print coarser than its median (a surface seen
     # obliquely or from farther): a photo pixel spans 1 / footprint grid pixels there, so its
     # blur on the grid grows in proportion (one blur for a whole photo of a deep part made
     # the creases seen at a slant "colour defects": the print's detail the photo cannot show)
-    fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
     # (rounded to the level of the median where the photo is not scored: nothing there asks for more)
     local_blur = np.where(inner, local_psf(blur, scale, fp), np.float32(blur))
     # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
@@ -191,6 +472,15 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     )
     lost = texture_lost(gain, determined, seen & ~sat, g0, brightness)
     white = gain * np.float32(255.0) + offset  # the film's white as the exposure fit extrapolates it
+    return _Model(back, detail, blur, local_blur, moved, weight, gain, offset, pred, res, g0, lost, white)
+
+
+def _sure_light(on: _Frame, start: _Start, model: _Model) -> _SureLight:
+    """The light the photo shows for sure (beyond the bare film) and the deep shadows, marked in the states."""
+    pho = on.pho
+    seen, state = start.fs.seen, start.state
+    moved, weight, offset = model.moved, model.weight, model.offset
+    res, lost, white = model.res, model.lost, model.white
     # the photometric model (:mod:`workbench.validate.photometric`): the bare film as the ink around
     # each pixel shows it, in linear light (the exposure fit's white is extrapolated in grey levels
     # from the ink's level to the film's, over dark ink wrong by tens of grey levels: a dropout
@@ -211,9 +501,18 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     state[highlight] = HIGHLIGHT
     state[shadow] = SHADOWED
     scored = state == FULL
-    # the colour test (with the scratch test and where ink that is gone would be found) needs
-    # nothing of the flow's uncertainty: beside it; and after it a window's slide (below)
-    colour_test = later.submit(colour_residuals, pho, pred, gain, offset, res, weight, scored, fp, grid.px_per_mm)
+    return _SureLight(film_lit, past_film, highlight, why_light, scored)
+
+
+def _flow_measures(on: _Frame, start: _Start, model: _Model, light: _SureLight) -> _Measures:
+    """Where the flow measures the full vector or the component across an edge, with its uncertainty."""
+    fp, later, tolerance_mm, mm_per_px = on.fp, on.later, on.tolerance_mm, on.mm_per_px
+    fs, state, early = start.fs, start.state, start.early
+    sat, rgb_, pgb_, ref_n, pho_n = fs.sat, fs.rgb_, fs.pgb_, fs.ref_n, fs.pho_n
+    m, reg, flow_k, win = fs.m, fs.reg, fs.flow_k, fs.win
+    blur, pred, weight = model.blur, model.pred, model.weight
+    scored = light.scored
+    H, W = state.shape
     # (the slide's windows leave out the light known by then and the flow's reach around it,
     # below; the light known now is most often all of it: the slide for it is computed beside
     # the rest, and again below only where telling light from ink adds to it)
@@ -232,7 +531,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     weak, strong, e1, noise, l1, l2 = flow_uncertainty(
         pred_s, pgb_, scored & (weight > 0), win, max(1.0, float(np.hypot(blur, reg))), corr, floor
     )
-    fb = forward_backward(m, ref_n, pho_n, flow_k, back.result())
+    fb = forward_backward(m, ref_n, pho_n, flow_k, model.back.result())
     weak = np.hypot(weak, 0.5 * fb)
     strong = np.hypot(strong, 0.5 * fb)
     # a pixel measures misregistration where the flow there is its own (MIN_EDGE) and its
@@ -242,10 +541,10 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     usable = tolerance_mm / SIGNIFICANCE_Z
     # (p1, p2 in grey levels² per pixel of the flow's grid: the gates hold for the images the
     # flow compares)
-    p1, p2, l1_wide, l2_wide = texture.result()
+    p1, p2, l1_wide, l2_wide = fs.texture.result()
     full = scored & (p2 >= MIN_TWO_WAY) & (weak * mm_per_px <= usable)
     normal = scored & ~full & (p1 >= MIN_EDGE) & (strong * mm_per_px <= usable)
-    unresolved, needed_blur = detail.result()
+    unresolved, needed_blur = model.detail.result()
     unresolved &= scored
     full &= ~unresolved
     normal &= ~unresolved
@@ -278,8 +577,27 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     sigma_mm = np.full((H, W), np.nan, np.float32)
     np.copyto(sigma_mm, weak * mm_per_px, where=full)
     np.copyto(sigma_mm, strong * mm_per_px, where=normal)
+    return _Measures(
+        lit_disc, lit_now, slide, shift_limit, noise, e1, usable, full, normal, unresolved, needed_blur, stated,
+        wide_sigma, m_total, shift, texture, shift_mm, sigma_mm,
+    )  # fmt: skip
+
+
+def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, measures: _Measures, ct) -> _Colour:
+    """The colour test's regions told light or ink: the photometric model, lost texture, thin lines, the lamp, folds.
+
+    ``ct`` is :func:`colour_residuals`'s answer. Marks what is taken for light in the states and
+    takes it out of ``measures``' maps (in place).
+    """
+    grid, pho, fp, later, camera_center = on.grid, on.pho, on.fp, on.later, on.camera_center
+    state, rg, seen = start.state, start.fs.rg, start.fs.seen
+    local_blur, moved, gain = model.local_blur, model.moved, model.gain
+    pred, g0, lost = model.pred, model.g0, model.lost
+    film_lit, past_film, highlight = light.film_lit, light.past_film, light.highlight
+    why_light, scored = light.why_light, light.scored
+    full, normal, shift = measures.full, measures.normal, measures.shift
+    shift_mm, sigma_mm, texture = measures.shift_mm, measures.sigma_mm, measures.texture
     colour_scored = scored  # colour is judged wherever the photo is scored (unresolved detail too)
-    ct = colour_test.result()
     alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad = ct[:7]
     inked, dropout_found, thin, thin_found = ct[7:]
     colour = np.where(colour_scored, res, np.nan).astype(np.float32)
@@ -320,6 +638,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         colour_bad |= lost
         res = np.where(lost, res_lost, res)
         colour = np.where(colour_scored, res, np.nan).astype(np.float32)
+    cone = None
     if camera_center is not None:
         # thin lines of ink gone are told by the ink along them: a glint keeps the ink's
         # variation, a scratch shows the film; one over uniform ink is not told, and like a
@@ -378,6 +697,24 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         a[glossed] = np.nan
     texture[glossed] = 0
     missing = gone
+    return _Colour(
+        alpha, colour_limit, colour_noise, res_raw, res, colour, colour_bad, missing, inked, dropout_found, thin,
+        thin_found, verdicts, scored, cone, fold, not_counted,
+    )  # fmt: skip
+
+
+def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) -> _Found:
+    """The defects: a slide the flow measures significantly, colour beyond its test, ink gone; marked in the states."""
+    grid, tolerance_mm, mm_per_px = on.grid, on.tolerance_mm, on.mm_per_px
+    state, fs = start.state, start.fs
+    sat, rgb_, ref_n, pho_n, m, flow_k, win = fs.sat, fs.rgb_, fs.ref_n, fs.pho_n, fs.m, fs.flow_k, fs.win
+    lit_disc, lit_now, slide = measures.lit_disc, measures.lit_now, measures.slide
+    e1, usable, full, normal = measures.e1, measures.usable, measures.full, measures.normal
+    unresolved, wide_sigma = measures.unresolved, measures.wide_sigma
+    shift_mm, sigma_mm = measures.shift_mm, measures.sigma_mm
+    alpha, colour_limit, colour_noise = colour.alpha, colour.colour_limit, colour.colour_noise
+    res_raw, res, colour_bad, missing = colour.res_raw, colour.res, colour.colour_bad, colour.missing
+    thin, verdicts, scored = colour.thin, colour.verdicts, colour.scored
     # a slide over a window of about a millimetre: the least-squares vector its pixels' texture
     # supports (each pixel's flow through its gradients: :func:`tensor_weighted_flow`), with the
     # window's own uncertainty (the photo's noise through its weaker direction, and the
@@ -474,6 +811,22 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
             d["photometric"] = j
     # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
     state[(labels > 0) & np.isin(state, (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL))] = DEFECT
+    return _Found(labels, defects, lit)
+
+
+def _result(
+    on: _Frame, start: _Start, model: _Model, measures: _Measures, colour: _Colour, found: _Found
+) -> DenseResult:
+    """The result: the maps, the defects, how finely the photo samples the print and what it can find."""
+    grid, warped, fp, camera_center = on.grid, on.warped, on.fp, on.camera_center
+    tolerance_mm, mm_per_px = on.tolerance_mm, on.mm_per_px
+    state, win = start.state, start.fs.win
+    blur, local_blur = model.blur, model.local_blur
+    unresolved, needed_blur, sigma_mm = measures.unresolved, measures.needed_blur, measures.sigma_mm
+    stated, normal, e1 = measures.stated, measures.normal, measures.e1
+    scored, colour_limit, inked = colour.scored, colour.colour_limit, colour.inked
+    dropout_found, thin_found, fold = colour.dropout_found, colour.thin_found, colour.fold
+    lit = found.lit
     # how finely the photo samples the print, and what it cannot resolve
     photo_px_per_mm = np.where(scored, fp / mm_per_px, np.nan)
     median_res = float(np.nanmedian(photo_px_per_mm)) if scored.any() else None
@@ -500,10 +853,10 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # a defect must cover MIN_DEFECT_MM2 and span a few photo pixels each way (the opening
     # and closing in find_defects work on 3 x 3 grid pixels) to be found
     px_mm = (1.0 / median_res) if median_res else None
-    limit_mm = shift_limit.result()
+    limit_mm = measures.shift_limit.result()
     limit_mm[lit] = np.nan  # (the flow near light is not the print's: see lit above)
     if camera_center is not None:
-        in_cone, flat_in_cone = cone.result()
+        in_cone, flat_in_cone = colour.cone.result()
         dropout_found &= ~in_cone
         thin_found &= ~flat_in_cone
     dropout_found &= ~fold
@@ -528,17 +881,17 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     return DenseResult(
         warped,
         state,
-        shift,
-        shift_mm.astype(np.float32),
-        colour,
-        missing,
-        labels,
-        defects,
+        measures.shift,
+        measures.shift_mm.astype(np.float32),
+        colour.colour,
+        colour.missing,
+        found.labels,
+        found.defects,
         blur,
-        m_total,
-        texture,
+        measures.m_total,
+        measures.texture,
         sigma_mm,
-        noise,
+        measures.noise,
         resolution,
         limit,
         limit_mm,
@@ -546,5 +899,5 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
         win,
         np.where(normal[..., None], e1, np.float32(0.0)).astype(np.float32),
         thin_found & stated,
-        not_counted,
+        colour.not_counted,
     )

@@ -265,3 +265,22 @@ def test_a_region_facing_the_lamp_of_the_photos_highlights_is_one_of_them():
     assert got[near].all() and not got[far].any()
     # no sure highlight in the photo: nothing is taken for one
     assert not dense.mirrors_highlights(near | far, np.zeros_like(sure), X, camera).any()
+
+
+def test_a_slide_is_told_from_a_smooth_light_by_the_texture_it_moves():
+    # a glossy sheen (a bump of light 8 px across) over artwork of soft streaks 40 px apart pulls
+    # the flow by a pixel; moving the print by it takes away most of the residual of the print
+    # where it is, but little of what a smooth light (a second-order surface of position) leaves:
+    # the photo does not tell that slide from light. A 2 px slide of textured artwork it tells
+    ii, jj = np.indices((160, 160)).astype(np.float32)
+    region = np.hypot(ii - 80, jj - 80) < 16
+    streaks = (128 + 40 * np.sin(2 * np.pi * jj / 40.0)).astype(np.float32)
+    sheen = 30.0 * np.exp(-((jj - 80) ** 2 + (ii - 80) ** 2) / (2 * 8.0**2))
+    photo = streaks + sheen + np.random.default_rng(22).normal(0, 1.0, streaks.shape).astype(np.float32)
+    m, r, p = dense.dense_flow(streaks, photo, np.ones(streaks.shape, bool), normalised=True)
+    assert dense.shift_explained(r, p, m, region) > dense.SHIFT_EXPLAINS
+    assert dense.shift_explained(r, p, m, region, under_light=True) < dense.SHIFT_EXPLAINS
+    ref = texture((160, 160), seed=3, sigma=2.0)
+    photo = shifted(ref, 2.0, 0.0) + np.random.default_rng(4).normal(0, 1.0, ref.shape).astype(np.float32)
+    m, r, p = dense.dense_flow(ref, photo, np.ones(ref.shape, bool), normalised=True)
+    assert dense.shift_explained(r, p, m, region, under_light=True) > 0.9

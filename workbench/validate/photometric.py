@@ -101,6 +101,7 @@ def film_level(
     window_px: float,
     fallback: np.ndarray,
     added: np.ndarray | None = None,
+    window_share: np.ndarray | None = None,
 ) -> FilmLevel:
     """The bare film's colour as the photo shows it, from the ink around each pixel.
 
@@ -135,6 +136,10 @@ def film_level(
         The film's colour where no ink around measures it (grey levels).
     added : (H, W) float32, optional
         Light added over the ink, linear light (the exposure fit's offset).
+    window_share : (H, W) float32, optional
+        The window's share of ``window_px`` at each pixel, in (0, 1] (:func:`window_shares`):
+        where the print is squeezed, so that the window covers no more of the surface than it
+        does where the print is typical. Rounded to halvings.
 
     Returns
     -------
@@ -167,17 +172,93 @@ def film_level(
     # the level common to the channels, per pixel, and its precision
     ws = w.sum(axis=2)
     rs = (w * np.nan_to_num(r - gains)).sum(axis=2) / np.maximum(ws, 1e-12)
-    num = cv2.GaussianBlur(ws * rs, (0, 0), window_px)
-    den = cv2.GaussianBlur(ws, (0, 0), window_px)
-    first = num / np.maximum(den, 1e-12)
-    # the additive error O per pixel: the photo's own (the robust spread of P - A F), or the
-    # light the exposure fit adds over the ink where more
+    # the additive error O per pixel: the photo's own (the robust spread of P - A F about the
+    # film of the whole window), or the light the exposure fit adds over the ink where more
+    first = _window_mean(ws, rs, window_px)
     f1 = (np.exp(first)[..., None] * np.exp(gains)).astype(np.float32)
     d = (P - A * f1)[ok]
     o_own = 1.4826 * float(np.median(np.abs(d - np.median(d)))) if d.size else 0.0
     O = np.full(fitted.shape, o_own, np.float32) if added is None else np.maximum(added, o_own).astype(np.float32)
-    # (a second pass with each pixel's share of it, O / (A F) in log F, and without what the ink
-    # around does not explain: a defect, a glint, wrong ink)
+    halvings = np.zeros(fitted.shape, np.int32)
+    if window_share is not None:
+        share = window_share if k == 1 else cv2.resize(window_share, fitted.shape[::-1], interpolation=cv2.INTER_AREA)
+        # (halvings down to a window of one grid pixel)
+        most = max(0, int(np.floor(np.log2(max(window_px * k, 1.0)))))
+        halvings = np.clip(np.rint(-np.log2(np.clip(share, 1e-6, 1.0))), 0, most).astype(np.int32)
+    level = np.zeros(fitted.shape, np.float32)
+    sigma = np.full(fitted.shape, UNKNOWN, np.float32)
+    for m in np.unique(halvings):
+        at = halvings == m
+        lv, sg = _film_in_window(ws, rs, A, srel, ok, r, gains, O, window_px / 2.0**m)
+        level[at], sigma[at] = lv[at], sg[at]
+    known = sigma < UNKNOWN
+    if k > 1:
+        level = cv2.resize(level, (W, H), interpolation=cv2.INTER_LINEAR)
+        sigma = cv2.resize(sigma, (W, H), interpolation=cv2.INTER_LINEAR)
+        known = sigma < UNKNOWN
+    film = grey_levels(np.exp(level[..., None] + gains[None, None, :]).astype(np.float32))
+    film = np.where(known[..., None], film, fallback).astype(np.float32)
+    return FilmLevel(film, sigma)
+
+
+def window_shares(X: np.ndarray) -> np.ndarray:
+    """How much of a window of grid pixels a local model may use, so that it covers the surface it covers typically.
+
+    A model of the light (the film's level, the shading) holds over a patch of the *surface*: the
+    shading follows the surface's normal. A window of so many grid pixels covers the surface at
+    the print's local scale, s = max(|∂X/∂i|, |∂X/∂j|) mm of surface per grid pixel (the longer
+    of the two axes' steps: the window must reach no further along either). Where the design
+    squeezed the print (a dome's cap mapped to a small disc: 8 to 28 times the typical scale on
+    the scanned face's crown) one window spans tens of millimetres of a surface turning through
+    the lamp's light. Its share there is s_typical / s (the median scale over the grid), at most
+    1: the window keeps the surface size it has over most of the part.
+
+    Parameters
+    ----------
+    X : (H, W, 3) float
+        Surface point under each grid pixel, mm (NaN off the part).
+
+    Returns
+    -------
+    (H, W) float32
+        In (0, 1]; 1 off the part and where the print is not squeezed.
+    """
+    H, W = X.shape[:2]
+    share = np.ones((H, W), np.float32)
+    if H < 2 or W < 2:
+        return share
+    # (the steps between neighbours, each set on the pixel before it: a one-pixel shift is nothing
+    # against a window of many)
+    di = np.linalg.norm(np.diff(X, axis=0), axis=2)[:, :-1]
+    dj = np.linalg.norm(np.diff(X, axis=1), axis=2)[:-1, :]
+    s = np.maximum(di, dj)
+    ok = np.isfinite(s) & (s > 0)
+    if not ok.any():
+        return share
+    typical = float(np.median(s[ok]))
+    share[:-1, :-1] = np.where(ok, np.minimum(1.0, typical / np.where(ok, s, 1.0)), 1.0)
+    return share
+
+
+def _window_mean(ws: np.ndarray, rs: np.ndarray, window_px: float) -> np.ndarray:
+    """The ``ws``-weighted Gaussian mean of ``rs`` over ``window_px`` (grid px)."""
+    num = cv2.GaussianBlur(ws * rs, (0, 0), window_px)
+    den = cv2.GaussianBlur(ws, (0, 0), window_px)
+    return num / np.maximum(den, 1e-12)
+
+
+def _film_in_window(ws, rs, A, srel, ok, r, gains, O, window_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`film_level`'s estimate over one window: the log level common to the channels and its sigma.
+
+    ``ws``, ``rs`` (H, W) each pixel's precision and log level from its noise alone, ``A``,
+    ``srel``, ``ok``, ``r`` (H, W, 3) and ``O`` (H, W) as :func:`film_level` computes them (on its
+    reduced grid); ``gains`` (3,) the channels' log gains. Returns the level (H, W, log units, 0
+    where unknown) and its uncertainty (H, W, UNKNOWN where unknown).
+    """
+    first = _window_mean(ws, rs, window_px)
+    f1 = (np.exp(first)[..., None] * np.exp(gains)).astype(np.float32)
+    # (a second pass with each pixel's share of the additive error, O / (A F) in log F, and without
+    # what the ink around does not explain: a defect, a glint, wrong ink)
     extra = (O[..., None] / np.maximum(A * f1, 1e-6)) ** 2
     w = np.where(ok, 1.0 / (srel * srel + extra), 0.0).astype(np.float32)
     ws = w.sum(axis=2)
@@ -195,14 +276,7 @@ def film_level(
     sigma = (np.hypot(1.0 / np.sqrt(np.maximum(total, 1e-12)), FILM_ERR_PALE) + bias).astype(np.float32)
     known = (den > 0) & (sigma < UNKNOWN)
     sigma = np.where(known, sigma, UNKNOWN).astype(np.float32)
-    level = np.where(known, level, 0.0).astype(np.float32)
-    if k > 1:
-        level = cv2.resize(level, (W, H), interpolation=cv2.INTER_LINEAR)
-        sigma = cv2.resize(sigma, (W, H), interpolation=cv2.INTER_LINEAR)
-        known = sigma < UNKNOWN
-    film = grey_levels(np.exp(level[..., None] + gains[None, None, :]).astype(np.float32))
-    film = np.where(known[..., None], film, fallback).astype(np.float32)
-    return FilmLevel(film, sigma)
+    return np.where(known, level, 0.0).astype(np.float32), sigma
 
 
 def beyond_film(photo: np.ndarray, film: FilmLevel, noise: float, z: float) -> np.ndarray:

@@ -12,10 +12,13 @@
 #   and offset fit (shading, vignetting, exposure) on the print moved by the flow (so a shift
 #   is not also a colour error). Residuals beyond what noise and the fit explain are colour
 #   defects; where the photo shows the bare film's colour, ink is missing.
-# - **Masks**: highlights (saturated, or a broad additive glare) and deep shadows are not
+# - **Light or ink**: light beyond the bare film and each region of the colour residual judged
+#   light or ink gone by :mod:`workbench.validate.photometric`; what it cannot tell is left to
+#   the lamp (light only in the mirror cone of the photo's sure light). Deep shadows are not
 #   scored; neither is surface that turns its back to the camera (occluded), nor what the photo
 #   sees next to a step in depth (the part's outline, a fold: its pixels mix two surfaces),
-#   nor a band along the edge of what is seen; each is reported as unmeasured with its reason.
+#   nor a band along the edge of what is seen; each is reported as unmeasured with its reason,
+#   and every region set aside as light with the test that decided it (``not_counted``).
 #
 # The print's grid, the photo warped onto it and its visibility states are in
 # :mod:`workbench.validate.print_warp`; the film's placement in :mod:`workbench.validate.placement`.

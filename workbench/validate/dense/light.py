@@ -30,6 +30,11 @@ LIGHT_RULES = {
     "mirrors_highlights": "ink gone and light look alike here (the photometric model tells neither) and the surface "
     "mirrors the photo's lamp there as at its sure light: not counted, and not measured",
     "along_fold": "light along a fold of the surface (its two sides face the lamp differently)",
+    "shift_not_explained": "the flow follows light, shading or blur here, not the film: moving the print takes away "
+    "less than two thirds of what the print where it is leaves",
+    "shift_as_light": "a slide and a light that varies smoothly over the region look alike here (moving the print "
+    "takes away less than two thirds of what such a light leaves) and the surface mirrors the photo's lamp there as "
+    "at its sure light: not counted",
 }
 
 

@@ -23,6 +23,7 @@ from workbench.validate.dense.exposure import (
 )
 from workbench.validate.dense.flow import FlowStart, dis_flow, flow_start, median_flow, tensor_weighted_flow
 from workbench.validate.dense.light import (
+    LIGHT_RULES,
     along_fold,
     grid_folds,
     lamp_cone,
@@ -489,7 +490,9 @@ def _sure_light(on: _Frame, start: _Start, model: _Model) -> _SureLight:
     # clips where the film may clip too, a white dropout included, is judged with its region below
     noise0 = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
     sheen = photometric.linear(np.maximum(_cmin(offset), 0.0))  # the light the exposure fit adds over the ink
-    film_lit = photometric.film_level(pho, moved, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, white, sheen)
+    film_lit = photometric.film_level(
+        pho, moved, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, white, sheen, photometric.window_shares(on.grid.X)
+    )
     if (unknown := film_lit.sigma >= photometric.UNKNOWN).any():
         # (where no ink around tells the film, the exposure fit's white in the film's one colour)
         film_lit.film[unknown] = film_colour(white, moved, weight > 0, unknown)[unknown]
@@ -779,16 +782,46 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
     # blur over faint texture, not the film
     keep = []
     ink_left = np.zeros_like(missing)
+
+    def in_lamp(region: np.ndarray) -> bool:
+        # (most of the region within the lamp's mirror cone; no lamp without a camera centre)
+        if colour.cone is None:
+            return False
+        return bool(colour.cone.result()[0][region].mean() >= 0.5)
+
     for i, d in enumerate(defects):
         if d["kind"] == "shift":
             d["explained_share"] = shift_explained(
                 ref_n, pho_n, m, (labels == i + 1) & (full | normal | wide_ok), flow_k
             )
+            rule = None
             if d["explained_share"] is not None and d["explained_share"] < SHIFT_EXPLAINS:
+                rule = "shift_not_explained"
+            elif d["explained_share"] is not None:
+                # a slide the photo does not tell from a smooth light (a sheen over faint or smooth
+                # artwork) is light only where the surface mirrors the lamp of the photo's sure
+                # light, as a region of colour the photometric model does not tell
+                d["explained_under_light_share"] = shift_explained(
+                    ref_n, pho_n, m, (labels == i + 1) & (full | normal | wide_ok), flow_k, under_light=True
+                )
+                if d["explained_under_light_share"] < SHIFT_EXPLAINS and in_lamp(labels == i + 1):
+                    rule = "shift_as_light"
+            if rule is not None:
                 # (its ink that is gone is still gone: a scratch drags the flow around it over
                 # five times its own area, and the region took the flow's kind; 12.6 mm² of a
                 # 20 mm scratch went with a 72 mm² region its flow did not explain)
                 ink_left |= (labels == i + 1) & colour_bad & missing
+                # (and the QA engineer sees it set aside, and why)
+                decided = {"rule": rule, "words": LIGHT_RULES[rule], "explained_share": round(d["explained_share"], 3)}
+                if "explained_under_light_share" in d:
+                    decided["explained_under_light_share"] = round(d["explained_under_light_share"], 3)
+                colour.not_counted.append(
+                    {
+                        "centre_mm": [round(float(c), 2) for c in d["centre_mm"]],
+                        "area_mm2": round(float(d["area_mm2"]), 2),
+                        "decided_by": decided,
+                    }
+                )
                 continue
         keep.append(i)
     if len(keep) < len(defects):

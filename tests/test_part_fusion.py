@@ -54,6 +54,38 @@ def test_ink_gone_stays_when_no_other_photo_shows_the_ink(b_state, b_finds, why)
     assert light_in_one_photo(entries, states, maps, PPM, 4.0) == [], why
 
 
+def three_photos(angle_deg: float):
+    """Photos A and C find the same 16 mm² of ink gone, B measures it clean and would find it; the
+    surface is the plane z = 0 (1 mm per grid px / 10), A's camera straight above the region and
+    C's ``angle_deg`` from it, both 500 mm away."""
+    (entries, states, maps) = two_photos(print_warp.FULL, True)
+    sc = states[0].copy()
+    states = [states[0], states[1], sc]
+    maps["photo2_dropout"], maps["photo2_scratch"] = maps["photo0_dropout"], maps["photo0_scratch"]
+    c = {"kind": "missing", "area_mm2": 16.0, "bbox_mm": [3.0, 4.0, 7.0, 8.0], "centre_mm": [5.0, 6.0]}
+    entries.append({"photo": "c.png", "defects": [c]})
+    ii, jj = np.indices(sc.shape)
+    X = np.stack([(jj + 0.5) / PPM, (ii + 0.5) / PPM, np.zeros(sc.shape)], axis=-1)
+    p = np.array([5.0, 6.0, 0.0])
+    t = np.radians(angle_deg)
+    for e, v in zip(entries, ([0, 0, 1], [0, 0, 1], [np.sin(t), 0, np.cos(t)]), strict=True):
+        e["pose"] = {"camera_center_mm": list(p + 500.0 * np.asarray(v, float))}
+    return entries, states, maps, X
+
+
+def test_ink_gone_two_photos_find_from_directions_no_lamp_shares_stays():
+    # A and C 30° apart seen from the region: no one lamp mirrors into both, so their agreement is
+    # ink gone and B's clean view does not dismiss it; 10° apart, one glint may show in both
+    entries, states, maps, X = three_photos(30.0)
+    assert light_in_one_photo(entries, states, maps, PPM, 4.0, X) == []
+    entries, states, maps, X = three_photos(10.0)
+    gone = light_in_one_photo(entries, states, maps, PPM, 4.0, X)
+    assert {d["photo"] for d in gone} == {"a.png", "c.png"} and {d["decided_by"]["photo"] for d in gone} == {"b.png"}
+    # (without the surface, as before: B dismisses both)
+    entries, states, maps, X = three_photos(30.0)
+    assert len(light_in_one_photo(entries, states, maps, PPM, 4.0)) == 2
+
+
 def test_a_small_region_is_not_judged():
     # below the verdict's area a region fails nothing: it is left as found
     entries, states, maps = two_photos(print_warp.FULL, True)

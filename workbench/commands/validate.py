@@ -415,7 +415,7 @@ def run(args) -> int:
     t_part = time.perf_counter()
     maps = detection.part_maps(entries)
     # several photos, one part: ink gone that another photo sees intact is light where it was found
-    dismissed = light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2) if grid else []
+    dismissed = light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2, grid.X) if grid else []
     in_part = {}
     for k in sorted({x["photo_index"] for x in dismissed}):
         e = entries[k]

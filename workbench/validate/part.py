@@ -9,7 +9,9 @@ import numpy as np
 from workbench.validate import dense, print_warp
 
 
-def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm: float, max_defect_mm2: float) -> list:
+def light_in_one_photo(
+    entries: list[dict], states: list, maps: dict, px_per_mm: float, max_defect_mm2: float, X: np.ndarray | None = None
+) -> list:
     """Ink gone that another photo of the part sees intact: light in the photo that found it.
 
     Ink that is gone stays at its print position in every photo; a glint or a reflection moves
@@ -18,6 +20,15 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
     detection map, ``photoK_dropout`` or ``photoK_scratch``, over at least DROPOUT_SHARE of the
     region: the share at which the stated limit counts a dropout as found). The defect stays in
     its photo's entry as its photo found it; for the part it is dismissed, with what decided it.
+
+    Unless a third photo, from another direction, found ink gone there too: the same glint at the
+    same print position in two photos needs one lamp mirrored into both cameras, and reflection
+    keeps the angle between two rays, so the two photos' mirror directions there lie as far apart
+    as their cameras seen from the surface point. Cameras more than twice MIRROR_DEG apart (the
+    lamp's reach either side, as :func:`workbench.validate.dense.mirrors_highlights` takes it)
+    cannot share it: their agreement is ink gone, and one photo that saw nothing there is overruled
+    (a 20 mm scratch on the scanned face, Mitsuba, glossy: found in three photos 30° apart,
+    14 to 21 mm², and dismissed in all three by the photo from above, which saw nothing of it).
 
     Parameters
     ----------
@@ -31,6 +42,9 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
         The grid's resolution.
     max_defect_mm2 : float
         Only defects over the verdict's area are checked (the others do not fail the part).
+    X : (H, W, 3) float, optional
+        The surface point under each grid pixel, mm: with the photos' ``pose.camera_center_mm``,
+        the directions from which each photo saw a region (without it, no photo is overruled).
 
     Returns
     -------
@@ -56,6 +70,8 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
             n = int(region.sum())
             if n == 0:
                 continue
+            if _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) is not None:
+                continue  # (kept: two photos from directions no one lamp serves both found it)
             for b, sb in enumerate(states):
                 if b == a or sb is None or f"photo{b}_dropout" not in maps:
                     continue
@@ -86,6 +102,36 @@ def light_in_one_photo(entries: list[dict], states: list, maps: dict, px_per_mm:
                     )
                     break
     return out
+
+
+def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> int | None:
+    """Another photo that found ink gone over most of a region, from a direction no lamp shares with photo ``a``."""
+    if X is None:
+        return None
+    from workbench.validate.dense import MIRROR_DEG
+
+    cx, cy = (int(np.clip(v * px_per_mm, 0, n - 1)) for v, n in zip(d["centre_mm"], X.shape[1::-1], strict=True))
+    p = X[cy, cx]
+    if not np.isfinite(p).all():
+        return None
+
+    def towards(e):
+        c = np.asarray(((e.get("pose") or {}).get("camera_center_mm")) or [np.nan] * 3, float)
+        v = c - p
+        return v / max(float(np.linalg.norm(v)), 1e-12)
+
+    va = towards(entries[a])
+    for c, sc in enumerate(states):
+        if c == a or sc is None or (entries[c].get("photo_quality") or {}).get("problems"):
+            continue
+        if float((region & (sc[box] == print_warp.DEFECT)).sum()) < 0.5 * region.sum():
+            continue
+        vc = towards(entries[c])
+        if not (np.isfinite(va).all() and np.isfinite(vc).all()):
+            continue
+        if np.degrees(np.arccos(np.clip(float(va @ vc), -1.0, 1.0))) > 2.0 * MIRROR_DEG:
+            return c
+    return None
 
 
 def part_summary(

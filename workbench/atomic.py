@@ -4,7 +4,9 @@ One mechanism serves every command:
 
 - outputs are checked before any work (:func:`check_outputs`, :func:`check_output_dir`) and
   again at the write: no output is a directory, a name too long for the file system, two
-  outputs of one name, or one of the command's inputs (paths resolved, symlinks followed);
+  outputs of one name, one of the command's inputs (paths resolved, symlinks followed), a
+  symbolic link (it would be written through to what it points to), or a device, a named pipe
+  or a socket (the rename would replace the node);
 - files are written to temporary names, flushed, then renamed into place; a failure or an
   interrupt (Ctrl-C, SIGTERM) before the renames leaves every target as it was and no
   temporary behind; the renames themselves run with those signals held, so that an interrupt
@@ -177,7 +179,8 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
     ------
     WorkbenchError
         Naming the first path that is a directory, whose name is too long, that two outputs
-        share (``board -o b.json``: the PDF and its definition) or that is an input.
+        share (``board -o b.json``: the PDF and its definition), that is an input, a symbolic
+        link, or a device, a named pipe or a socket.
     """
     in_files, _ = _input_files(inputs)
     seen: dict[Path, Path] = {}
@@ -197,6 +200,29 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
         if given is not None:
             also = "" if given == path else f" ({given})"
             raise WorkbenchError(f"{path}: is an input of this command{also}; write the output elsewhere")
+        # an output is a file of its own: written through a link it would replace what the link
+        # points to (a user's job file behind a board's definition), and renamed over a device or
+        # a pipe it would replace the node itself (`-o /dev/null` made /dev/null a regular file)
+        if path.is_symlink():
+            raise WorkbenchError(
+                f"{path}: is a symbolic link (to {os.readlink(path)}); writing it would replace what it points to;"
+                " remove the link or give another name"
+            )
+        if (kind := _special_kind(path)) is not None:
+            raise WorkbenchError(f"{path}: is {kind}, not a file; give a file name for this output")
+
+
+def _special_kind(path: Path) -> str | None:
+    """What an existing path that is neither a regular file nor a folder is (a device, a pipe, a socket), else None."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    kinds = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe"))
+    kinds += ((stat.S_ISSOCK, "a socket"),)
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
 
 
 def check_output_dir(directory: Path, inputs: Iterable[Path] = ()) -> None:
@@ -271,7 +297,7 @@ def write_files(files: dict[Path, bytes], inputs: Iterable[Path] = ()) -> None:
     every one is written are they renamed into place (rename is atomic on POSIX), with
     Ctrl-C and SIGTERM held. The targets that existed are kept as hard-linked backups until
     the last rename, so that a rename failing half-way puts the earlier ones back. A
-    target that is a symlink is written through (the link stays). For a set of files that
+    target that is a symlink, a device, a pipe or a socket is refused. For a set of files that
     makes up an output folder of its own, :func:`write_folder` writes the folder instead.
 
     Parameters

@@ -49,3 +49,21 @@ def test_a_device_is_no_output(device):
         pytest.skip(f"{device} is not on this machine")
     with pytest.raises(WorkbenchError, match=f"{device}: is a character device, not a file"):
         atomic.check_outputs(Path(device))
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["design", "JOB", "--out", ""],
+        ["design", "JOB", "--out="],
+        ["board", "charuco", "-o", ""],
+    ],
+    ids=["out-empty", "out-equals-empty", "o-empty"],
+)
+def test_an_empty_output_name_is_a_usage_error_and_writes_nothing(tmp_path, capsys, monkeypatch, argv):
+    # `--out ""` read as "not given": design wrote its default design-JOB/ into the current folder
+    monkeypatch.chdir(tmp_path)
+    job = Path(__file__).resolve().parents[1] / "fixtures" / "default" / "job.toml"
+    assert main([str(job) if a == "JOB" else a for a in argv]) == 2
+    assert "an empty name" in one_line(capsys)
+    assert list(tmp_path.iterdir()) == []

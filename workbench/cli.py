@@ -50,6 +50,18 @@ def _run_quietly(args) -> int:
         return args.run(args)
 
 
+OUTPUT_OPTIONS = ("--out", "-o", "--output")
+
+
+def _refuse_empty_outputs(argv: list[str]) -> None:
+    """An output option given an empty name is a usage error (it read as "not given": ``--out ""``
+    wrote the default ``design-JOB/`` into the current folder)."""
+    for k, a in enumerate(argv):
+        name, eq, value = a.partition("=")
+        if name in OUTPUT_OPTIONS and (value if eq else (argv[k + 1] if k + 1 < len(argv) else None)) == "":
+            raise UsageError(f"{name}: an empty name; give the output's name, or leave {name} out for the default")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status.
 
@@ -76,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     prog = f"workbench {first}" if first in COMMANDS else "workbench"
     with signals_handled() as written:
         try:
+            _refuse_empty_outputs(args_in)
             args = parser.parse_args(argv)
             if args.command is None:
                 parser.print_help()

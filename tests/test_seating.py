@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
+from workbench import part_motion as M
 from workbench.camera import Camera
 from workbench.cli import main
 from workbench.design_dir import Design
 from workbench.render.imperfections import Imperfections
 from workbench.render.photo import render_ideal
-from workbench.validate import seating as S
 
 SIZE = "2000x1500"
 ORBIT = "10,55,330"
@@ -109,7 +109,7 @@ def vertex_error_mm(design, seating: dict, photo) -> float:
 
 def test_the_motion_turns_about_the_parts_centre_x_then_y_then_z():
     c = np.array([3.0, -2.0, 7.0])
-    R, t = S.part_motion((1.0, -0.5, 0.25), (0.3, -0.2, 0.8), c)
+    R, t = M.part_motion((1.0, -0.5, 0.25), (0.3, -0.2, 0.8), c)
     rx, ry, rz = np.radians([0.3, -0.2, 0.8])
     Rx = np.array([[1, 0, 0], [0, np.cos(rx), -np.sin(rx)], [0, np.sin(rx), np.cos(rx)]])
     Ry = np.array([[np.cos(ry), 0, np.sin(ry)], [0, 1, 0], [-np.sin(ry), 0, np.cos(ry)]])
@@ -117,16 +117,16 @@ def test_the_motion_turns_about_the_parts_centre_x_then_y_then_z():
     np.testing.assert_allclose(R, Rz @ Ry @ Rx, atol=1e-15)
     # the centre moves by the offset, and the parameters come back
     np.testing.assert_allclose(R @ c + t, c + [1.0, -0.5, 0.25], atol=1e-12)
-    off, rot = S.motion_parameters(R, t, c)
+    off, rot = M.motion_parameters(R, t, c)
     np.testing.assert_allclose(off, [1.0, -0.5, 0.25], atol=1e-12)
     np.testing.assert_allclose(rot, [0.3, -0.2, 0.8], atol=1e-12)
 
 
 def test_the_seated_camera_sees_the_design_where_the_board_camera_sees_the_moved_part():
     cam = Camera.look_at([30, -200, 250], [0, 0, 0], [0, 0, 1], 40, 800, 600)
-    R, t = S.part_motion((1.5, -1.0, 0.0), (0.0, 0.0, 0.8), (0.0, 0.0, 5.0))
+    R, t = M.part_motion((1.5, -1.0, 0.0), (0.0, 0.0, 0.8), (0.0, 0.0, 5.0))
     X = np.random.default_rng(0).uniform(-40, 40, (50, 3))
-    seen, _ = S.seated_camera(cam, R, t).project(X)
+    seen, _ = M.seated_camera(cam, R, t).project(X)
     moved, _ = cam.project(X @ R.T + t)
     np.testing.assert_allclose(seen, moved, atol=1e-9)
 
@@ -144,7 +144,7 @@ def test_render_moves_the_part_on_its_plate_and_records_the_truth(design, tmp_pa
     cam = Camera(np.asarray(truth["K"]), np.asarray(truth["R"]), np.asarray(truth["t"]), 800, 600)
     moved = Imperfections(part_offset_mm=(1.5, -1.0, 0.0), part_rotation_deg=(0.0, 0.0, 0.8))
     _, face_moved = render_ideal(design.scene(moved, False), cam, moved)
-    _, face_seated = render_ideal(design.scene(Imperfections(), False), S.seated_camera(cam, R, t), Imperfections())
+    _, face_seated = render_ideal(design.scene(Imperfections(), False), M.seated_camera(cam, R, t), Imperfections())
     assert (face_moved >= 0).sum() > 10000
     assert (face_moved != face_seated).mean() < 1e-4  # (ties of the z-buffer at shared edges)
 
@@ -220,8 +220,8 @@ def test_a_part_seated_beyond_the_limit_is_a_warning_not_a_film_fault(design, tm
 def test_a_part_held_on_a_stand_is_judged_where_the_stand_holds_it(design, tmp_path):
     # a stand tilts the part 20 degrees about x (film the plate hides comes into view), lifted
     # clear of the plate; it is set down on the stand 1 mm off and turned 0.6 degrees
-    c = S.part_centre(design.V)
-    R0, t0 = S.part_motion((0, 0, 0), (20, 0, 0), c)
+    c = M.part_centre(design.V)
+    R0, t0 = M.part_motion((0, 0, 0), (20, 0, 0), c)
     lift = float(design.V[:, 2].min() - (design.V @ R0.T + t0)[:, 2].min()) + 1.0
     hold = ["--part-rotation-deg", "20,0,0", "--part-offset-mm", f"0,0,{lift:.3f}"]
     moved = ["--part-rotation-deg", "20,0,0.6", "--part-offset-mm", f"1.0,-0.8,{lift:.3f}"]

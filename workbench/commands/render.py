@@ -462,7 +462,7 @@ def truth(
 
 def part_pose(imp: Imperfections, design: Design) -> dict:
     """Where the part sits on its plate: ``X_photo = R X_design + t`` (mesh frame, mm), and the motion's terms."""
-    from workbench.validate.seating import motion_entry
+    from workbench.part_motion import motion_entry
 
     return motion_entry(imp.part_offset_mm, imp.part_rotation_deg, design.V)
 

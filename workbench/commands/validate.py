@@ -178,10 +178,10 @@ def _one_thread() -> None:
 def held_pose(args, design: Design) -> dict | None:
     """How the fixture holds the part (``--part-rotation-deg``, ``--part-offset-mm``), None when as designed.
 
-    Returns render's ``part_pose`` of that motion (:func:`workbench.validate.seating.motion_entry`):
+    Returns render's ``part_pose`` of that motion (:func:`workbench.part_motion.motion_entry`):
     the design mesh's points are held at ``R X + t`` (mesh frame, mm).
     """
-    from workbench.validate.seating import motion_entry
+    from workbench.part_motion import motion_entry
 
     if args.part_rotation_deg is None and args.part_offset_mm is None:
         return None

@@ -172,7 +172,7 @@ def build_scene(
     uv = q * ppm - 0.5
     if any(imp.part_offset_mm) or any(imp.part_rotation_deg):
         # the part set down off its outline: every point of it moved rigidly, the plate not
-        from workbench.validate.seating import part_centre, part_motion
+        from workbench.part_motion import part_centre, part_motion
 
         Rp, tp = part_motion(imp.part_offset_mm, imp.part_rotation_deg, part_centre(V))
         V = V @ Rp.T + tp

@@ -244,7 +244,8 @@ def _validate_photo(
         )
         return entry, files, None, {}
     clock.append(time.perf_counter())  # pose
-    from workbench.validate.seating import seat_photo, seated_camera
+    from workbench.part_motion import seated_camera
+    from workbench.validate.seating import seat_photo
 
     board = pose.camera  # (the fixture's markers are where the board camera sees them, whatever the part does)
     # the part's motion: where the fixture holds it (a stand; as designed by default), then its own

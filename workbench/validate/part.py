@@ -108,8 +108,6 @@ def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> i
     """Another photo that found ink gone over most of a region, from a direction no lamp shares with photo ``a``."""
     if X is None:
         return None
-    from workbench.validate.dense import MIRROR_DEG
-
     cx, cy = (int(np.clip(v * px_per_mm, 0, n - 1)) for v, n in zip(d["centre_mm"], X.shape[1::-1], strict=True))
     p = X[cy, cx]
     if not np.isfinite(p).all():
@@ -129,7 +127,7 @@ def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> i
         vc = towards(entries[c])
         if not (np.isfinite(va).all() and np.isfinite(vc).all()):
             continue
-        if np.degrees(np.arccos(np.clip(float(va @ vc), -1.0, 1.0))) > 2.0 * MIRROR_DEG:
+        if np.degrees(np.arccos(np.clip(float(va @ vc), -1.0, 1.0))) > 2.0 * dense.MIRROR_DEG:
             return c
     return None
 

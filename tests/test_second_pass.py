@@ -480,8 +480,11 @@ def test_caches_go_to_a_temporary_folder_when_neither_install_nor_home_is_writab
     env = cache_environment({"HOME": str(blocker / "home")}, blocker / "site-packages" / "workbench")
     assert set(env) == {"NUMBA_CACHE_DIR", "MPLCONFIGDIR"}
     assert all(Path(v).parent.name.startswith("workbench-cache-") for v in env.values())
-    # a writable HOME, or an explicit setting: nothing changed
-    assert cache_environment({"HOME": str(tmp_path)}, blocker / "workbench") == {}
+    # a writable HOME: numba beside the source; matplotlib always in the workbench's own cache
+    assert cache_environment({"HOME": str(tmp_path)}, blocker / "workbench") == {
+        "MPLCONFIGDIR": str(tmp_path / ".cache" / "workbench" / "matplotlib")
+    }
+    # an explicit setting: nothing changed
     assert cache_environment({"HOME": str(blocker), "NUMBA_CACHE_DIR": "x", "MPLCONFIGDIR": "y"}, blocker) == {}
 
 

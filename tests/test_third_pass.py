@@ -67,3 +67,159 @@ def test_an_empty_output_name_is_a_usage_error_and_writes_nothing(tmp_path, caps
     assert main([str(job) if a == "JOB" else a for a in argv]) == 2
     assert "an empty name" in one_line(capsys)
     assert list(tmp_path.iterdir()) == []
+
+
+# --- item 4: no traceback by construction ---------------------------------------------------------
+
+
+def test_an_unexpected_error_is_one_line_exit_70_and_its_traceback_saved(tmp_path, capsys, monkeypatch):
+    import workbench.commands.board as board
+
+    def broken(_args):
+        raise ValueError("a bug\nover two lines")
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(board, "run", broken)
+    assert main(["board", "charuco", "-o", str(tmp_path / "b.pdf")]) == 70
+    line = one_line(capsys)
+    assert line.startswith("workbench board: internal error: ValueError: a bug\\nover two lines; nothing written")
+    report = Path(line.rsplit("please report it with ", 1)[1])
+    assert report.parent == tmp_path / "cache" / "workbench" / "crashes"
+    assert "Traceback" in report.read_text() and "def broken" not in line
+    assert not (tmp_path / "b.pdf").exists()
+
+
+def test_a_deeply_nested_job_and_a_byte_order_mark(tmp_path, capsys):
+    deep = tmp_path / "deep.toml"
+    deep.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    assert main(["design", str(deep), "--out", str(tmp_path / "o"), "-q"]) == 1
+    assert "deep.toml: not valid TOML: nested deeper than a job can be" in one_line(capsys)
+    # an editor's byte-order mark: the job is read (and fails later, on its missing mesh)
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf[object]\nmesh = 'none.obj'\n")
+    assert main(["design", str(bom), "--out", str(tmp_path / "o"), "-q"]) == 1
+    line = one_line(capsys)
+    assert "Invalid statement" not in line and "object.mesh" in line
+
+
+def test_a_symbolic_link_that_loops_is_named(tmp_path, capsys):
+    (tmp_path / "a.toml").symlink_to(tmp_path / "b.toml")
+    (tmp_path / "b.toml").symlink_to(tmp_path / "a.toml")
+    for command in (
+        ["design", str(tmp_path / "a.toml"), "--out", str(tmp_path / "o")],
+        ["suggest-views", str(tmp_path / "a.toml")],
+    ):
+        assert main([*command, "-q"]) == 1
+        assert "a.toml: a symbolic link that loops back on itself" in one_line(capsys)
+
+
+def test_a_file_name_with_a_newline_stays_one_line(tmp_path, capsys):
+    assert main(["design", str(tmp_path / "two\nlines.toml"), "-q"]) == 1
+    assert "two\\nlines.toml: no such job file" in one_line(capsys)
+
+
+@pytest.mark.parametrize("epoch", ["253402300800", "99999999999999999999", "²", "1e9"])
+def test_a_source_date_epoch_beyond_any_page_is_one_line(tmp_path, capsys, monkeypatch, epoch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", epoch)
+    assert main(["board", "charuco", "-o", str(tmp_path / "b.pdf")]) == 1
+    assert f"SOURCE_DATE_EPOCH={epoch!r}: must be whole seconds" in one_line(capsys)
+    assert not list(tmp_path.iterdir())
+
+
+def test_standard_output_on_a_full_disk_is_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    with open("/dev/full", "w") as full:
+        p = subprocess.run(
+            [sys.executable, "-m", "workbench", "suggest-views", str(ROOT / "fixtures" / "default" / "job.toml"), "-q"],
+            stdout=full, stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)},
+        )  # fmt: skip
+    assert p.returncode == 1 and p.stderr.strip() == (
+        "workbench suggest-views: error: standard output: No space left on device; give -o FILE.toml"
+    )
+
+
+@pytest.mark.parametrize("delay_s", [0.06, 0.15, 0.3])
+def test_ctrl_c_while_the_command_loads_is_one_line_and_130(tmp_path, delay_s):
+    """Before, handlers were installed after the command's modules loaded (about a second): a
+    Ctrl-C then was a KeyboardInterrupt traceback, a SIGTERM a silent death."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from conftest import ROOT
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        cmd = [sys.executable, "-m", "workbench", "design", str(ROOT / "fixtures" / "default" / "job.toml")]
+        p = subprocess.Popen(
+            [*cmd, "--out", str(tmp_path / "o")], stderr=subprocess.PIPE, text=True,
+            env={**os.environ, "PYTHONPATH": str(ROOT)},
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )  # fmt: skip
+        time.sleep(delay_s)
+        p.send_signal(sig)
+        err = p.communicate()[1].strip().splitlines()
+        assert p.returncode == 130 and err[-1] == "workbench design: interrupted; nothing written", err
+        assert "Traceback" not in "\n".join(err) and not (tmp_path / "o").exists()
+
+
+# --- item 8: plausibility; item 9: the error names what is at fault ---------------------------------
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["--square-mm", "0.001"], "--square-mm 0.001: 0.001 mm is below 2 mm"),
+        (["--square-mm", "1.9"], "--square-mm 1.9: 1.9 mm is below 2 mm"),
+        # the squares are at fault whatever the first id (before: blamed on --first-id)
+        (["--squares", "1000x1000"], "--squares 1000x1000: 1000 x 1000 squares need 500000 markers"),
+        (["--squares", "21x23", "--first-id", "10"], "--first-id 10: 241 markers from id 10 do not fit"),
+    ],
+)
+def test_a_board_that_cannot_be_made_names_its_option(tmp_path, capsys, argv, fragment):
+    assert main(["board", "charuco", *argv, "-o", str(tmp_path / "b.pdf")]) == 2
+    assert fragment in one_line(capsys)
+    assert not list(tmp_path.iterdir())
+
+
+def default_job_copy(tmp_path) -> Path:
+    import shutil
+
+    from conftest import ROOT
+
+    job = tmp_path / "job"
+    shutil.copytree(ROOT / "fixtures" / "default", job)
+    return job / "job.toml"
+
+
+def test_a_camera_a_world_away_is_blamed_for_itself(tmp_path, capsys):
+    job = default_job_copy(tmp_path)
+    text = job.read_text()
+    job.write_text(text.replace("position = [0, 0, 260]", "position = [1e300, 0, 100]", 1))
+    assert main(["design", str(job), "--out", str(tmp_path / "o"), "-q"]) == 1
+    assert "views[0].position: 1e+300 mm from the origin" in one_line(capsys)  # before: views[0].up
+    job.write_text(text + "\n[fixture]\norigin_mm = [1e7, 0, 0]\n")
+    assert main(["design", str(job), "--out", str(tmp_path / "o"), "-q"]) == 1
+    assert "fixture.origin_mm: must be a 3 array of finite numbers from -1e+06 to 1e+06" in one_line(capsys)
+
+
+@pytest.mark.parametrize("shape", ["flat", "line"])
+def test_a_view_image_that_is_no_picture_warns_and_strict_fails(tmp_path, capsys, shape):
+    import cv2
+    import numpy as np
+
+    job = default_job_copy(tmp_path)
+    img = (
+        np.full((300, 300, 3), 90, np.uint8)
+        if shape == "flat"
+        else np.random.default_rng(0).integers(0, 256, (20, 900, 3), dtype=np.uint8)
+    )
+    cv2.imwrite(str(job.parent / "logo.png"), img)
+    assert main(["design", str(job), "--out", str(tmp_path / "o"), "--strict", "-q"]) == 1
+    line = one_line(capsys)
+    expected = "is one flat colour" if shape == "flat" else "is 900 x 20 px, an aspect of 45:1"
+    assert "views[0].image " + expected in line and not (tmp_path / "o").exists()

@@ -65,7 +65,8 @@ class Interrupted(KeyboardInterrupt):
 class _Signals:
     """What the handler needs across calls: signals are the process's, so is this record.
 
-    ``held``: depth of :func:`_held` sections (a signal then waits until the last ends);
+    ``held``: depth of :func:`_held` sections (a signal then waits until the last ends; start-up
+    counts as one, see :func:`take_signals_early`);
     ``pending``: the signal that arrived while held; ``written``: outputs completed so far
     by the running command, so that an interrupt after them is not reported as "nothing
     written".
@@ -76,6 +77,8 @@ class _Signals:
         self.pending: int | None = None
         self.written: list[Path] = []
         self.installed = False
+        # the handlers before :func:`take_signals_early`, restored when the command ends
+        self.original: dict = {}
 
 
 _SIGNALS = _Signals()
@@ -88,18 +91,53 @@ def _handler(signum, _frame) -> None:
     raise Interrupted(signum)
 
 
+def _signals_to_take() -> tuple[int, ...]:
+    """SIGTERM always; SIGINT unless the process was started with it ignored.
+
+    A shell starts a background job (``cmd &``) and ``nohup`` starts its command with SIGINT
+    ignored, so that the terminal's Ctrl-C does not reach it; taking SIGINT back would undo that.
+    """
+    ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    return (signal.SIGTERM,) if ignored else (signal.SIGINT, signal.SIGTERM)
+
+
+def take_signals_early() -> None:
+    """Hold Ctrl-C and SIGTERM from the first moment of the command's own process.
+
+    Loading a command's modules takes about a second; a signal then must not end in a
+    traceback (Python's own ``KeyboardInterrupt``) or a silent death (SIGTERM's default).
+    The signal is held until :func:`release_early_signals`, which raises it where the
+    command line reports it. Only for the ``workbench`` process itself: a program that
+    imports the package keeps its own handlers.
+    """
+    if threading.current_thread() is not threading.main_thread() or _SIGNALS.original:
+        return
+    _SIGNALS.original = {s: signal.getsignal(s) for s in _signals_to_take()}
+    _SIGNALS.held += 1
+    for s in _SIGNALS.original:
+        signal.signal(s, _handler)
+
+
+def release_early_signals() -> None:
+    """End :func:`take_signals_early`'s hold; a signal that came during start-up is raised now."""
+    if _SIGNALS.original and _SIGNALS.held:
+        with _held():
+            _SIGNALS.held -= 1
+
+
 @contextlib.contextmanager
 def signals_handled() -> Iterator[list[Path]]:
     """Run a command with Ctrl-C and SIGTERM raised as :class:`Interrupted` (held during renames).
 
     Yields the list of outputs the command completes, for its caller to say what an
     interrupt left. Outside the main thread (where Python allows no handler) it only yields.
+    Afterwards the handlers are those before the command (before :func:`take_signals_early`).
     """
     _SIGNALS.written = []
     if threading.current_thread() is not threading.main_thread() or _SIGNALS.installed:
         yield _SIGNALS.written
         return
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = dict(_SIGNALS.original) or {s: signal.getsignal(s) for s in _signals_to_take()}
     for s in previous:
         signal.signal(s, _handler)
     _SIGNALS.installed = True
@@ -110,6 +148,7 @@ def signals_handled() -> Iterator[list[Path]]:
             signal.signal(s, h)
         _SIGNALS.installed = False
         _SIGNALS.pending = None
+        _SIGNALS.original = {}
 
 
 @contextlib.contextmanager

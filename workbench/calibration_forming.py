@@ -595,7 +595,7 @@ def design_of(design_dir: Path, designs: dict | None = None):
 
     if designs is None:
         return Design(design_dir)
-    key = Path(design_dir).resolve()
+    key = Path(os.path.realpath(design_dir))
     if key not in designs:
         designs[key] = Design(design_dir)
     return designs[key]

@@ -3,15 +3,30 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
 import warnings
+from pathlib import Path
 
 from workbench import __version__
-from workbench.atomic import signals_handled
-from workbench.environment import use_writable_caches
+from workbench.atomic import release_early_signals, signals_handled, take_signals_early
+from workbench.environment import (
+    cache_dir,
+    check_current_folder,
+    check_thread_counts,
+    keep_owner_permissions,
+    load_reportlab,
+    source_date_epoch,
+    speak_the_terminals_language,
+    use_writable_caches,
+)
 from workbench.errors import UsageError, WorkbenchError
+from workbench.text import one_line
+
+# exit status of an internal error (a bug), as sysexits.h's EX_SOFTWARE
+INTERNAL_ERROR = 70
 
 # in the order of `workbench --help`
 COMMANDS = ("flatten", "design", "suggest-views", "pdf", "board", "render", "validate", "calibrate")
@@ -62,52 +77,130 @@ def _refuse_empty_outputs(argv: list[str]) -> None:
             raise UsageError(f"{name}: an empty name; give the output's name, or leave {name} out for the default")
 
 
+def _crash_report(prog: str, exc: BaseException) -> str:
+    """Write the traceback of an unexpected error to the workbench's cache; its path, or why not."""
+    import datetime
+    import traceback
+
+    folder = cache_dir(os.environ) / "crashes"
+    stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%SZ")
+    path = folder / f"{prog.replace(' ', '-')}-{stamp}-{os.getpid()}.txt"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        text = f"{prog} {__version__}\nargv: {sys.argv!r}\n\n" + "".join(traceback.format_exception(exc))
+        path.write_text(text, encoding="utf-8", errors="backslashreplace")
+    except OSError as why:
+        return f"(its traceback could not be saved: {why.strerror or why})"
+    return str(path)
+
+
+def _finish_output(status: int, prog: str) -> int:
+    """Flush standard output; a full disk or a closed pipe is one line, not "Exception ignored"."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        pass  # the reader took what it wanted (``| head``): nothing to say, as for ``cat``
+    except OSError as exc:
+        print(f"{prog}: error: standard output: {exc.strerror or exc}", file=sys.stderr)
+        status = status or 1
+    else:
+        return status
+    # what stays in the buffer would be written, and fail again, when Python exits
+    with contextlib.suppress(OSError, ValueError):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status.
 
     0 on success, 1 for bad input or a failed run (a file, key or value at fault, a
     calibration that drifted), 2 for a malformed command line (an unknown, missing or
-    out-of-range option), 130 when interrupted (Ctrl-C, SIGTERM) before the output was complete (0
-    after). Every error is one line on stderr,
-    ``workbench COMMAND: error: WHAT: why``, and a failed run writes nothing.
+    out-of-range option), 70 for an internal error (a bug: the traceback is saved to a file
+    named in the line), 130 when interrupted (Ctrl-C, SIGTERM) before the output was complete
+    (0 after). Every error is one line on stderr, ``workbench COMMAND: error: WHAT: why``, and a
+    failed run writes nothing.
     """
-    epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    if epoch is not None and not epoch.strip().isdigit():
-        # read by ReportLab when it loads, and by every PDF's date line: say so before either fails
-        print(
-            f"workbench: error: SOURCE_DATE_EPOCH={epoch!r}: must be whole seconds since 1970-01-01 UTC "
-            "(reproducible builds), or unset",
-            file=sys.stderr,
-        )
-        return 1
-    use_writable_caches()  # before a command's modules load numba and matplotlib
     args_in = sys.argv[1:] if argv is None else argv
     first = next((a for a in args_in if not a.startswith("-")), None)
-    parser = build_parser(first if first in COMMANDS else None)
     # name the subcommand in usage errors too, which argparse reports before `args` exists
     prog = f"workbench {first}" if first in COMMANDS else "workbench"
+    speak_the_terminals_language(sys.stdout, sys.stderr)
     with signals_handled() as written:
         try:
-            _refuse_empty_outputs(args_in)
-            args = parser.parse_args(argv)
-            if args.command is None:
-                parser.print_help()
-                return 2
-            prog = f"workbench {args.command}"
-            return _run_quietly(args)
+            status = _main(argv, args_in, first)
         except WorkbenchError as exc:
-            print(f"{prog}: error: {exc}", file=sys.stderr)
-            return exc.exit_status
+            print(f"{prog}: error: {one_line(str(exc))}", file=sys.stderr)
+            status = exc.exit_status
         except MemoryError:
             # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
             print(f"{prog}: error: out of memory; nothing written (lower the resolution or the size)", file=sys.stderr)
-            return 1
+            status = 1
         except KeyboardInterrupt:
             # Ctrl-C or SIGTERM: a write undoes itself (no temporary left) unless its renames
             # were done, and then the output is complete: that is what the user needs to know
             if written:
                 done = ", ".join(map(str, written))
                 print(f"{prog}: interrupted after writing {done}, which is complete", file=sys.stderr)
-                return 0
-            print(f"{prog}: interrupted; nothing written", file=sys.stderr)
-            return 130
+                status = 0
+            else:
+                print(f"{prog}: interrupted; nothing written", file=sys.stderr)
+                status = 130
+        except SystemExit as exc:
+            # argparse's --help and --version: their text is on stdout, which may still fail to flush
+            status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        except ImportError as exc:
+            if (exc.name or "").startswith("workbench"):
+                status = _internal_error(prog, exc)  # our own module: a bug
+            else:
+                # a library that cannot load: under a memory limit its shared objects cannot be mapped
+                why = one_line(str(exc))
+                print(f"{prog}: error: a library could not be loaded ({why}); nothing written", file=sys.stderr)
+                status = 1
+        except Exception as exc:
+            status = _internal_error(prog, exc)
+    return _finish_output(status, prog)
+
+
+def _internal_error(prog: str, exc: BaseException) -> int:
+    """A bug: one line that says so and where its traceback is, never the traceback itself."""
+    report = _crash_report(prog, exc)
+    print(
+        f"{prog}: internal error: {type(exc).__name__}: {one_line(str(exc))}; nothing written; "
+        f"please report it with {report}",
+        file=sys.stderr,
+    )
+    return INTERNAL_ERROR
+
+
+def _main(argv: list[str] | None, args_in: list[str], first: str | None) -> int:
+    """:func:`main` inside its error handling: the environment checked, the command run."""
+    release_early_signals()  # a Ctrl-C while Python started is raised here, and reported
+    check_current_folder()
+    keep_owner_permissions()
+    check_thread_counts(os.environ)
+    source_date_epoch(os.environ)  # read by ReportLab when it loads, and by every PDF's date line
+    use_writable_caches()  # before a command's modules load numba and matplotlib
+    load_reportlab(os.environ)
+    parser = build_parser(first if first in COMMANDS else None)
+    _refuse_empty_outputs(args_in)
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    return _run_quietly(args)
+
+
+def _is_the_command() -> bool:
+    """Whether this process is the ``workbench`` command (its script, or ``python -m workbench``)."""
+    main_module = sys.modules.get("__main__")
+    spec = getattr(main_module, "__spec__", None)
+    if spec is not None:
+        return spec.name == "workbench.__main__"
+    return Path(sys.argv[0] if sys.argv else "").name == "workbench"
+
+
+# the command's own process takes Ctrl-C and SIGTERM from its first moment; a program that
+# imports this module (a test, a notebook) keeps its own handlers
+if _is_the_command():
+    take_signals_early()

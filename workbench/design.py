@@ -500,12 +500,16 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     ]
     t["read"] = time.perf_counter() - t0
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")
+    # said with the fit's warnings at the end (and refused by --strict there)
+    implausible = view_image_warnings(images, [f"{job.path}: views[{i}].image" for i in range(len(images))])
 
     if forming_profile is not None:
         # before the minutes of work: a profile of another part, dpi or material
         read_checked_profile(job, forming_profile)
     if job.films is not None:
-        return _design_films(job, V, F, images, say, t, forming_profile)
+        result = _design_films(job, V, F, images, say, t, forming_profile)
+        result.warnings[:0] = implausible
+        return result
 
     t0 = time.perf_counter()
     auto = job.object.corners == "auto"
@@ -556,6 +560,7 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
         film = film_mask(grid.to_pixels(flat.uv), F, rows, cols)
     t["synthesis"] = time.perf_counter() - t0
     return DesignResult(
+        warnings=implausible,
         compensation=compensation,
         V=V,
         F=F,
@@ -688,6 +693,48 @@ def background_share(result: DesignResult) -> float:
 def film_area_mm2(flat: FlattenResult) -> float:
     """Area of the film inside its outline, mm² (the rectangle's, or the free outline's)."""
     return float(np.abs(signed_areas(flat.uv, flat.F)).sum())
+
+
+# a view image's largest side over its smallest beyond which it is taken for a mistake: cameras
+# make 1:1 to 1:4 (a panorama about 1:8); a 400000 x 2 px image is a line, not a view
+MAX_VIEW_ASPECT = 20.0
+# the peak-to-peak grey levels under which a view image is one flat colour (8-bit JPEG noise on a
+# flat area is 1 to 2 levels)
+FLAT_IMAGE_LEVELS = 2
+
+
+def view_image_warnings(images: list[np.ndarray], names: list[str]) -> list[str]:
+    """Why a view image looks like a mistake, one sentence each; empty when none does.
+
+    Parameters
+    ----------
+    images : list of (H, W, 3) uint8
+        The view images, RGB.
+    names : list of str
+        What to call each (the job key).
+
+    Returns
+    -------
+    list of str
+        An image of one flat colour (no picture to print), an aspect beyond MAX_VIEW_ASPECT.
+    """
+    out = []
+    for img, name in zip(images, names, strict=True):
+        h, w = img.shape[:2]
+        if max(h, w) > MAX_VIEW_ASPECT * min(h, w):
+            out.append(
+                f"{name} is {w} x {h} px, an aspect of {max(h, w) / min(h, w):.0f}:1: a camera's picture is at most "
+                f"about 8:1 (a panorama); beyond {MAX_VIEW_ASPECT:g}:1 it is taken for a mistake"
+            )
+        span = img.reshape(-1, img.shape[-1])
+        spread = int((span.max(axis=0).astype(int) - span.min(axis=0)).max())
+        if spread <= FLAT_IMAGE_LEVELS:
+            rgb = tuple(int(c) for c in span[0])
+            out.append(
+                f"{name} is one flat colour (every pixel within {FLAT_IMAGE_LEVELS} grey levels of RGB {rgb}): "
+                "there is no picture to print from it"
+            )
+    return out
 
 
 def fit_warnings(result: DesignResult, max_stretch: float | None, names: list[str] | None = None) -> list[str]:

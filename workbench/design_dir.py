@@ -12,6 +12,7 @@ from workbench import schemas
 from workbench.atomic import MANIFEST, folder_manifest, safe_name
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
+from workbench.image_file import decode_upright, imread, read_file_bytes
 from workbench.jsonfile import read_json
 from workbench.mesh.io import read_mesh
 from workbench.printing.boards import load_board
@@ -100,7 +101,7 @@ class Design:
             if not np.isfinite(arr).all():
                 raise WorkbenchError(f"{directory / name}: vertices have NaN or infinite coordinates")
         self.flat = flat[:, :2]
-        img = cv2.imread(str(directory / "print.png"), cv2.IMREAD_UNCHANGED)
+        img = imread(directory / "print.png")
         if img is not None and img.dtype == np.uint16:  # as IMREAD_COLOR would: 8 bits
             img = (img // 257).astype(np.uint8)
         if img is not None and img.ndim == 2:
@@ -116,7 +117,7 @@ class Design:
                 f"{directory / 'print.png'}: {self.rgb.shape[1]} x {self.rgb.shape[0]} px, design.json says "
                 f"{p['width_px']} x {p['height_px']}"
             )
-        owner = cv2.imread(str(directory / "owner.png"), cv2.IMREAD_UNCHANGED)
+        owner = imread(directory / "owner.png")
         # owning view + 1 per print pixel, 0 for none (see design); validate needs it, render does not
         self.owner = None if owner is None else owner.astype(np.int16) - 1
         if self.owner is not None and (
@@ -131,7 +132,7 @@ class Design:
         """The image of designed view ``index`` (RGB), as the design used it."""
         name = self.info["views"][index]["name"]
         path = self.dir / f"view-{safe_name(name)}.png"
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        img = imread(path, cv2.IMREAD_COLOR)
         if img is None:
             raise WorkbenchError(f"{path}: missing; rerun workbench design")
         return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
@@ -309,11 +310,11 @@ def read_image(path, what: str, background: tuple[int, int, int] = (255, 255, 25
         raise WorkbenchError(f"{what}: {path} is a directory, not an image")
     check_image_size(path, what)
     try:
-        data = np.fromfile(str(path), dtype=np.uint8)
+        data = read_file_bytes(path)
     except OSError:
-        data = np.zeros(0, np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    if img is None or img.size == 0:
+        data = b""
+    img = decode_upright(data)  # upright as its EXIF orientation says, as every viewer shows it
+    if img is None:
         raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")
     if img.dtype != np.uint8:  # 16-bit or float: as IMREAD_COLOR would, 8 bits
         img = np.clip(img.astype(np.float64) / (257.0 if img.dtype == np.uint16 else 1.0 / 255.0), 0, 255)

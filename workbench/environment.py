@@ -1,4 +1,6 @@
-"""Where numba and matplotlib keep their caches when neither the install nor HOME is writable.
+"""The process's environment made safe before a command runs: caches, umask, threads, encoding, dates.
+
+Where numba and matplotlib keep their caches when neither the install nor HOME is writable:
 
 numba compiles the per-pixel loops once and caches them beside the source (``__pycache__``)
 or in the user's cache folder; with neither writable (a read-only install, a service
@@ -10,9 +12,13 @@ temporary folder, before either loads, and only where the usual places cannot be
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from pathlib import Path
+
+from workbench.errors import WorkbenchError
+from workbench.text import ASCII_ERRORS
 
 
 def _can_create(path: Path) -> bool:
@@ -23,8 +29,38 @@ def _can_create(path: Path) -> bool:
     return False
 
 
+def cache_dir(environ) -> Path:
+    """The workbench's own cache folder: ``$XDG_CACHE_HOME/workbench`` (``~/.cache/workbench``).
+
+    Where that cannot be made (a read-only or file HOME), a folder of this user's under the
+    system's temporary folder. Third-party caches (matplotlib's fonts, Mitsuba's kernels)
+    live under it, never in HOME directly.
+
+    Parameters
+    ----------
+    environ : dict
+        The environment (``os.environ``).
+
+    Returns
+    -------
+    Path
+        The folder (not created here).
+    """
+    home = Path(environ.get("HOME") or "~").expanduser()
+    xdg = Path(environ.get("XDG_CACHE_HOME") or home / ".cache") / "workbench"
+    if xdg.is_absolute() and _can_create(xdg):
+        return xdg
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    return Path(tempfile.gettempdir()) / f"workbench-cache-{uid}"
+
+
 def cache_environment(environ: dict, package_dir: Path) -> dict[str, str]:
-    """The variables to set so that numba and matplotlib find a writable cache.
+    """The variables to set so that numba and matplotlib find a writable cache of the workbench's.
+
+    matplotlib's folder is always the workbench's (:func:`cache_dir`): a user's
+    ``matplotlibrc`` would otherwise change the bytes of every figure, and its font cache is
+    then not written into HOME. numba keeps its first choice, beside the installed source,
+    where that is writable.
 
     Parameters
     ----------
@@ -36,20 +72,18 @@ def cache_environment(environ: dict, package_dir: Path) -> dict[str, str]:
     Returns
     -------
     dict of str to str
-        ``NUMBA_CACHE_DIR`` and ``MPLCONFIGDIR`` where they are needed; empty when the usual places do.
+        ``MPLCONFIGDIR`` unless set, and ``NUMBA_CACHE_DIR`` where the usual places cannot be written.
     """
     home = Path(environ.get("HOME") or "~").expanduser()
     xdg_cache = Path(environ.get("XDG_CACHE_HOME") or home / ".cache")
-    xdg_config = Path(environ.get("XDG_CONFIG_HOME") or home / ".config")
-    uid = os.getuid() if hasattr(os, "getuid") else 0
-    fallback = Path(tempfile.gettempdir()) / f"workbench-cache-{uid}"
+    ours = cache_dir(environ)
     out = {}
     if "NUMBA_CACHE_DIR" not in environ:
         in_tree = any(_can_create(d / "__pycache__") for d in (package_dir, package_dir / "validate"))
         if not in_tree and not _can_create(xdg_cache / "numba"):
-            out["NUMBA_CACHE_DIR"] = str(fallback / "numba")
-    if "MPLCONFIGDIR" not in environ and not _can_create(xdg_config / "matplotlib"):
-        out["MPLCONFIGDIR"] = str(fallback / "matplotlib")
+            out["NUMBA_CACHE_DIR"] = str(ours / "numba")
+    if "MPLCONFIGDIR" not in environ:
+        out["MPLCONFIGDIR"] = str(ours / "matplotlib")
     return out
 
 
@@ -57,3 +91,118 @@ def use_writable_caches() -> None:
     """Set :func:`cache_environment`'s variables in this process (before numba or matplotlib loads)."""
     for key, value in cache_environment(dict(os.environ), Path(__file__).parent).items():
         os.environ[key] = value
+
+
+def load_reportlab(environ) -> None:
+    """Load ReportLab with its user settings out of reach.
+
+    ReportLab runs ``~/.reportlab_mods`` and ``~/.reportlab_settings`` when it loads: a user's
+    settings there would change the bytes of every PDF, and a HOME that is a file made the
+    load fail. It is loaded once, here, with HOME at the workbench's cache.
+    """
+    with home_for_a_library(cache_dir(environ) / "reportlab"):
+        import reportlab.rl_config  # noqa: F401
+
+
+@contextlib.contextmanager
+def home_for_a_library(folder: Path):
+    """Run with ``HOME`` pointing at ``folder`` (made if needed), then put it back.
+
+    Dr.Jit (Mitsuba) keeps its kernel cache in ``$HOME/.drjit`` and reads HOME once, when it
+    loads; giving it the workbench's cache folder there keeps it out of the user's HOME.
+    """
+    before = os.environ.get("HOME")
+    with contextlib.suppress(OSError):
+        folder.mkdir(parents=True, exist_ok=True)
+    os.environ["HOME"] = str(folder)
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("HOME", None)
+        else:
+            os.environ["HOME"] = before
+
+
+# --- the rest of the environment, checked before a command runs ---------------------------
+
+# the latest second datetime can write (9999-12-31T23:59:59Z); later is no date a page can print
+_LAST_EPOCH = 253402300799
+
+# the thread counts numba, OpenMP and the BLAS libraries read when they load: 0 or a word
+# makes numba raise at import and OpenBLAS print its own fatal line
+THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def source_date_epoch(environ) -> int | None:
+    """``SOURCE_DATE_EPOCH`` (reproducible builds) as whole seconds, or None when unset.
+
+    Raises
+    ------
+    WorkbenchError
+        The value is not ASCII digits (``"²"`` passes ``str.isdigit``), or lies beyond year 9999.
+    """
+    epoch = environ.get("SOURCE_DATE_EPOCH")
+    if epoch is None:
+        return None
+    text = epoch.strip()
+    if not text or not (text.isascii() and text.isdigit()) or int(text) > _LAST_EPOCH:
+        raise WorkbenchError(
+            f"SOURCE_DATE_EPOCH={epoch!r}: must be whole seconds since 1970-01-01 UTC up to year 9999 "
+            "(reproducible builds), or unset"
+        )
+    return int(text)
+
+
+def check_thread_counts(environ) -> None:
+    """Refuse a thread count the numeric libraries cannot start with (``OMP_NUM_THREADS=0``).
+
+    A count is a positive whole number, or for OpenMP a comma-separated list of them (nested levels).
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the variable and its value.
+    """
+    for key in THREAD_VARIABLES:
+        value = environ.get(key)
+        if value is None:
+            continue
+        parts = value.strip().split(",") if key == "OMP_NUM_THREADS" else [value.strip()]
+        if not all(p.strip().isascii() and p.strip().isdigit() and int(p) > 0 for p in parts):
+            raise WorkbenchError(f"{key}={value!r}: must be a positive whole number of threads, or unset")
+
+
+def check_current_folder() -> None:
+    """Refuse to start in a current folder that no longer exists (removed under the shell).
+
+    Every relative path, and the default output names, are read from it.
+    """
+    try:
+        os.getcwd()
+    except OSError as exc:
+        raise WorkbenchError(
+            f"the current folder cannot be read ({exc.strerror or exc}); change to an existing folder"
+        ) from None
+
+
+def keep_owner_permissions() -> None:
+    """Clear the owner's bits from the umask, keeping the group's and others'.
+
+    With ``umask 777`` every folder the command makes is closed to its owner too, so its own
+    temporary folder cannot be written; an output its owner cannot read is never what was meant.
+    """
+    old = os.umask(0o077)
+    os.umask(old & 0o077)
+
+
+def speak_the_terminals_language(*streams) -> None:
+    """Make the streams spell what their encoding cannot show in ASCII instead of raising.
+
+    Under ``LANG=C`` or ``PYTHONIOENCODING=latin-1`` printing ``mm²`` or ``✓`` raised
+    ``UnicodeEncodeError``. A stream that can encode everything is left as it is.
+    """
+    for stream in streams:
+        if stream is not None and hasattr(stream, "reconfigure"):
+            with contextlib.suppress(ValueError, OSError):
+                stream.reconfigure(errors=ASCII_ERRORS)

@@ -15,6 +15,7 @@ from workbench.camera import Camera
 from workbench.conformal.flatten import ScaleMode
 from workbench.errors import UsageError, WorkbenchError
 from workbench.mesh.io import UNITS_MM
+from workbench.text import printable
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,7 @@ class Job:
     @property
     def name(self) -> str:
         """The file's name, or its folder's when the file is just ``job.toml``."""
-        return self.path.parent.name if self.path.stem == "job" else self.path.stem
+        return printable(self.path.parent.name if self.path.stem == "job" else self.path.stem)
 
 
 def _finite(value: float) -> bool:
@@ -126,6 +127,20 @@ def _finite(value: float) -> bool:
         return math.isfinite(float(value))
     except OverflowError:
         return False
+
+
+# the farthest a job's camera or fixture may be from the mesh's origin, mm (1 km): beyond it no
+# photo sees the part, and a typo (a unit, an exponent) is the likelier reading
+MAX_COORDINATE_MM = 1e6
+
+
+def real_path(path: Path, key: str = "") -> Path:
+    """``path`` absolute with every symbolic link followed; a link that loops is one line naming it (and ``key``)."""
+    try:
+        return Path(path).resolve()
+    except (RuntimeError, OSError):  # Python 3.11 raises RuntimeError("Symlink loop ...")
+        at = f"{key}: " if key else ""
+        raise WorkbenchError(f"{at}{path}: a symbolic link that loops back on itself") from None
 
 
 class _Reader:
@@ -195,7 +210,7 @@ class _Reader:
         value = self.string(key, required=required)
         if value is None:
             return None
-        path = (self.path.parent / value).resolve()
+        path = real_path(self.path.parent / value, f"{self.path}: {self.where}.{key}")
         if path.is_dir():
             self.fail(f"{value!r} is a directory, not a file ({path})", key)
         if not path.is_file():
@@ -269,12 +284,18 @@ def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
             "up": r.vector("up", 3),
             "fov_deg": r.number("fov_deg", lo=0, hi=180),
         }
+        for k in ("position", "look_at"):
+            far = float(np.abs(camera[k]).max())
+            if far > MAX_COORDINATE_MM:
+                r.fail(f"{far:g} mm from the origin: a camera beyond {MAX_COORDINATE_MM / 1e6:g} km sees no part", k)
         d = camera["look_at"] - camera["position"]
         if np.linalg.norm(d) == 0:
             r.fail("look_at must differ from position", "look_at")
-        if np.linalg.norm(np.cross(d, camera["up"])) <= 1e-9 * np.linalg.norm(d) * max(
-            np.linalg.norm(camera["up"]), 1e-300
-        ):
+        if not np.any(camera["up"]):
+            r.fail("must not be zero", "up")
+        # the sine of the angle between the two, each scaled to length 1 first (no overflow, no units)
+        d_unit, up_unit = d / np.linalg.norm(d), camera["up"] / np.linalg.norm(camera["up"])
+        if np.linalg.norm(np.cross(d_unit, up_unit)) <= 1e-9:
             r.fail("up must not be parallel to the viewing direction", "up")
     elif intr:
         for k in sorted(VIEW_K_KEYS - intr):
@@ -311,16 +332,19 @@ def load_job(path: str | Path) -> Job:
         Unreadable TOML, unknown keys, missing files, impossible values; the message
         names the file and the key.
     """
-    path = Path(path).resolve()
+    path = real_path(Path(path))
     if path.is_dir():
         raise WorkbenchError(f"{path}: is a directory, not a job file")
     if not path.is_file():
         raise WorkbenchError(f"{path}: no such job file")
     data = path.read_bytes()
     try:
-        doc = tomllib.loads(data.decode("utf-8"))
+        # utf-8-sig: an editor's byte-order mark is not the first statement of the file
+        doc = tomllib.loads(data.decode("utf-8-sig"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise WorkbenchError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise WorkbenchError(f"{path}: not valid TOML: nested deeper than a job can be") from None
     top = _Reader(path, "job", doc, {"object", "print", "views", "fixture", "films"})
 
     o = _Reader(

@@ -253,7 +253,7 @@ def recorded_path(path: str | Path, folder: str | Path) -> str:
     to another machine with the hashes recorded next to each path) still says what it was
     made from; absolute paths of the machine that made it would point nowhere.
     """
-    return Path(os.path.relpath(Path(path).resolve(), Path(folder).resolve())).as_posix()
+    return Path(os.path.relpath(os.path.realpath(path), os.path.realpath(folder))).as_posix()
 
 
 def resolve_recorded(text: str, json_file: str | Path) -> Path:

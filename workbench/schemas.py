@@ -31,7 +31,7 @@ PRINTER_PROFILE = {"scale_x": _SCALE, "scale_y": _SCALE, "name": Field("string",
 BOARD = {
     "dictionary": Field("string", hint="an OpenCV ArUco dictionary, e.g. DICT_5X5_250"),
     "squares": Field("array", shape=(2,), integer=True, lo=3, hi=1000, hint="[nx, ny]"),
-    "square_mm": Field("number", lo=1e-3, hi=10_000),
+    "square_mm": Field("number", lo=2.0, hi=10_000),
     "marker_mm": Field("number", lo=1e-3, hi=10_000),
     "first_id": Field("integer", required=False, default=0, lo=0),
     "charuco_corners": Field("object", fields={"board_mm": Field("array", shape=(None, 2), min_len=4)}),
@@ -48,12 +48,14 @@ CHESSBOARD = {
 
 # the [fixture] table of a job file (TOML): every key optional
 JOB_FIXTURE = {
-    "square_mm": Field("number", required=False, default=20.0, lo=0.1, hi=1000),
+    # at least 2 mm: below it a board can be neither printed nor found (printing.boards.MIN_SQUARE_MM)
+    "square_mm": Field("number", required=False, default=20.0, lo=2.0, hi=1000),
     "squares": Field("array", required=False, shape=(2,), integer=True, lo=3, hi=1000, hint="[nx, ny]"),
     "marker_mm": Field("number", required=False, lo=0.01, hi=1000),
     "dictionary": Field("string", required=False, default="DICT_5X5_250"),
     "first_id": Field("integer", required=False, default=0, lo=0),
-    "origin_mm": Field("array", required=False, shape=(3,), hint="[x, y, z] in mm"),
+    # within 1 km of the mesh's origin (job.MAX_COORDINATE_MM): farther, no photo sees board and part
+    "origin_mm": Field("array", required=False, shape=(3,), lo=-1e6, hi=1e6, hint="[x, y, z] in mm"),
     # the colour chart's slot beside the board (validate's colour QA), or "none"
     "colour_chart": Field(
         "string", required=False, default="ColorChecker Classic 24", choices=("ColorChecker Classic 24", "none")

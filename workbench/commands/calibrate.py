@@ -25,6 +25,7 @@ from workbench.calibration import (
 from workbench.camera import intrinsics_problem
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_dpi
+from workbench.image_file import imread
 from workbench.jsonfile import check, read_json, recorded_path, resolve_recorded
 from workbench.options import Number
 from workbench.printing.boards import load_board
@@ -106,8 +107,7 @@ def _log(args):
 def _gray(path: Path) -> np.ndarray:
     if path.is_dir():
         raise WorkbenchError(f"{path}: is a directory, not an image")
-    data = np.fromfile(str(path), dtype=np.uint8) if path.is_file() else np.zeros(0, np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
+    img = imread(path, cv2.IMREAD_GRAYSCALE) if path.is_file() else None
     if img is None:
         raise WorkbenchError(f"{path}: cannot read image" + ("" if path.exists() else " (no such file)"))
     return img

@@ -19,6 +19,7 @@ from workbench.design import background_share, design, film_area_mm2, fit_warnin
 from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
+from workbench.image_file import file_orientation
 from workbench.job import load_job
 from workbench.jsonfile import recorded_path
 from workbench.mesh.io import format_obj
@@ -150,6 +151,8 @@ def run(args) -> int:
             {"file": recorded_path(p, out), "sha256": hashlib.sha256(p.read_bytes()).hexdigest()}
             for p in (job.object.mesh, *(v.image for v in job.views))
         ],
+        # each view image as it was used: turned upright by its EXIF orientation (1: as stored)
+        "view_image_orientation": [file_orientation(v.image) for v in job.views],
         "print": {
             "width_mm": flat.width_mm,
             "height_mm": flat.height_mm,

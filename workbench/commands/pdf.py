@@ -12,6 +12,7 @@ from workbench import schemas
 from workbench.atomic import check_output_dir, check_outputs, write_files, write_folder
 from workbench.design_dir import design_files, read_design_json
 from workbench.errors import UsageError, WorkbenchError
+from workbench.image_file import imread
 from workbench.mesh.io import read_mesh
 from workbench.mesh.topology import boundary_loops
 from workbench.options import Number
@@ -151,7 +152,7 @@ def load_design(directory: Path) -> tuple[dict, np.ndarray, np.ndarray | None]:
         if not path.is_file():
             raise WorkbenchError(f"{path}: missing; is {directory} the output of workbench design?")
     info = read_design_json(info_path, schemas.DESIGN_PRINT)
-    img = cv2.imread(str(png_path), cv2.IMREAD_UNCHANGED)
+    img = imread(png_path)
     if img is None:
         raise WorkbenchError(f"{png_path}: cannot read the print image")
     expected = (info["print"]["height_px"], info["print"]["width_px"])
@@ -194,7 +195,7 @@ def film_pages(directory: Path, info: dict, pattern: np.ndarray | None = None) -
             width_mm, height_mm, name = f["width_mm"], f["height_mm"], f["name"]
         except (KeyError, TypeError) as exc:
             raise WorkbenchError(f"{directory / 'design.json'}: films[{k}]: missing {exc}") from None
-        img = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+        img = imread(png)
         if img is None or img.ndim != 3 or img.shape[:2] != size:
             raise WorkbenchError(f"{png}: missing, unreadable or not {size[1]} x {size[0]} px; rerun workbench design")
         if pattern is not None:
@@ -245,7 +246,7 @@ def calibration_design(directory: Path, info: dict, film, out: Path) -> tuple[np
     for f in info.get("films") or []:
         # each film's print: its part of the atlas's pattern, its own outline
         r0, c0 = f["atlas_px"]
-        own = cv2.imread(str(directory / f["print"]), cv2.IMREAD_UNCHANGED)
+        own = imread(directory / f["print"])
         if own is None or own.shape[:2] != (f["height_px"], f["width_px"]):
             raise WorkbenchError(f"{directory / f['print']}: missing or not the film's print; rerun workbench design")
         crop = rgb[r0 : r0 + f["height_px"], c0 : c0 + f["width_px"]]

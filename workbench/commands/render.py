@@ -22,6 +22,7 @@ from workbench.options import Number, parse_number, parse_numbers, parse_part_of
 from workbench.render.defects import Defect
 from workbench.render.imperfections import REALISTIC, Imperfections
 from workbench.render.photo import render_photo
+from workbench.text import ascii_text
 
 
 def add_parser(sub) -> None:
@@ -558,7 +559,7 @@ def previews(args, design: Design, imp: Imperfections, fixture: bool, log, rende
         h = 300
         tile = cv2.resize(rgb, (int(round(rgb.shape[1] * h / rgb.shape[0])), h), interpolation=cv2.INTER_AREA)
         tile = cv2.copyMakeBorder(tile, 30, 6, 6, 6, cv2.BORDER_CONSTANT, value=(255, 255, 255))
-        cv2.putText(tile, name, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (20, 20, 20), 1, cv2.LINE_AA)
+        cv2.putText(tile, ascii_text(name), (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (20, 20, 20), 1, cv2.LINE_AA)
         tiles.append(tile)
     sheet = np.hstack(tiles)
     files[out / "contact_sheet.png"] = png_bytes(sheet)

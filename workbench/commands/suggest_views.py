@@ -12,10 +12,11 @@ import numpy as np
 from workbench import __version__
 from workbench.atomic import check_outputs, write_files
 from workbench.design import _read_faces, assign_job_views, read_image
-from workbench.errors import UsageError
+from workbench.errors import UsageError, WorkbenchError
 from workbench.job import load_job
 from workbench.mesh.io import read_mesh
 from workbench.options import Number, parse_numbers
+from workbench.text import ascii_text
 from workbench.views.suggest import (
     Coverage,
     Remaining,
@@ -233,13 +234,13 @@ def suggestions_figure(
         h, w = min(small.height, side), min(small.width, side)
         r0, c0 = 40 + (side - h) // 2, (side - w) // 2
         tile[r0 : r0 + h, c0 : c0 + w] = np.round(255 * img[:h, :w]).astype(np.uint8)
-        cv2.putText(tile, label, (8, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(tile, ascii_text(label), (8, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
         tiles.append(tile)
     body = np.concatenate(tiles, axis=1)
     head = np.full((56, body.shape[1], 3), 255, np.uint8)
     legend = "grey: owned by the job's views; red: undecorated; colour: what a suggestion would own"
     for row, text in ((22, title), (46, legend)):
-        cv2.putText(head, text, (8, row), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(head, ascii_text(text), (8, row), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
     return png_bytes(np.concatenate([head, body], axis=0))
 
 
@@ -281,7 +282,7 @@ def run(args) -> int:
     if out is not None:
         templates = [out.with_name(f"{name}.png") for name in names]
         check_outputs(*templates, inputs=inputs)
-        rel = [os.path.relpath(p.resolve(), job.path.parent) for p in templates]
+        rel = [os.path.relpath(os.path.realpath(p), job.path.parent) for p in templates]
     else:
         templates, rel = [], [f"{name}.png" for name in names]
     text = view_tables(job, rem, suggestions, names, rel, options)
@@ -292,7 +293,13 @@ def run(args) -> int:
             f"{cov.camera.width} x {cov.camera.height} px"
         )
     if out is None:
-        sys.stdout.write(text)
+        try:
+            sys.stdout.write(text)
+            sys.stdout.flush()
+        except BrokenPipeError:
+            return 0  # the reader took what it wanted (``| head``)
+        except OSError as exc:
+            raise WorkbenchError(f"standard output: {exc.strerror or exc}; give -o FILE.toml") from None
         return 0
     from workbench.export import png_bytes
 

@@ -157,7 +157,7 @@ def output_stems(photos: list[Path]) -> list[str]:
     """
     own = [safe_name(p.stem) for p in photos]
     stems = [
-        safe_name(f"{p.resolve().parent.name}_{p.stem}") if own.count(s) > 1 else s
+        safe_name(f"{Path(os.path.realpath(p)).parent.name}_{p.stem}") if own.count(s) > 1 else s
         for p, s in zip(photos, own, strict=True)
     ]
     return [f"{s}-{k + 1}" if stems.count(s) > 1 else s for k, s in enumerate(stems)]

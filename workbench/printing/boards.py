@@ -39,6 +39,22 @@ class BoardError(WorkbenchError):
         self.key = key
 
 
+# the smallest board square: a ChArUco marker (0.75 of the square, 7 cells across with its border)
+# then has cells of 0.21 mm, 5 dots of a 600 dpi printer, and a camera that resolves the board
+# whole sees each cell in under a pixel; below it the board cannot be printed or found
+MIN_SQUARE_MM = 2.0
+
+
+def check_square_mm(square_mm: float) -> None:
+    """Refuse a board square smaller than :data:`MIN_SQUARE_MM` (BoardError on ``square_mm``)."""
+    if square_mm < MIN_SQUARE_MM:
+        raise BoardError(
+            "square_mm",
+            f"{square_mm:g} mm is below {MIN_SQUARE_MM:g} mm: a board that small can be neither printed "
+            "nor found in a photo",
+        )
+
+
 @dataclass(frozen=True)
 class CharucoSpec:
     """A ChArUco board.
@@ -77,8 +93,13 @@ class CharucoSpec:
             raise BoardError(
                 "dictionary", f"unknown ArUco dictionary {self.dictionary!r}; e.g. DICT_5X5_250, DICT_6X6_1000"
             )
+        check_square_mm(self.square_mm)
         n_markers = (nx * ny) // 2
         size = dictionary_size(self.dictionary)
+        if n_markers > size:  # too many squares whatever the first id: the squares are at fault
+            raise BoardError(
+                "squares", f"{nx} x {ny} squares need {n_markers} markers; {self.dictionary} has {size} ids"
+            )
         if self.first_id < 0 or self.first_id + n_markers > size:
             raise BoardError(
                 "first_id", f"{n_markers} markers from id {self.first_id} do not fit in {self.dictionary} ({size} ids)"
@@ -131,6 +152,7 @@ class ChessboardSpec:
             raise WorkbenchError(f"a chessboard needs at least 3 x 3 squares, got {nx} x {ny}")
         if not self.square_mm > 0:
             raise WorkbenchError(f"square_mm {self.square_mm} must be positive")
+        check_square_mm(self.square_mm)
 
     @classmethod
     def from_definition(cls, d: dict) -> ChessboardSpec:

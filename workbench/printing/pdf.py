@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from workbench import __version__, schemas
+from workbench.environment import source_date_epoch
 from workbench.jsonfile import read_json
 from workbench.printing.paper import choose_sheet
 from workbench.texture.outline import bleed_beyond_outline
@@ -144,8 +145,9 @@ def layout_sheet(width_mm: float, height_mm: float, bleed_mm: float, margin_mm: 
 
 def build_date() -> str:
     """Date printed on pages: SOURCE_DATE_EPOCH when set (reproducible builds), else today (UTC)."""
-    epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    when = datetime.datetime.fromtimestamp(int(epoch), datetime.UTC) if epoch else datetime.datetime.now(datetime.UTC)
+    epoch = source_date_epoch(os.environ)
+    now = datetime.datetime.now(datetime.UTC)
+    when = datetime.datetime.fromtimestamp(epoch, datetime.UTC) if epoch is not None else now
     return when.strftime("%Y-%m-%d")
 
 

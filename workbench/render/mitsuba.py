@@ -21,10 +21,13 @@ centre is at ``((j + 0.5) / w, (i + 0.5) / h)``.
 
 from __future__ import annotations
 
+import os
+
 import cv2
 import numpy as np
 
 from workbench.camera import Camera
+from workbench.environment import cache_dir, home_for_a_library
 from workbench.errors import WorkbenchError
 from workbench.render.imperfections import Imperfections
 from workbench.render.photo import TABLE_GREY, Scene, finish
@@ -51,14 +54,16 @@ def load_mitsuba():
     WorkbenchError
         Mitsuba 3 is not installed (or lacks the variant).
     """
-    try:
-        import mitsuba as mi
-    except ImportError:
-        raise WorkbenchError("--renderer mitsuba needs Mitsuba 3: pip install mitsuba") from None
-    if mi.variant() != VARIANT:
-        if VARIANT not in mi.variants():
-            raise WorkbenchError(f"--renderer mitsuba needs Mitsuba's {VARIANT} variant (have {mi.variants()})")
-        mi.set_variant(VARIANT)
+    # Dr.Jit writes its kernel cache into $HOME/.drjit when it loads: the workbench's cache instead
+    with home_for_a_library(cache_dir(os.environ) / "mitsuba"):
+        try:
+            import mitsuba as mi
+        except ImportError:
+            raise WorkbenchError("--renderer mitsuba needs Mitsuba 3: pip install mitsuba") from None
+        if mi.variant() != VARIANT:
+            if VARIANT not in mi.variants():
+                raise WorkbenchError(f"--renderer mitsuba needs Mitsuba's {VARIANT} variant (have {mi.variants()})")
+            mi.set_variant(VARIANT)
     return mi
 
 

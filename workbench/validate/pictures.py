@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from workbench.text import ascii_text
 from workbench.validate import print_warp
 
 # one colour per state of a print pixel (RGB), in dense's order
@@ -116,7 +117,7 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
         x, y = (int(round(v * px_per_mm)) for v in d["centre_mm"])
         cv2.circle(img, (x, y), int(11 * u), (255, 255, 255), cv2.FILLED, cv2.LINE_AA)
         cv2.circle(img, (x, y), int(11 * u), (220, 30, 30), max(2, int(2 * u)), cv2.LINE_AA)
-        (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.45 * u, _weight(u))
+        (tw, th), _ = _text_size(str(k + 1), _FONT, 0.45 * u, _weight(u))
         _text(img, str(k + 1), (x - tw // 2, y + th // 2), 0.45 * u, (0, 0, 0), _weight(u))
     img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
     on = state != print_warp.OFF_PART
@@ -130,7 +131,7 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
             entries.append((STATE_COLOURS[k], f"{name}: {100 * share:.1f} %"))
     # the legend below the map, in two columns filled one after the other where its lines fit
     col_w = img.shape[1] // 2
-    widest = max((cv2.getTextSize(t, _FONT, 0.45 * u, _weight(u))[0][0] for _, t in entries), default=0)
+    widest = max((_text_size(t, _FONT, 0.45 * u, _weight(u))[0][0] for _, t in entries), default=0)
     line = int(22 * u)
     half = (len(entries) + 1) // 2 if widest + int(80 * u) <= col_w else len(entries)
     legend = np.full((line * max(half, 1) + int(16 * u), img.shape[1], 3), 255, np.uint8)
@@ -225,7 +226,7 @@ def dense_heatmap(
         if len(c):
             cv2.polylines(img, [c.reshape(-1, 1, 2)], True, CYAN, max(2, int(1.5 * u)), cv2.LINE_AA)
             # beside the outline's top right, kept inside the picture
-            (tw, th), _ = cv2.getTextSize(str(k + 1), _FONT, 0.6 * u, 2 * _weight(u))
+            (tw, th), _ = _text_size(str(k + 1), _FONT, 0.6 * u, 2 * _weight(u))
             x = min(int(c[:, 0].max()) + 3, img.shape[1] - tw - 2)
             y = max(int(c[:, 1].min()), th + 2)
             _text(img, str(k + 1), (x, y), 0.6 * u, CYAN, 2 * _weight(u), outline=True)
@@ -384,8 +385,17 @@ def _weight(u: float) -> int:
     return max(1, int(round(u)))
 
 
+def _text_size(text: str, font: int, scale: float, thickness: int):
+    """``cv2.getTextSize`` of the text :func:`_text` draws (its ASCII spelling)."""
+    return cv2.getTextSize(ascii_text(text), font, scale, thickness)
+
+
 def _text(img, text: str, org, scale: float, colour=(0, 0, 0), thickness: int = 1, outline: bool = False) -> None:
-    """Text at ``org`` (its baseline's left end); ``outline``: a dark rim first, readable over any colour."""
+    """Text at ``org`` (its baseline's left end); ``outline``: a dark rim first, readable over any colour.
+
+    OpenCV's fonts draw ASCII only (and crash on a file name's undecodable byte): the text is spelled in ASCII.
+    """
+    text = ascii_text(text)
     if outline:
         cv2.putText(img, text, org, _FONT, scale, (0, 0, 0), thickness + 2, cv2.LINE_AA)
     cv2.putText(img, text, org, _FONT, scale, colour, thickness, cv2.LINE_AA)
@@ -393,7 +403,7 @@ def _text(img, text: str, org, scale: float, colour=(0, 0, 0), thickness: int = 
 
 def _vertical_text(text: str, scale: float, height: int, thickness: int = 1) -> np.ndarray:
     """A white strip with ``text`` written upwards, centred on ``height`` rows; (height, w, 3) uint8."""
-    (tw, th), base = cv2.getTextSize(text, _FONT, scale, thickness)
+    (tw, th), base = _text_size(text, _FONT, scale, thickness)
     strip = np.full((th + base + 8, max(tw + 8, height), 3), 255, np.uint8)
     _text(strip, text, ((strip.shape[1] - tw) // 2, th + 4), scale, thickness=thickness)
     strip = np.rot90(strip)  # reads from the bottom up
@@ -424,14 +434,14 @@ def _with_axes(img: np.ndarray, px_per_mm: float, xlabel: str, ylabel: str, u: f
     for k in range(0, int(cols / px_per_mm) + 1, 10):
         x = left + int(round(k * px_per_mm))
         out[rows : rows + int(6 * u), x : x + 2 * t] = 0
-        (tw, th), _ = cv2.getTextSize(str(k), _FONT, 0.45 * u, t)
+        (tw, th), _ = _text_size(str(k), _FONT, 0.45 * u, t)
         _text(out, str(k), (x - tw // 2, rows + int(8 * u) + th), 0.45 * u, thickness=t)
     for k in range(0, int(rows / px_per_mm) + 1, 10):
         y = int(round(k * px_per_mm))
         out[y : y + 2 * t, left - int(6 * u) : left] = 0
-        (tw, th), _ = cv2.getTextSize(str(k), _FONT, 0.45 * u, t)
+        (tw, th), _ = _text_size(str(k), _FONT, 0.45 * u, t)
         _text(out, str(k), (left - int(8 * u) - tw, min(max(y + th // 2, th + 1), rows - 1)), 0.45 * u, thickness=t)
-    (tw, _), _ = cv2.getTextSize(xlabel, _FONT, 0.5 * u, t)
+    (tw, _), _ = _text_size(xlabel, _FONT, 0.5 * u, t)
     _text(out, xlabel, (left + (cols - tw) // 2, rows + int(38 * u)), 0.5 * u, thickness=t)
     return np.concatenate([_vertical_text(ylabel, 0.5 * u, out.shape[0], t), out], axis=1)
 
@@ -439,10 +449,10 @@ def _with_axes(img: np.ndarray, px_per_mm: float, xlabel: str, ylabel: str, u: f
 def _titled(img: np.ndarray, title: str, u: float = 1.0) -> np.ndarray:
     """The image under a white band with the title, centred (smaller type when it is wider than the image)."""
     scale, t = 0.55 * u, _weight(u)
-    (tw, th), _ = cv2.getTextSize(title, _FONT, scale, t)
+    (tw, th), _ = _text_size(title, _FONT, scale, t)
     if tw > img.shape[1] - 10:
         scale *= (img.shape[1] - 10) / tw
-        (tw, th), _ = cv2.getTextSize(title, _FONT, scale, t)
+        (tw, th), _ = _text_size(title, _FONT, scale, t)
     band = np.full((th + int(18 * u), img.shape[1], 3), 255, np.uint8)
     _text(band, title, ((img.shape[1] - tw) // 2, th + int(8 * u)), scale, thickness=t)
     return np.concatenate([band, img], axis=0)

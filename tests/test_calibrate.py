@@ -402,3 +402,12 @@ def test_check_names_a_malformed_key_of_the_profile(synthetic, tmp_path, capsys)
         .err.strip()
         .endswith(f"{bad}: intrinsics_std.fx: must be a number from 0 to 1e+06 (standard deviation, px), got 'large'")
     )
+
+
+def test_check_with_one_photo_given_five_times(synthetic, capsys):
+    # issue 41: `KeyError: 'ok'` (the entries were found by name, and a photo given twice is one name)
+    out, _, new = synthetic
+    status = main(["calibrate", "check", str(out), *[str(new[0])] * 5])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status in (0, 1) and "Traceback" not in "\n".join(err) and "internal error" not in "\n".join(err)
+    assert sum("near-duplicate of" in line for line in err) == 4, err

@@ -446,6 +446,22 @@ def test_bad_input_is_one_line_and_writes_nothing(design, tmp_path):
     v3 = fake_validation(tmp_path / "v3", other)
     line = one_line_error(wb("calibrate", "forming", v1, v3, "-o", out))
     assert "a validation of another design" in line and "width_mm" in line
+    # the same mesh, print and dpi, another map of the surface (other corners): before, accepted
+    remapped = tmp_path / "remapped"
+    shutil.copytree(design, remapped)
+    flat = (remapped / "flat.obj").read_text().splitlines()
+    k = next(i for i, line in enumerate(flat) if line.startswith("v "))
+    x, y, z = map(float, flat[k].split()[1:4])
+    flat[k] = f"v {x + 0.01:.6f} {y:.6f} {z:.6f}"
+    (remapped / "flat.obj").write_text("\n".join(flat) + "\n")
+    v4 = fake_validation(tmp_path / "v4", remapped)
+    line = one_line_error(wb("calibrate", "forming", v1, v4, "-o", out))
+    assert "a validation of another design" in line and "map (flat.obj) differs" in line, line
+    # one sheet given twice, or its folder copied (issue 41: "repeatability 0.0000 mm" and exit 0)
+    shutil.copytree(tmp_path / "v1", tmp_path / "v1-copy")
+    for twice in ((v1, v1), (v1, tmp_path / "v1-copy")):
+        line = one_line_error(wb("calibrate", "forming", *twice, "-o", out))
+        assert "the same measurement as" in line and "give each formed sheet once" in line, line
     # a landing that is not the one validation.json records
     (tmp_path / "v1" / "landing.npz").write_bytes(b"junk")
     assert "its sha256 differs" in one_line_error(wb("calibrate", "forming", v1, "-o", out))

@@ -337,7 +337,9 @@ def test_a_view_image_too_small_for_the_print_warns(work, capsys):
     job = copy.deepcopy(BASE_JOB)
     job["views"][0]["image"] = "tiny.png"
     warnings = design_warnings(capsys, write_job(work, job), work / "out")
-    assert len(warnings) == 1 and warnings[0].startswith("view 'top' paints 98.0 % of the print at 0.28 dpi")
+    assert warnings[0].startswith("view 'top' paints 98.0 % of the print at 0.28 dpi")
+    # (one pixel is one flat colour too: issue 41's warning of a view image with no picture)
+    assert len(warnings) == 2 and "views[0].image is one flat colour" in warnings[1]
 
 
 def test_a_view_with_an_absurd_focal_length_warns(work, capsys):

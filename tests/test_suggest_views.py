@@ -325,3 +325,23 @@ def test_nothing_left_to_suggest(tmp_path, capsys):
     doc = tomllib.loads(out.read_text())
     assert "views" not in doc and "nothing to suggest: no surface is left" in out.read_text()
     assert "0.0 % of the surface" in capsys.readouterr().err
+
+
+def test_a_template_drawn_on_is_never_replaced(tmp_path, capsys):
+    # issue 41: `suggest-views -o out/s.toml` overwrote a user's out/suggest-1.png; a rerun that
+    # writes the same bytes is fine, a drawing on the template is kept and the run writes nothing
+    job = job_with_views(tmp_path, "default", ["logo"])
+    out = tmp_path / "s" / "s.toml"
+    args = ["suggest-views", str(job), "-o", str(out), "--size", "200x150", "--fov-deg", "20", "-q"]
+    assert main(args) == 0
+    first = {p.name: p.read_bytes() for p in out.parent.iterdir()}
+    assert "suggest-1.png" in first
+    assert main(args) == 0 and {p.name: p.read_bytes() for p in out.parent.iterdir()} == first
+    drawn = out.parent / "suggest-1.png"
+    drawn.write_bytes(b"a picture drawn on the template")
+    out.write_text("an earlier table")
+    capsys.readouterr()
+    assert main(args) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "suggest-1.png: exists and is not the template this run writes" in err[0]
+    assert drawn.read_bytes() == b"a picture drawn on the template" and out.read_text() == "an earlier table"

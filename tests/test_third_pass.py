@@ -223,3 +223,27 @@ def test_a_view_image_that_is_no_picture_warns_and_strict_fails(tmp_path, capsys
     line = one_line(capsys)
     expected = "is one flat colour" if shape == "flat" else "is 900 x 20 px, an aspect of 45:1"
     assert "views[0].image " + expected in line and not (tmp_path / "o").exists()
+
+
+# --- item 7: wrong answers refused ------------------------------------------------------------------
+
+
+def test_a_design_json_whose_dpi_was_edited_is_refused(tmp_path, capsys):
+    import json
+    import shutil
+
+    from test_fuzz import make_base
+
+    base = make_base(tmp_path / "base")
+    edited = tmp_path / "edited"
+    shutil.copytree(base / "design", edited)
+    info = json.loads((edited / "design.json").read_text())
+    info["print"]["dpi"] += 1
+    (edited / "design.json").write_text(json.dumps(info))
+    capsys.readouterr()
+    argv = ["validate", edited, base / "photo.png", "--camera", base / "photo.json", "--out", tmp_path / "v", "-q"]
+    assert main([str(a) for a in argv]) == 1  # before: validated, FAIL with 9 defects
+    assert f"print.dpi {info['print']['dpi']} and print.width_px" in one_line(capsys)
+    assert main(["pdf", str(edited), "-o", str(tmp_path / "p.pdf"), "-q"]) == 1
+    assert "the file was edited; rerun workbench design" in one_line(capsys)
+    assert not (tmp_path / "v").exists() and not (tmp_path / "p.pdf").exists()

@@ -613,10 +613,10 @@ def check_views(
         stored_limit = profile.get("view_rms_limit_px")
         tolerance_px = float(stored_limit or view_rms_limit(np.array([float(profile.get("rms_px") or 0.0)])))
     drift = []
-    by_name = {v["name"]: v for v in per_photo}
-    for name, obj, px in views:
+    # the used entries are the views, in order (by name, a photo given twice was the wrong one of two)
+    used_entries = [v for v in per_photo if v["used"]]
+    for (_, obj, px), entry in zip(views, used_entries, strict=True):
         e = pose_rms(obj, px, K0, dist0)
-        entry = by_name[name]
         entry["rms_px"] = e
         entry["ok"] = e is not None and e <= tolerance_px
     bad = [v["name"] for v in per_photo if v["used"] and not v["ok"]]

@@ -199,16 +199,49 @@ def read_sheet(folder: Path, designs: dict | None = None) -> Sheet:
         s,
         des.info,
         ddir,
-        {"file": str(vj), "sha256": hashlib.sha256(vj.read_bytes()).hexdigest()},
+        {"file": str(vj), "sha256": hashlib.sha256(vj.read_bytes()).hexdigest(), "landing_sha256": lan["sha256"]},
         film,
     )
 
 
+def check_distinct_sheets(sheets: list[Sheet]) -> None:
+    """No measurement is given twice: one folder named twice, or a copy of one.
+
+    Each sheet's landing (``landing.npz``, by its recorded hash) is its measurement; the same
+    one twice would read as a perfectly repeatable process (repeatability 0 mm) and weigh that
+    sheet's placement double in the profile.
+    """
+    seen: dict[str, str] = {}
+    for s in sheets:
+        for part in s.validation.get("parts") or [s.validation]:
+            h = part.get("landing_sha256")
+            if h in seen:
+                raise WorkbenchError(
+                    f"{part['file']}: the same measurement as {seen[h]} (one landing.npz, byte for byte): "
+                    "give each formed sheet once"
+                )
+            seen[h] = part["file"]
+
+
+def _map_sha256(design_dir: Path) -> str | None:
+    """The hash of a design's map of the surface to the print (``flat.obj``); None when missing."""
+    path = Path(design_dir) / "flat.obj"
+    return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+
+
 def check_same_design(sheets: list[Sheet]) -> None:
-    """All sheets are validations of one design: the first's."""
+    """All sheets are validations of one design: the first's.
+
+    One design for forming is one mesh, print, dpi, films, compensation and map of the surface
+    (``flat.obj``): two designs that share all of these and differ in their artwork are one, since
+    forming moves the film whatever is printed on it. (Before, the map was not compared: another
+    design of the same mesh, print and dpi, with other corners, was taken for the same.)
+    """
     ref = sheets[0]
+    ref_map = _map_sha256(ref.design_dir)
     for s in sheets[1:]:
         a, b = fm.design_identity(ref.design), fm.design_identity(s.design)
+        a["map (flat.obj)"], b["map (flat.obj)"] = ref_map, _map_sha256(s.design_dir)
         if a != b or ref.design.get("forming") != s.design.get("forming"):
             what = next((k for k in a if a[k] != b[k]), "forming compensation")
             raise WorkbenchError(

@@ -25,7 +25,28 @@ def read_design_json(path: Path, fields: dict = schemas.DESIGN) -> dict:
     for k, name in enumerate(names):
         if name in names[:k]:
             raise WorkbenchError(f"{path}: views[{k}].name: {name!r} is used twice")
+    check_print_extent(info.get("print") or {}, path)
     return info
+
+
+def check_print_extent(p: dict, path: Path) -> None:
+    """Refuse a design.json whose print dpi, pixel size and extent in mm disagree (one edited by hand).
+
+    design writes ``image_width_mm = width_px / (dpi / 25.4)`` (and so for the height); an edited
+    dpi would scale every print position validate and pdf compute, and a wrong print would be
+    judged as a wrong part.
+    """
+    if not all(k in p for k in ("dpi", "width_px", "height_px", "image_width_mm", "image_height_mm")):
+        return
+    for axis in ("width", "height"):
+        px, mm = p[f"{axis}_px"], p[f"image_{axis}_mm"]
+        implied = mm * p["dpi"] / 25.4
+        # design computed mm from px: they agree to rounding (1e-6 px); an edit is off by whole pixels
+        if not abs(implied - px) <= 1e-6 * max(px, 1):
+            raise WorkbenchError(
+                f"{path}: print.dpi {p['dpi']:g} and print.{axis}_px {px} disagree with print.image_{axis}_mm "
+                f"{mm:g} (they give {implied:.1f} px): the file was edited; rerun workbench design"
+            )
 
 
 # what workbench design writes, for a folder written before it listed them in .workbench-files

@@ -9,7 +9,13 @@ from pathlib import Path
 from workbench import __version__
 from workbench import forming as fm
 from workbench.atomic import check_outputs, write_files
-from workbench.calibration_forming import calibrate_forming, check_same_design, profile_picture, read_sheet
+from workbench.calibration_forming import (
+    calibrate_forming,
+    check_distinct_sheets,
+    check_same_design,
+    profile_picture,
+    read_sheet,
+)
 from workbench.design_dir import design_files
 from workbench.jsonfile import recorded_path
 
@@ -47,6 +53,7 @@ def run_forming(args) -> int:
     designs: dict = {}  # (each design folder read once)
     sheets = [read_sheet(f, designs) for f in folders]
     check_same_design(sheets)
+    check_distinct_sheets(sheets)
     inputs = [*folders, *(f / "validation.json" for f in folders), *(f / "landing.npz" for f in folders)]
     inputs += design_files(sheets[0].design_dir)
     check_outputs(out, out.with_suffix(".png"), inputs=inputs)

@@ -38,7 +38,8 @@ def add_parser(sub) -> None:
             "possible at a good angle. Each is a ready [[views]] table of the job (name, image, position, "
             "look_at, up, fov_deg, width_px, height_px for the print's dpi) with covers_share and covers_mm2. "
             "Without -o the tables go to stdout; -o FILE.toml writes them, an image template per suggestion "
-            "beside it (NAME.png: the view's outline of the part and the region it would own) and FILE-views.png "
+            "beside it (NAME.png: the view's outline of the part and the region it would own; one that exists "
+            "with other content, a picture drawn on it, is never replaced) and FILE-views.png "
             "(the part with what each suggestion would own)."
         ),
     )
@@ -306,6 +307,13 @@ def run(args) -> int:
     files[out] = text.encode()
     for path, cov in zip(templates, suggestions, strict=True):
         files[path] = png_bytes(template_image(rem, cov))
+        # a template is where the designer draws the view's picture: one that exists and is not
+        # what this run writes (the same job gives the same bytes) may hold that drawing
+        if path.exists() and path.read_bytes() != files[path]:
+            raise WorkbenchError(
+                f"{path}: exists and is not the template this run writes (a picture drawn on an earlier "
+                "one?); move it away or give another -o; nothing written"
+            )
     files[out.with_name(f"{out.stem}-views.png")] = suggestions_figure(
         rem, suggestions, names, cameras[0], f"{job.name}: {100 * share:.1f} % of the surface undecorated"
     )

@@ -14,6 +14,7 @@ Two things made reading an image file wrong before this module:
 from __future__ import annotations
 
 import io
+import warnings
 from pathlib import Path
 
 import cv2
@@ -47,8 +48,11 @@ def exif_orientation(data: bytes) -> int:
     from PIL import Image
 
     try:
-        with Image.open(io.BytesIO(data)) as im:
-            value = im.getexif().get(ORIENTATION_TAG, 1)
+        # (the header only; the image's size is checked where it is read, not by PIL's bomb warning)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data)) as im:
+                value = im.getexif().get(ORIENTATION_TAG, 1)
     except Exception:  # a file PIL does not know, or a damaged EXIF block: as stored, as OpenCV would
         return 1
     return int(value) if isinstance(value, int) and 1 <= value <= 8 else 1

@@ -241,6 +241,7 @@ def _validate_photo(
     }
     entry["reprojection_rms_px"] = pose.rms_px
     entry["corners_used"] = pose.n_corners
+    entry["corners_dropped"] = pose.n_dropped
     if pose.rms_px > MAX_RMS_PX:
         entry["reason"] = (
             f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"

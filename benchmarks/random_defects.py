@@ -271,7 +271,27 @@ def render_photo(design: Path, orbit: tuple, size: str, renderer: str, look: str
 
 
 def run_part(run: dict, design: Path, args, env) -> dict:
-    """Render a part-run's photos, validate them as one part, judge each true defect."""
+    """Render a part-run's photos, validate them as one part, judge each true defect.
+
+    With ``--add-suggested K``, a part INCOMPLETE gets the photo its validation suggests
+    (``part.coverage.next_photo``: an orbit on the fixture, the first photo's lens), rendered as
+    the others, and is validated again, up to K times; the verdict before is kept beside.
+    """
+    res = _run_part(run, design, args, env)
+    before, added = res.get("verdict"), 0
+    while "error" not in res and res["verdict"] == "INCOMPLETE" and added < args.add_suggested:
+        nxt = json.loads((Path(res["validation_dir"]) / "validation.json").read_text())["part"].get("coverage") or {}
+        orbit = (nxt.get("next_photo") or {}).get("orbit")
+        if not orbit:
+            break
+        added += 1
+        fov = run["poses"][0][1][3]
+        run["poses"] = [*run["poses"], (f"suggested-{added}", (orbit[0], orbit[1], orbit[2], fov))]
+        res = _run_part(run, design, args, env)
+    return {**res, "verdict_before_suggested": before, "suggested_photos_added": added}
+
+
+def _run_part(run: dict, design: Path, args, env) -> dict:
     folder = args.out / "photos" / run["id"]
     ext = ".jpg" if run["renderer"] == "workbench" else ".png"
     imgs, fresh, cams = [], False, []
@@ -303,6 +323,7 @@ def run_part(run: dict, design: Path, args, env) -> dict:
         **judge(report, vdir, truth, design, cams),
         "validate_s": round(secs, 1),
         "validate_cmd": " ".join(cmd[1:]),
+        "validation_dir": str(vdir),
     }
 
 
@@ -463,6 +484,10 @@ def rates(runs: list[dict], dark: bool) -> dict:
         "perfect_part_runs": len(perfect),
         "false_rejects": sum(r["verdict"] == "FAIL" for r in perfect),
         "perfect_incomplete": sum(r["verdict"] == "INCOMPLETE" for r in perfect),
+        "perfect_incomplete_before_suggested": sum(
+            r.get("verdict_before_suggested", r["verdict"]) == "INCOMPLETE" for r in perfect
+        ),
+        "suggested_photos_added": sum(r.get("suggested_photos_added", 0) for r in ok),
         "perfect_invalid": sum(r["verdict"] == "INVALID" for r in perfect),
         "defect_part_runs": len(defect),
         "defect_part_runs_pass": sum(r["verdict"] == "PASS" for r in defect),
@@ -519,6 +544,8 @@ def markdown(runs: list[dict], s: dict, command: str, args) -> str:
         "|---|---|",
         f"| false rejects (perfect part-runs that FAIL) | {pct(s['false_rejects'], s['perfect_part_runs'])} |",
         f"| perfect part-runs INCOMPLETE | {pct(s['perfect_incomplete'], s['perfect_part_runs'])} |",
+        f"| perfect part-runs INCOMPLETE before the suggested photos ({s['suggested_photos_added']} added in all) | "
+        f"{pct(s['perfect_incomplete_before_suggested'], s['perfect_part_runs'])} |",
         f"| perfect part-runs INVALID | {pct(s['perfect_invalid'], s['perfect_part_runs'])} |",
         f"| defect part-runs that PASS (must be 0) | {pct(s['defect_part_runs_pass'], s['defect_part_runs'])} |",
         f"| defect part-runs INCOMPLETE / INVALID / FAIL | {s['defect_part_runs_incomplete']} / "
@@ -606,6 +633,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "random_defects")
     ap.add_argument("--revalidate", action="store_true")
     ap.add_argument("--name", help="the tables' file name (default random_defects[_dark])")
+    ap.add_argument(
+        "--add-suggested", type=int, default=0, metavar="K",
+        help="a part INCOMPLETE gets the photo its validation suggests, up to K times (default 0)",
+    )  # fmt: skip
     args = ap.parse_args(argv)
     args.out = args.out.resolve()
     args.out.mkdir(parents=True, exist_ok=True)

@@ -93,7 +93,16 @@ def test_zero_area_face(capsys, tmp_path, square):
     f = F[7]
     V[f[2]] = 0.5 * (V[f[0]] + V[f[1]])  # collinear
     path = write(tmp_path, V, F)
-    expect(capsys, tmp_path, path, "faces have zero area (face")
+    # named by the file's line (issue 41: by triangle number, which a polygon's fan shifts)
+    line = 1 + [k for k, s in enumerate(path.read_text().splitlines()) if s.startswith("f ")][7]
+    expect(capsys, tmp_path, path, f"faces have zero area (the face on line {line} of the file (triangle 7))")
+
+
+def test_a_polygon_is_named_by_its_line(capsys, tmp_path):
+    # a hexagon fan-triangulated: its first triangle (vertices 1, 2, 3 on one line) has no area
+    path = tmp_path / "hex.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 0 1 0\n# a hexagon\nf 1 2 3 4 5 6\n")
+    expect(capsys, tmp_path, path, "1 faces have zero area (the face on line 8 of the file (triangle 0))")
 
 
 def test_unreferenced_vertex(capsys, tmp_path, square):
@@ -118,7 +127,7 @@ def test_inconsistent_orientation(capsys, tmp_path, square):
     F = F.copy()
     F[5] = F[5, ::-1]
     path = write(tmp_path, V, F)
-    expect(capsys, tmp_path, path, "faces are inconsistently oriented: faces")
+    expect(capsys, tmp_path, path, "faces are inconsistently oriented: the faces on lines")
 
 
 @pytest.mark.parametrize(
@@ -167,7 +176,7 @@ def test_unreadable_files(capsys, tmp_path):
     expect(capsys, tmp_path, bad_face, f"{bad_face}:4: malformed face line")
     out_of_range = tmp_path / "r.obj"
     out_of_range.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
-    expect(capsys, tmp_path, out_of_range, "face 0 refers to a vertex that does not exist")
+    expect(capsys, tmp_path, out_of_range, "the face on line 4 of the file (triangle 0) refers to a vertex that does")
 
 
 @pytest.mark.parametrize("depth", [0.5, 20.0], ids=["small-ear", "long-ear"])

@@ -281,7 +281,8 @@ def test_render_moves_one_film_alone(tmp_path):
 
 def test_validate_through_the_films_atlas(tmp_path):
     # photos of the two-film lid: a perfect one passes (p95 below 0.05 mm, seam
-    # included), one with film 2 moved 0.5 mm fails at p95 0.5 mm
+    # included), one with film 2 moved 0.5 mm fails at p95 0.5 mm (against 0.4 mm: at the
+    # default 0.5 mm the move is the tolerance itself, and its verdict a knife's edge)
     path = default_job_with(tmp_path, HAND, dpi=300)
     out = tmp_path / "d"
     assert main(["design", str(path), "--out", str(out), "-q"]) == 0
@@ -292,7 +293,7 @@ def test_validate_through_the_films_atlas(tmp_path):
         assert main(args + extra) == 0
     v = tmp_path / "v"
     args = ["validate", str(out), *map(str, photos), "--camera", str(tmp_path / "p0.json"), "--out", str(v), "-q"]
-    main(args)
+    main([*args, "--tolerance-mm", "0.4"])
     perfect, moved = json.loads((v / "validation.json").read_text())["photos"]
     assert perfect["verdict"] == "PASS" and perfect["misregistration_mm"]["p95"] < 0.05
     assert moved["verdict"] == "FAIL" and abs(moved["misregistration_mm"]["p95"] - 0.5) < 0.05

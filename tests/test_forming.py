@@ -458,10 +458,14 @@ def test_bad_input_is_one_line_and_writes_nothing(design, tmp_path):
     line = one_line_error(wb("calibrate", "forming", v1, v4, "-o", out))
     assert "a validation of another design" in line and "map (flat.obj) differs" in line, line
     # one sheet given twice, or its folder copied (issue 41: "repeatability 0.0000 mm" and exit 0)
+    rep = json.loads((tmp_path / "v1" / "validation.json").read_text())
+    rep["photos"] = [{"photo": "sheet1.jpg", "sha256": "ab" * 32}]  # (a fake validation has no photos)
+    (tmp_path / "v1" / "validation.json").write_text(json.dumps(rep))
     shutil.copytree(tmp_path / "v1", tmp_path / "v1-copy")
-    for twice in ((v1, v1), (v1, tmp_path / "v1-copy")):
-        line = one_line_error(wb("calibrate", "forming", *twice, "-o", out))
-        assert "the same measurement as" in line and "give each formed sheet once" in line, line
+    line = one_line_error(wb("calibrate", "forming", v1, v1, "-o", out))
+    assert "given twice" in line and "give each formed sheet once" in line, line
+    line = one_line_error(wb("calibrate", "forming", v1, tmp_path / "v1-copy", "-o", out))
+    assert "a photo of the sheet of" in line and "the same measurement twice" in line, line
     # a landing that is not the one validation.json records
     (tmp_path / "v1" / "landing.npz").write_bytes(b"junk")
     assert "its sha256 differs" in one_line_error(wb("calibrate", "forming", v1, "-o", out))

@@ -5,8 +5,9 @@ One mechanism serves every command:
 - outputs are checked before any work (:func:`check_outputs`, :func:`check_output_dir`) and
   again at the write: no output is a directory, a name too long for the file system, two
   outputs of one name, one of the command's inputs (paths resolved, symlinks followed), a
-  symbolic link (it would be written through to what it points to), or a device, a named pipe
-  or a socket (the rename would replace the node);
+  link into the system's devices (``/dev/stdout``), or a device, a named pipe or a socket (the
+  rename would replace the node); any other output that is a symbolic link is replaced as a
+  link (never written through to what it points to);
 - files are written to temporary names, flushed, then renamed into place; a failure or an
   interrupt (Ctrl-C, SIGTERM) before the renames leaves every target as it was and no
   temporary behind; the renames themselves run with those signals held, so that an interrupt
@@ -239,16 +240,40 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
         if given is not None:
             also = "" if given == path else f" ({given})"
             raise WorkbenchError(f"{path}: is an input of this command{also}; write the output elsewhere")
-        # an output is a file of its own: written through a link it would replace what the link
-        # points to (a user's job file behind a board's definition), and renamed over a device or
-        # a pipe it would replace the node itself (`-o /dev/null` made /dev/null a regular file)
+        # an output is a file of its own: a link is replaced as a link (written through, it replaced
+        # what it points to: a user's job file behind a board's definition), but never one of the
+        # system's (`-o /dev/stdout` is a link to /proc/self/fd/1: replaced, /dev/stdout became a
+        # PDF); renamed over a device or a pipe it would replace the node itself (`-o /dev/null`
+        # made /dev/null a regular file)
         if path.is_symlink():
-            raise WorkbenchError(
-                f"{path}: is a symbolic link (to {os.readlink(path)}); writing it would replace what it points to;"
-                " remove the link or give another name"
-            )
+            if _in_system(path) or _in_system(r):
+                raise WorkbenchError(
+                    f"{path}: is a link into the system's devices (to {os.readlink(path)}), not a file; give a file "
+                    "name for this output"
+                )
+            continue  # replaced as a link: what it points to is not touched
         if (kind := _special_kind(path)) is not None:
             raise WorkbenchError(f"{path}: is {kind}, not a file; give a file name for this output")
+
+
+# the pseudo file systems of devices, processes and the kernel: no output is renamed over a link there
+_SYSTEM_ROOTS = (Path("/dev"), Path("/proc"), Path("/sys"))
+
+
+def _in_system(path: Path) -> bool:
+    """Whether ``path`` (made absolute, its folder's links followed) lies under /dev, /proc or /sys."""
+    p = _output_path(path)
+    return any(p == root or root in p.parents for root in _SYSTEM_ROOTS)
+
+
+def _output_path(path: Path) -> Path:
+    """Where an output is written: ``path`` absolute, its folder's links followed, not a link it is itself.
+
+    A link named as an output is replaced by the file (rename does not follow it), so that
+    what it pointed to stays as it was; a folder that is a link is followed.
+    """
+    path = Path(os.path.abspath(path))
+    return _resolved(path.parent) / path.name
 
 
 def _special_kind(path: Path) -> str | None:
@@ -358,7 +383,7 @@ def write_files(files: dict[Path, bytes], inputs: Iterable[Path] = ()) -> None:
     backups: dict[Path, Path | None] = {}
     try:
         for given, data in files.items():
-            path = _resolved(Path(given))
+            path = _output_path(Path(given))
             tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
             temps.append((tmp, path, Path(given)))
             try:
@@ -383,10 +408,14 @@ def write_files(files: dict[Path, bytes], inputs: Iterable[Path] = ()) -> None:
 
 
 def _backup(path: Path) -> Path | None:
-    """A hard link to the existing ``path`` (None when there is none), to restore it."""
+    """A hard link to the existing ``path`` (None when there is none), to restore it; a link's copy for a link."""
+    backup = path.with_name(f".{path.name}.old-{os.getpid()}")
+    if path.is_symlink():
+        backup.unlink(missing_ok=True)
+        os.symlink(os.readlink(path), backup)
+        return backup
     if not path.exists():
         return None
-    backup = path.with_name(f".{path.name}.old-{os.getpid()}")
     _link_or_copy(path, backup)
     return backup
 

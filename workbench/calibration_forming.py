@@ -192,6 +192,7 @@ def read_sheet(folder: Path, designs: dict | None = None) -> Sheet:
         x = q[on] - fr.origin_mm
         p[on] = x - d[on]
         landed[on] = x if comps is None else x + comps[k](x)
+    photos = rep.get("photos") or []
     return Sheet(
         str(folder),
         p,
@@ -199,7 +200,14 @@ def read_sheet(folder: Path, designs: dict | None = None) -> Sheet:
         s,
         des.info,
         ddir,
-        {"file": str(vj), "sha256": hashlib.sha256(vj.read_bytes()).hexdigest(), "landing_sha256": lan["sha256"]},
+        {
+            "file": str(vj),
+            "sha256": hashlib.sha256(vj.read_bytes()).hexdigest(),
+            # the photos measured: a sheet is its photos (one given twice, or a copy, shares them)
+            "photos_sha256": sorted(
+                {e["sha256"] for e in photos if isinstance(e, dict) and isinstance(e.get("sha256"), str)}
+            ),
+        },
         film,
     )
 
@@ -207,20 +215,26 @@ def read_sheet(folder: Path, designs: dict | None = None) -> Sheet:
 def check_distinct_sheets(sheets: list[Sheet]) -> None:
     """No measurement is given twice: one folder named twice, or a copy of one.
 
-    Each sheet's landing (``landing.npz``, by its recorded hash) is its measurement; the same
-    one twice would read as a perfectly repeatable process (repeatability 0 mm) and weigh that
-    sheet's placement double in the profile.
+    A sheet is its photos (by the sha256 validation.json records of each): the same photo in two
+    sheets would read as a perfectly repeatable process (repeatability 0 mm) and weigh that
+    sheet's placement double in the profile. (Two sheets formed alike may land alike; two
+    photos are never one file.)
     """
-    seen: dict[str, str] = {}
+    files: dict[str, str] = {}
+    photos: dict[str, str] = {}
     for s in sheets:
         for part in s.validation.get("parts") or [s.validation]:
-            h = part.get("landing_sha256")
-            if h in seen:
-                raise WorkbenchError(
-                    f"{part['file']}: the same measurement as {seen[h]} (one landing.npz, byte for byte): "
-                    "give each formed sheet once"
-                )
-            seen[h] = part["file"]
+            real = os.path.realpath(part["file"])
+            if real in files:
+                raise WorkbenchError(f"{part['file']}: given twice (as {files[real]}): give each formed sheet once")
+            files[real] = part["file"]
+            for h in part.get("photos_sha256") or []:
+                if h in photos:
+                    raise WorkbenchError(
+                        f"{part['file']}: a photo of the sheet of {photos[h]} (sha256 {h[:12]}...): the same "
+                        "measurement twice; give each formed sheet once"
+                    )
+                photos[h] = part["file"]
 
 
 def _map_sha256(design_dir: Path) -> str | None:

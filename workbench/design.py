@@ -27,7 +27,7 @@ from workbench.design_dir import read_image as read_image  # lives with the desi
 from workbench.errors import WorkbenchError
 from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, seams, split_films, submesh
 from workbench.job import Job, Material
-from workbench.mesh.io import read_mesh
+from workbench.mesh.io import MeshName, read_mesh
 from workbench.mesh.topology import unique_edges
 from workbench.mesh.validate import face_areas
 from workbench.texture.outline import film_mask
@@ -524,7 +524,7 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
         flat, _ = flatten_auto_corners(V, F, options, str(job.object.mesh), log=say)
     else:
         try:
-            flat = flatten(V, F, options, str(job.object.mesh), log=say)
+            flat = flatten(V, F, options, MeshName(job.object.mesh), log=say)
         except CrowdingError as exc:
             raise crowding_advice(exc, V, F, options, str(job.object.mesh), say) from None
     t["flatten"] = time.perf_counter() - t0

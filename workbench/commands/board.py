@@ -183,13 +183,13 @@ def run(args) -> int:
         if args.job is None:
             raise UsageError("board fixture needs the job file: workbench board fixture JOB.toml")
         from workbench.job import load_job
-        from workbench.mesh.io import read_mesh
+        from workbench.mesh.io import MeshName, read_mesh
         from workbench.mesh.validate import check_disc
 
         job = load_job(args.job)
         inputs += [job.path, job.object.mesh, *(v.image for v in job.views)]
         V, F = read_mesh(job.object.mesh, job.object.units)
-        check_disc(V, F, str(job.object.mesh))  # the footprint is the disc's boundary
+        check_disc(V, F, MeshName(job.object.mesh))  # the footprint is the disc's boundary
         spec, origin, footprint = fixture_from_job(job.fixture, V, F, f"{job.path}: fixture")
         extra["job"] = {"file": str(job.path), "sha256": job.sha256, "name": job.name}
         extra["footprint_board_mm"] = footprint.tolist()

@@ -25,7 +25,7 @@ from workbench.conformal.flatten import (
 from workbench.errors import UsageError
 from workbench.figures import stretch_figure
 from workbench.jsonfile import recorded_path
-from workbench.mesh.io import UNITS_MM, format_obj, read_mesh
+from workbench.mesh.io import UNITS_MM, MeshName, format_obj, read_mesh
 from workbench.options import Number, parse_numbers
 
 
@@ -155,10 +155,10 @@ def run(args) -> int:
         corners_from=f"{mesh_path}: --corners",
     )
     if args.corners == "auto":
-        result, compared = flatten_auto_corners(V, F, options, name=str(mesh_path), log=log)
+        result, compared = flatten_auto_corners(V, F, options, name=MeshName(mesh_path), log=log)
     else:
         try:
-            result = flatten(V, F, options, name=str(mesh_path), log=log)
+            result = flatten(V, F, options, name=MeshName(mesh_path), log=log)
         except CrowdingError as exc:
             raise crowding_advice(exc, V, F, options, str(mesh_path), log) from None
 

@@ -12,6 +12,44 @@ UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
 
+class MeshName(str):
+    """A mesh file's name, for messages, that can say where in the file a triangle came from.
+
+    A polygon of an OBJ is fan-triangulated: triangle numbers are not the file's faces, and a
+    user looks for the line. ``faces(idx)`` names triangles by the file's lines (OBJ), else by number.
+    """
+
+    def faces(self, idx, limit: int = 3) -> str:
+        """``face 7, 9`` or, for an OBJ, ``the faces on lines 31, 33 of the file (triangles 7, 9)``."""
+        idx = np.asarray(idx, np.int64).ravel()
+        shown = ", ".join(str(int(i)) for i in idx[:limit]) + (", ..." if len(idx) > limit else "")
+        lines = face_lines(Path(self))
+        if lines is None or not len(idx) or idx[:limit].max() >= len(lines):
+            return f"face {shown}"
+        where = ", ".join(str(int(lines[i])) for i in idx[:limit]) + (", ..." if len(idx) > limit else "")
+        s = "s" if len(idx) > 1 else ""
+        return f"the face{s} on line{s} {where} of the file (triangle{s} {shown})"
+
+
+def face_lines(path: Path) -> np.ndarray | None:
+    """The file line (1-based) of each triangle :func:`read_mesh` makes of an OBJ; None for other formats.
+
+    Read again only for a message: a polygon's triangles share its line.
+    """
+    if Path(path).suffix.lower() != ".obj":
+        return None
+    try:
+        text = Path(path).read_bytes().decode("utf-8", "replace")
+    except OSError:
+        return None
+    out = []
+    for lineno, line in enumerate(text.replace("\t", " ").splitlines(), 1):
+        line = line.lstrip()
+        if line.startswith("f "):
+            out += [lineno] * max(len(line[2:].split()) - 2, 0)
+    return np.asarray(out, np.int64)
+
+
 def read_mesh(path: str | Path, units: str = "mm") -> tuple[np.ndarray, np.ndarray]:
     """Read a triangle mesh, keeping the file's vertex order.
 
@@ -63,7 +101,7 @@ def read_mesh(path: str | Path, units: str = "mm") -> tuple[np.ndarray, np.ndarr
         raise WorkbenchError(f"{path}: the file holds no triangles")
     if F.min() < 0 or F.max() >= len(V):
         bad = int(np.flatnonzero((F < 0).any(1) | (F >= len(V)).any(1))[0])
-        raise WorkbenchError(f"{path}: face {bad} refers to a vertex that does not exist")
+        raise WorkbenchError(f"{path}: {MeshName(path).faces([bad])} refers to a vertex that does not exist")
     return V * UNITS_MM[units], F
 
 

@@ -19,6 +19,13 @@ def _first(idx: np.ndarray, limit: int = 3) -> str:
     return shown + (", ..." if len(idx) > limit else "")
 
 
+def _faces(name: str, idx, limit: int = 3) -> str:
+    """Triangles named for a message: by the file's lines where ``name`` can say (:class:`MeshName`)."""
+    if hasattr(name, "faces"):
+        return name.faces(idx, limit)
+    return f"face {_first(np.asarray(idx), limit)}"
+
+
 def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Area of every triangle.
 
@@ -69,7 +76,7 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.nda
         raise WorkbenchError(f"{name}: {len(bad)} vertices have NaN or infinite coordinates (vertex {_first(bad)})")
     repeated = np.flatnonzero((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0]))
     if len(repeated):
-        raise WorkbenchError(f"{name}: {len(repeated)} faces repeat a vertex (face {_first(repeated)})")
+        raise WorkbenchError(f"{name}: {len(repeated)} faces repeat a vertex ({_faces(name, repeated)})")
     unused = np.flatnonzero(np.bincount(F.ravel(), minlength=nV) == 0)
     if len(unused):
         raise WorkbenchError(
@@ -81,7 +88,7 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.nda
     # relative to the bounding box: a face 1e-12 the size of the part is rounding noise
     flat = np.flatnonzero(A <= 1e-12 * diag * diag)
     if len(flat):
-        raise WorkbenchError(f"{name}: {len(flat)} faces have zero area (face {_first(flat)})")
+        raise WorkbenchError(f"{name}: {len(flat)} faces have zero area ({_faces(name, flat)})")
 
     E, FE, count = unique_edges(F)
     over = np.flatnonzero(count > 2)
@@ -90,7 +97,7 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.nda
         faces = np.flatnonzero((FE == over[0]).any(axis=1))
         raise WorkbenchError(
             f"{name}: {len(over)} non-manifold edges; edge ({e[0]}, {e[1]}) is shared by "
-            f"{count[over[0]]} faces ({_first(faces, 4)})"
+            f"{count[over[0]]} faces ({_faces(name, faces, 4)})"
         )
     # consistently oriented: the two faces of an interior edge run it in opposite
     # directions, so the directions (+1 when from < to) of its half-edges sum to 0
@@ -102,7 +109,7 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.nda
         faces = np.flatnonzero(FE.ravel() == e) // 3
         a, b = H[np.flatnonzero(FE.ravel() == e)[0]]
         raise WorkbenchError(
-            f"{name}: faces are inconsistently oriented: faces {faces[0]} and {faces[1]} both run "
+            f"{name}: faces are inconsistently oriented: {_faces(name, faces[:2])} both run "
             f"edge ({a}, {b}) the same way"
         )
     labels = face_components(F, FE)

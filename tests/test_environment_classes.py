@@ -4,7 +4,7 @@ Each case runs the real command in its own process (``python -m workbench``), as
 would, under one environment class: a terminal that speaks only ASCII or Latin-1, an absurd
 ``SOURCE_DATE_EPOCH`` or thread count, ``umask 777``, a current folder removed under the shell,
 standard output on a full disk, a HOME that cannot be written or must not be, file names that
-are not UTF-8, SIGTERM at a random moment. What is asserted, for every case: no traceback and no
+are not UTF-8, SIGTERM or SIGINT (Ctrl-C) at a random moment. What is asserted, for every case: no traceback and no
 "internal error" (those are bugs), exit status 0, 1, 2 or 130, a failure is one line and writes
 nothing, and no file is created or changed outside the declared output and the workbench's own
 cache. A fast subset runs by default (each class once, on commands in turn); ``make bench`` runs
@@ -40,18 +40,23 @@ CLASSES = (
     "home-watched",
     "names-not-utf-8",
     "sigterm",
+    "sigint",
 )
+# cases per command in `make bench` for the classes that draw a value (a moment, a variable's value)
+DRAWS = {"sigterm": 10, "sigint": 10, "source-date-epoch": 5, "thread-count": 4}
 SIGNAL_DELAYS_S = (0.05, 4.0)  # after Python's own start (about 40 ms here), to the end of the slowest case
 
 
 def case_params() -> list:
-    """(class, command): each class once by default (commands in turn), every pair marked slow."""
+    """(class, command, draw): each class once by default (commands in turn); in `make bench` every
+    command under every class, DRAWS[class] times where the class draws a value."""
     out = []
     for k, cls in enumerate(CLASSES):
         fast = COMMANDS[k % len(COMMANDS)]
         for command in COMMANDS:
-            marks = () if command == fast else (pytest.mark.slow,)
-            out.append(pytest.param(cls, command, id=f"{cls}-{command}", marks=marks))
+            for draw in range(DRAWS.get(cls, 1)):
+                marks = () if (command == fast and draw == 0) else (pytest.mark.slow,)
+                out.append(pytest.param(cls, command, draw, id=f"{cls}-{command}-{draw}", marks=marks))
     return out
 
 
@@ -87,9 +92,9 @@ def argv_for(command: str, root: Path, base: Path) -> tuple[list, Path]:
     return [*argv, output_flag(command), out], out
 
 
-def run_case(cls: str, command: str, root: Path, base: Path, home: Path) -> tuple[int, str, Path]:
-    """Run ``command`` under environment class ``cls``; its exit status, stderr and output path."""
-    rng = np.random.default_rng([CLASSES.index(cls), COMMANDS.index(command)])
+def run_case(cls: str, command: str, draw: int, root: Path, base: Path, home: Path) -> tuple[int, str, Path]:
+    """Run ``command`` under environment class ``cls`` (its ``draw``-th value); exit status, stderr, output."""
+    rng = np.random.default_rng([CLASSES.index(cls), COMMANDS.index(command), draw])
     if cls == "names-not-utf-8":
         root = Path(os.fsdecode(os.fsencode(root) + b"/Teil \xfc"))
         root.mkdir()
@@ -124,13 +129,15 @@ def run_case(cls: str, command: str, root: Path, base: Path, home: Path) -> tupl
     elif cls == "home-a-file":
         env["HOME"] = str(root / "home-is-a-file")
         Path(env["HOME"]).write_text("")
-    elif cls == "sigterm":
+    elif cls in ("sigterm", "sigint"):
         delay = float(rng.uniform(*SIGNAL_DELAYS_S))
+    if cls == "sigint":  # as a terminal's Ctrl-C reaches it (a test runner may start children ignoring it)
+        preexec = lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)  # noqa: E731
     cmd = [sys.executable, "-m", "workbench", *map(str, argv)]
     with subprocess.Popen(cmd, cwd=cwd, env=env, stdout=stdout, stderr=subprocess.PIPE, preexec_fn=preexec) as p:
         if delay is not None:
             time.sleep(delay)
-            p.send_signal(signal.SIGTERM)
+            p.send_signal(signal.SIGINT if cls == "sigint" else signal.SIGTERM)
         err = p.stderr.read().decode("utf-8", "replace")
         status = p.wait()
     if stdout is not subprocess.DEVNULL:
@@ -138,13 +145,13 @@ def run_case(cls: str, command: str, root: Path, base: Path, home: Path) -> tupl
     return status, err, out
 
 
-@pytest.mark.parametrize(("cls", "command"), case_params())
-def test_every_command_under_every_environment(cls, command, tmp_path, base):
+@pytest.mark.parametrize(("cls", "command", "draw"), case_params())
+def test_every_command_under_every_environment(cls, command, draw, tmp_path, base):
     root, home = tmp_path / "work", tmp_path / "home"
     root.mkdir()
     home.mkdir()
     before_base = snapshot(base)
-    status, err, out = run_case(cls, command, root, base, home)
+    status, err, out = run_case(cls, command, draw, root, base, home)
     lines = err.strip().splitlines()
     assert "Traceback" not in err and "internal error" not in err and "Exception ignored" not in err, err
     assert status in (0, 1, 2, 130), (status, err)
@@ -159,7 +166,7 @@ def test_every_command_under_every_environment(cls, command, tmp_path, base):
         assert status == 1 and len(lines) == 1 and named.get(cls, "_THREADS") in lines[0], err
         assert not out.exists()
         return
-    if cls == "sigterm":
+    if cls in ("sigterm", "sigint"):
         if status == 130:
             assert lines and lines[-1].endswith("interrupted; nothing written"), err
             assert not out.exists(), "an interrupted run left its output"

@@ -132,12 +132,14 @@ def signals_handled() -> Iterator[list[Path]]:
 
     Yields the list of outputs the command completes, for its caller to say what an
     interrupt left. Outside the main thread (where Python allows no handler) it only yields.
-    Afterwards the handlers are those before the command (before :func:`take_signals_early`).
+    Afterwards the handlers are those before the command; in the command's own process
+    (:func:`take_signals_early`) the signals are ignored, as it only exits then.
     """
     _SIGNALS.written = []
     if threading.current_thread() is not threading.main_thread() or _SIGNALS.installed:
         yield _SIGNALS.written
         return
+    own_process = bool(_SIGNALS.original)
     previous = dict(_SIGNALS.original) or {s: signal.getsignal(s) for s in _signals_to_take()}
     for s in previous:
         signal.signal(s, _handler)
@@ -145,8 +147,10 @@ def signals_handled() -> Iterator[list[Path]]:
     try:
         yield _SIGNALS.written
     finally:
+        # the command's own process only exits now, with the status decided: a signal in that last
+        # moment (Python's shutdown) would kill it, exit -15 after "wrote ...", so it is ignored
         for s, h in previous.items():
-            signal.signal(s, h)
+            signal.signal(s, signal.SIG_IGN if own_process else h)
         _SIGNALS.installed = False
         _SIGNALS.pending = None
         _SIGNALS.original = {}

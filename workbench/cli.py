@@ -11,7 +11,13 @@ import warnings
 from pathlib import Path
 
 from workbench import __version__
-from workbench.atomic import release_early_signals, signals_handled, take_signals_early
+from workbench.atomic import (
+    deliver_pending,
+    ignore_swallowed_interrupts,
+    release_early_signals,
+    signals_handled,
+    take_signals_early,
+)
 from workbench.environment import (
     cache_dir,
     check_current_folder,
@@ -188,7 +194,9 @@ def _main(argv: list[str] | None, args_in: list[str], first: str | None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    return _run_quietly(args)
+    status = _run_quietly(args)
+    deliver_pending()  # a Ctrl-C whose raise Python swallowed (in a weakref callback) is reported here
+    return status
 
 
 def _is_the_command() -> bool:
@@ -204,3 +212,4 @@ def _is_the_command() -> bool:
 # imports this module (a test, a notebook) keeps its own handlers
 if _is_the_command():
     take_signals_early()
+    sys.unraisablehook = ignore_swallowed_interrupts

@@ -2,15 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import importlib
-import os
 import sys
-import warnings
 from pathlib import Path
 
-from workbench import __version__
 from workbench.atomic import (
     deliver_pending,
     ignore_swallowed_interrupts,
@@ -18,7 +12,32 @@ from workbench.atomic import (
     signals_handled,
     take_signals_early,
 )
-from workbench.environment import (
+
+
+def _is_the_command() -> bool:
+    """Whether this process is the ``workbench`` command (its script, or ``python -m workbench``)."""
+    main_module = sys.modules.get("__main__")
+    spec = getattr(main_module, "__spec__", None)
+    if spec is not None:
+        return spec.name == "workbench.__main__"
+    return Path(sys.argv[0] if sys.argv else "").name == "workbench"
+
+
+# the command's own process takes Ctrl-C and SIGTERM from its first moment, before the rest of
+# this module's imports (under load they took over 50 ms, and a Ctrl-C then was a traceback); a
+# program that imports this module (a test, a notebook) keeps its own handlers
+if _is_the_command():
+    take_signals_early()
+    sys.unraisablehook = ignore_swallowed_interrupts
+
+import argparse  # noqa: E402
+import contextlib  # noqa: E402
+import importlib  # noqa: E402
+import os  # noqa: E402
+import warnings  # noqa: E402
+
+from workbench import __version__  # noqa: E402
+from workbench.environment import (  # noqa: E402
     cache_dir,
     check_current_folder,
     check_thread_counts,
@@ -28,8 +47,8 @@ from workbench.environment import (
     speak_the_terminals_language,
     use_writable_caches,
 )
-from workbench.errors import UsageError, WorkbenchError
-from workbench.text import one_line
+from workbench.errors import UsageError, WorkbenchError  # noqa: E402
+from workbench.text import one_line  # noqa: E402
 
 # exit status of an internal error (a bug), as sysexits.h's EX_SOFTWARE
 INTERNAL_ERROR = 70
@@ -197,19 +216,3 @@ def _main(argv: list[str] | None, args_in: list[str], first: str | None) -> int:
     status = _run_quietly(args)
     deliver_pending()  # a Ctrl-C whose raise Python swallowed (in a weakref callback) is reported here
     return status
-
-
-def _is_the_command() -> bool:
-    """Whether this process is the ``workbench`` command (its script, or ``python -m workbench``)."""
-    main_module = sys.modules.get("__main__")
-    spec = getattr(main_module, "__spec__", None)
-    if spec is not None:
-        return spec.name == "workbench.__main__"
-    return Path(sys.argv[0] if sys.argv else "").name == "workbench"
-
-
-# the command's own process takes Ctrl-C and SIGTERM from its first moment; a program that
-# imports this module (a test, a notebook) keeps its own handlers
-if _is_the_command():
-    take_signals_early()
-    sys.unraisablehook = ignore_swallowed_interrupts

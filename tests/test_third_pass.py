@@ -143,6 +143,8 @@ def test_standard_output_on_a_full_disk_is_one_line(tmp_path):
 
     from conftest import ROOT
 
+    if not Path("/dev/full").exists():
+        pytest.skip("/dev/full is not on this machine")
     with open("/dev/full", "w") as full:
         p = subprocess.run(
             [sys.executable, "-m", "workbench", "suggest-views", str(ROOT / "fixtures" / "default" / "job.toml"), "-q"],

@@ -110,3 +110,20 @@ def test_a_view_image_stored_sideways_prints_as_the_upright_one(base, tmp_path):
     assert main(["design", str(job / "job.toml"), "--out", str(tmp_path / "d"), "-q"]) == 0
     assert (tmp_path / "d" / "print.png").read_bytes() == (base / "design" / "print.png").read_bytes()
     assert json.loads((tmp_path / "d" / "design.json").read_text())["view_image_orientation"] == [6]
+
+
+def test_a_pngs_exif_after_its_image_data_is_read_without_decoding_it():
+    # Pillow decodes a whole PNG to find its EXIF; the chunk is found by the chunks' headers, before
+    # or after the image data (the PNG specification allows both)
+    rgb = np.random.default_rng(1).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    data = with_orientation(rgb, 6)
+    chunks, at = [], 8
+    while at < len(data):
+        n = int.from_bytes(data[at : at + 4], "big")
+        chunks.append(data[at : at + 12 + n])
+        at += 12 + n
+    kinds = [c[4:8] for c in chunks]
+    exif = chunks.pop(kinds.index(b"eXIf"))
+    moved = data[:8] + b"".join(chunks[:-1]) + exif + chunks[-1]  # just before IEND
+    assert exif_orientation(moved) == 6
+    assert exif_orientation(data[:8] + b"".join(chunks)) == 1  # none

@@ -291,7 +291,7 @@ def default_design(tmp_path_factory):
 def test_the_pose_is_as_accurate_at_99_mpx_as_at_12(default_design, tmp_path, size):
     """Issue 41: a perfect photo's reprojection RMS grew with its size (0.05 px at 12 Mpx, 1.51 at 99:
     INVALID); two corners the part hides in part were off by a share of a square, whatever the size.
-    Measured (benchmarks at the default supersampling for 12 and 48 Mpx): 0.020, 0.021, 0.029, 0.026 px
+    Measured (benchmarks at the default supersampling for 12 and 48 Mpx): 0.020, 0.021, 0.029, 0.021 px
     at 12, 48, 75, 99 Mpx, the camera 1.2 to 2.5 µm from the truth (before: 0.069, 0.134, 0.132,
     0.238 px and 6.6 to 14.9 µm)."""
     import json

@@ -68,7 +68,8 @@ class _Signals:
 
     ``held``: depth of :func:`_held` sections (a signal then waits until the last ends; start-up
     counts as one, see :func:`take_signals_early`);
-    ``pending``: the signal that arrived while held; ``written``: outputs completed so far
+    ``pending``: the last signal, until it is raised where the command stops (it arrived while
+    held, or Python swallowed its raise: see :func:`_handler`); ``written``: outputs completed so far
     by the running command, so that an interrupt after them is not reported as "nothing
     written".
     """
@@ -256,7 +257,7 @@ def check_outputs(*paths: Path, inputs: Iterable[Path] = ()) -> None:
     WorkbenchError
         Naming the first path that is a directory, whose name is too long, that two outputs
         share (``board -o b.json``: the PDF and its definition), that is an input, a symbolic
-        link, or a device, a named pipe or a socket.
+        link into /dev, /proc or /sys, or a device, a named pipe or a socket.
     """
     in_files, _ = _input_files(inputs)
     seen: dict[Path, Path] = {}
@@ -397,7 +398,8 @@ def write_files(files: dict[Path, bytes], inputs: Iterable[Path] = ()) -> None:
     every one is written are they renamed into place (rename is atomic on POSIX), with
     Ctrl-C and SIGTERM held. The targets that existed are kept as hard-linked backups until
     the last rename, so that a rename failing half-way puts the earlier ones back. A
-    target that is a symlink, a device, a pipe or a socket is refused. For a set of files that
+    target that is a symlink is replaced as a link (one into /dev, /proc or /sys is refused, as
+    are a device, a pipe and a socket). For a set of files that
     makes up an output folder of its own, :func:`write_folder` writes the folder instead.
 
     Parameters

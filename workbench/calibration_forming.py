@@ -252,10 +252,15 @@ def check_same_design(sheets: list[Sheet]) -> None:
     design of the same mesh, print and dpi, with other corners, was taken for the same.)
     """
     ref = sheets[0]
-    ref_map = _map_sha256(ref.design_dir)
+    maps: dict[str, str | None] = {}  # (sheets share their design folder: each flat.obj hashed once)
+    for s in (ref, *sheets[1:]):
+        key = os.path.realpath(s.design_dir)
+        if key not in maps:
+            maps[key] = _map_sha256(s.design_dir)
+    ref_map = maps[os.path.realpath(ref.design_dir)]
     for s in sheets[1:]:
         a, b = fm.design_identity(ref.design), fm.design_identity(s.design)
-        a["map (flat.obj)"], b["map (flat.obj)"] = ref_map, _map_sha256(s.design_dir)
+        a["map (flat.obj)"], b["map (flat.obj)"] = ref_map, maps[os.path.realpath(s.design_dir)]
         if a != b or ref.design.get("forming") != s.design.get("forming"):
             what = next((k for k in a if a[k] != b[k]), "forming compensation")
             raise WorkbenchError(

@@ -310,7 +310,9 @@ class Design:
 MAX_VIEW_PIXELS = 100_000_000
 
 
-def read_image(path, what: str, background: tuple[int, int, int] = (255, 255, 255)) -> np.ndarray:
+def read_image(
+    path, what: str, background: tuple[int, int, int] = (255, 255, 255), data: bytes | None = None
+) -> np.ndarray:
     """An image file as RGB uint8, or a WorkbenchError naming it.
 
     Parameters
@@ -322,6 +324,8 @@ def read_image(path, what: str, background: tuple[int, int, int] = (255, 255, 25
     background : (3,) int
         RGB under the transparent pixels of an image with alpha: the print's background,
         not the black that dropping the alpha channel shows.
+    data : bytes, optional
+        The file's contents, when the caller has read them already (for its hash).
 
     Returns
     -------
@@ -330,10 +334,11 @@ def read_image(path, what: str, background: tuple[int, int, int] = (255, 255, 25
     if Path(path).is_dir():
         raise WorkbenchError(f"{what}: {path} is a directory, not an image")
     check_image_size(path, what)
-    try:
-        data = read_file_bytes(path)
-    except OSError:
-        data = b""
+    if data is None:
+        try:
+            data = read_file_bytes(path)
+        except OSError:
+            data = b""
     img = decode_upright(data)  # upright as its EXIF orientation says, as every viewer shows it
     if img is None:
         raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")

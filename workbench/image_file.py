@@ -48,24 +48,44 @@ def exif_orientation(data: bytes) -> int:
     from PIL import Image
 
     try:
-        # (the header only; the image's size is checked where it is read, not by PIL's bomb warning)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            with Image.open(io.BytesIO(data)) as im:
-                value = im.getexif().get(ORIENTATION_TAG, 1)
+        if data[:8] == PNG_SIGNATURE:
+            # Pillow decodes a whole PNG to look for its EXIF (0.08 s for a 4 Mpx print, twice
+            # OpenCV's decoding): the eXIf chunk is found by its chunk's header instead
+            raw = _png_exif(data)
+            if raw is None:
+                return 1
+            exif = Image.Exif()
+            exif.load(raw)
+            value = exif.get(ORIENTATION_TAG, 1)
+        else:
+            # (the header only; the image's size is checked where it is read, not by PIL's bomb warning)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+                with Image.open(io.BytesIO(data)) as im:
+                    value = im.getexif().get(ORIENTATION_TAG, 1)
     except Exception:  # a file PIL does not know, or a damaged EXIF block: as stored, as OpenCV would
         return 1
     return int(value) if isinstance(value, int) and 1 <= value <= 8 else 1
 
 
-def file_orientation(path) -> int:
-    """:func:`exif_orientation` of an image file, from its header (1 when unreadable)."""
-    try:
-        with open(Path(path), "rb") as f:
-            head = f.read(1 << 20)  # EXIF sits in the first 64 KiB of a JPEG; a PNG's eXIf may follow its header
-    except OSError:
-        return 1
-    return exif_orientation(head)
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_exif(data: bytes) -> bytes | None:
+    """The contents of a PNG's eXIf chunk (before or after its image data), or None.
+
+    A chunk is its length (4 bytes, big-endian), its type (4), its data and a CRC (4).
+    """
+    at = len(PNG_SIGNATURE)
+    while at + 8 <= len(data):
+        n = int.from_bytes(data[at : at + 4], "big")
+        kind = data[at + 4 : at + 8]
+        if kind == b"eXIf":
+            return data[at + 8 : at + 8 + n]
+        if kind == b"IEND":
+            return None
+        at += 12 + n
+    return None
 
 
 def upright(img: np.ndarray, orientation: int) -> np.ndarray:

@@ -19,7 +19,7 @@ from workbench.design import background_share, design, film_area_mm2, fit_warnin
 from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
-from workbench.image_file import file_orientation
+from workbench.image_file import exif_orientation
 from workbench.job import load_job
 from workbench.jsonfile import recorded_path
 from workbench.mesh.io import format_obj
@@ -143,16 +143,19 @@ def run(args) -> int:
     flat_summary = summary(flat)
     limit = job.object.material.max_stretch
     over = None if limit is None else float(flat.area_3d[~flat.collapsed][flat.stretch[~flat.collapsed] > limit].sum())
+    # the mesh and the view images, each read once for its hash and (an image) its orientation
+    recorded = (job.object.mesh, *(v.image for v in job.views))
+    contents = [p.read_bytes() for p in recorded]
     info = {
         "software": {"name": "workbench", "version": __version__},
         # paths relative to the design folder, each with its hash: the folder travels
         "job": {"file": recorded_path(job.path, out), "sha256": job.sha256, "name": job.name},
         "inputs": [
-            {"file": recorded_path(p, out), "sha256": hashlib.sha256(p.read_bytes()).hexdigest()}
-            for p in (job.object.mesh, *(v.image for v in job.views))
+            {"file": recorded_path(p, out), "sha256": hashlib.sha256(data).hexdigest()}
+            for p, data in zip(recorded, contents, strict=True)
         ],
         # each view image as it was used: turned upright by its EXIF orientation (1: as stored)
-        "view_image_orientation": [file_orientation(v.image) for v in job.views],
+        "view_image_orientation": [exif_orientation(data) for data in contents[1:]],
         "print": {
             "width_mm": flat.width_mm,
             "height_mm": flat.height_mm,

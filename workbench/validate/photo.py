@@ -20,7 +20,7 @@ from workbench.camera import Camera
 from workbench.design_dir import Design, read_image
 from workbench.errors import WorkbenchError
 from workbench.export import png_bytes
-from workbench.image_file import file_orientation
+from workbench.image_file import exif_orientation, read_file_bytes
 from workbench.raster import depth_buffer
 from workbench.validate import dense, detection, pictures, print_warp
 from workbench.validate.colour import photo_colour
@@ -211,10 +211,11 @@ def _validate_photo(
     try:
         if path.is_dir():
             raise WorkbenchError(f"{path}: is a directory, not a photo")
-        entry["sha256"] = sha256(path)
-        photo = read_image(path, "photo")
+        data = read_file_bytes(path)  # once: its hash, its EXIF orientation, its pixels
+        entry["sha256"] = hashlib.sha256(data).hexdigest()
         # turned upright as its EXIF tag says (a phone's photo), as every viewer shows it
-        entry["exif_orientation"] = file_orientation(path)
+        entry["exif_orientation"] = exif_orientation(data)
+        photo = read_image(path, "photo", data=data)
     except (OSError, WorkbenchError) as exc:
         entry["reason"] = f"unreadable image: {exc}"
         return entry, files, None, {}

@@ -10,6 +10,7 @@ import numpy as np
 
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
+from workbench.mesh.normals import vertex_normals
 from workbench.raster import _JIT, depth_buffer
 from workbench.render.defects import Defect, apply_defects
 from workbench.render.imperfections import Imperfections, film_transform
@@ -48,15 +49,6 @@ class Scene:
     face_texture: np.ndarray
     textures: list
     n_part_faces: int
-
-
-def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals (the cross products' lengths are twice the areas); (n, 3)."""
-    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    n = np.zeros_like(V)
-    for k in range(3):
-        np.add.at(n, F[:, k], fn)
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
 def board_texture(definition: dict, ppm: float = BOARD_PX_PER_MM) -> tuple[np.ndarray, float]:

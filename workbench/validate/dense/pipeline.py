@@ -486,7 +486,11 @@ def _photo_model(on: _Frame, start: _Start) -> _Model:
     res = _residual(pho, pred)
     # the gain of the print itself, in grey levels: the fit's times the shading's at the film's
     # white (grey(E · lin(255)) = grey(E)), so that gain · 255 + offset is the film's white exactly
-    gain = gain * (photometric.grey_levels(shade) / np.float32(255.0))
+    at_white = photometric.grey_levels(shade) / np.float32(255.0)
+    gain = gain * at_white
+    # (the design's own contrast in the window, not the shaded design's: where the shading is
+    # wrong, and takes the contrast away, the decoration painted over is still the design's)
+    contrast = contrast / np.maximum(at_white, np.float32(1e-3))
     # the design's texture gone from the photo: light scales it (shading, vignetting) or adds
     # to it (glare), never takes it away; where the window's design has contrast, a local gain
     # that collapses against the photo's own is the decoration painted over, covered or torn

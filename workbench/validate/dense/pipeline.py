@@ -971,4 +971,5 @@ def _result(
         np.where(normal[..., None], e1, np.float32(0.0)).astype(np.float32),
         thin_found & stated,
         colour.not_counted,
+        in_cone if camera_center is not None else None,
     )

@@ -71,6 +71,9 @@ class DenseResult:
         The regions of the colour residual taken for light, not counted as defects
         (:func:`not_counted_regions`): ``centre_mm``, ``area_mm2`` (print) and ``decided_by``
         (``rule``, the test that decided, and ``words``).
+    lamp_cone : (rows, cols) bool or None
+        Where the surface mirrors the lamp of the photo's sure light towards the camera
+        (:func:`mirror_cone`): a glossy film's sheen may add light there below any glint.
     """
 
     warped: np.ndarray
@@ -94,6 +97,7 @@ class DenseResult:
     normal_dir: np.ndarray | None = None
     scratch_found: np.ndarray | None = None
     not_counted: list | None = None
+    lamp_cone: np.ndarray | None = None
 
 
 def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> dict:

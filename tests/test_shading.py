@@ -129,3 +129,27 @@ def test_a_light_that_explains_half_the_part_is_no_light():
     f = shading_factor(n, coef)[:, W // 10 :]
     truth = (E / np.median(E))[:, W // 10 :]
     assert np.abs(f / truth - 1).max() < 0.1
+
+
+def test_colour_takes_a_lamps_clamped_shading_out_and_keeps_an_inks_error():
+    """A lamp's shading (ambient plus a clamped cosine) is no linear function of the normal: what
+    the linear model leaves follows the orientation and is shading too; an ink 5 L* too dark, or
+    off by 5 in a* and b*, stays."""
+    rng = np.random.default_rng(8)
+    m = 20000
+    v = rng.normal(size=(m, 3))
+    v[:, 2] = np.abs(v[:, 2]) + 0.3
+    n = v / np.linalg.norm(v, axis=1, keepdims=True)
+    proof = np.column_stack([rng.uniform(35, 80, m), rng.uniform(-50, 50, m), rng.uniform(-50, 50, m)])
+    lamp = np.array([0.3, -0.5, 1.0]) / np.linalg.norm([0.3, -0.5, 1.0])
+    n_chart = np.array([0.0, 0.0, 1.0])
+    k = (0.35 + 0.65 * np.maximum(n @ lamp, 0)) / (0.35 + 0.65 * max(n_chart @ lamp, 0))
+    got = xyz_to_lab(lab_to_xyz(proof) * k[:, None])
+    # (the linear model alone left 0.73 here, the cells 0.43)
+    assert orientation_shading(proof, got, n, n_chart, delta_e00(proof, got))["delta_e00"]["mean"] < 0.6
+    dark = got.copy()
+    dark[:, 0] -= 5.0
+    assert orientation_shading(proof, dark, n, n_chart, delta_e00(proof, dark))["delta_e00"]["mean"] > 3.0
+    hue = got.copy()
+    hue[:, 1:] += 5.0
+    assert orientation_shading(proof, hue, n, n_chart, delta_e00(proof, hue))["delta_e00"]["mean"] > 3.0

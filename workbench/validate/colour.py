@@ -805,9 +805,9 @@ def orientation_shading(
     from ink at all), plus what the linear model leaves at the pixel's orientation, the median
     over its cell of normals (:func:`orientation_median`). An ink that is too light or dark moves
     every surface alike and stays in ``a``. The factor is taken out of X, Y and Z, so out of L*,
-    a* and b* alike. (Second-order spherical harmonics of the normal in place of the linear model, or a
-    lamp's clamped cosine with them, left more on perfect renders of the cow under a
-    directional lamp, 4.7 to 7.6 ΔE00 against 3.2 to 4.5.)
+    a* and b* alike. (Second-order spherical harmonics of the normal in place of the linear
+    model, or a lamp's clamped cosine with them, left more on perfect renders of the cow under
+    a directional lamp: 4.7 to 7.6 ΔE00 against 3.2 to 4.5, before the cells.)
 
     Parameters
     ----------

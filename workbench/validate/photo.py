@@ -370,7 +370,8 @@ def _validate_photo(
     clock.append(time.perf_counter())  # dense analysis
     # (the ink's colour where no lamp is mirrored towards the camera: a glossy film's sheen adds
     # light below any glint within the lamp's mirror cone, and the chart, seen apart, carries none;
-    # on perfect renders of glossy films under a lamp it read as 4 to 8 ΔE00 of ink)
+    # leaving the cone out took perfect glossy renders of the cow, the lily and the face under a
+    # lamp from 4.6, 8.3 and 5.3 ΔE00 without the shading to 3.3, 4.4 and 3.4)
     colour_state = dr.state
     if dr.lamp_cone is not None and dr.lamp_cone.any():
         colour_state = np.where(dr.lamp_cone, np.uint8(print_warp.HIGHLIGHT), dr.state).astype(np.uint8)

@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from workbench.camera import Camera
+from workbench.mesh.normals import vertex_normals
 from workbench.raster import depth_buffer, interpolate, rasterize_triangles
 from workbench.views.visibility import surface_faces_facing, unoccluded_many
 
@@ -71,6 +72,9 @@ class PrintGrid:
     film : (rows, cols) int16 or None
         With several films, the film (0-based) under each pixel (-1: off the part); None for
         a design of one film. Each film is placed on its own (:func:`placement_field`).
+    normal : (rows, cols, 3) float32 or None
+        Unit surface normal under each pixel centre, interpolated from the area-weighted vertex
+        normals as both renderers and a smooth real part shade (NaN off the part).
     """
 
     X: np.ndarray
@@ -82,6 +86,7 @@ class PrintGrid:
     face: np.ndarray
     fold: np.ndarray | None = None
     film: np.ndarray | None = None
+    normal: np.ndarray | None = None
 
 
 def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner, face_film=None) -> PrintGrid:
@@ -118,6 +123,8 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner, face_fil
     P = np.stack([flat_uv_mm[:, 0] * ppm - 0.5, (rect_height_mm - flat_uv_mm[:, 1]) * ppm - 0.5], axis=1)
     face, bary = rasterize_triangles(P, F, gc, gr)
     X = interpolate(face, bary, F, V)
+    N = interpolate(face, bary, F, vertex_normals(np.asarray(V, np.float64), np.asarray(F)))
+    N = (N / np.maximum(np.linalg.norm(N, axis=-1, keepdims=True), 1e-12)).astype(np.float32)
     on = face >= 0
     # stretch: |∂X/∂x| and |∂X/∂y| per grid pixel, in mm per mm
     with np.errstate(invalid="ignore"):
@@ -135,7 +142,7 @@ def print_grid(V, F, flat_uv_mm, rect_height_mm, print_rgb, dpi, owner, face_fil
     film = None
     if face_film is not None:
         film = np.where(on, np.asarray(face_film)[np.maximum(face, 0)], -1).astype(np.int16)
-    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref), face, film=film)
+    return PrintGrid(X, own, ppm, factor, stretch, np.ascontiguousarray(ref), face, film=film, normal=N)
 
 
 def warp_to_print(

@@ -5,7 +5,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from workbench.render.defects import FILM_RGB
 from workbench.validate.dense._channels import _cmax, _cmin
 from workbench.validate.dense.lines import thin_ink_loss
 from workbench.validate.dense.options import (
@@ -88,7 +87,7 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
     return back(gains), back(offsets), back(contrasts)
 
 
-def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm):
+def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur):
     """The colour test of :func:`analyse` before highlights are told from ink: residuals, limits, ink gone.
 
     Apart so that it can run beside the flow's uncertainty (it needs none of it).
@@ -97,8 +96,8 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
     ----------
     pho, pred : (H, W, 3) float32
         The photo on the print and the model (the print moved, blurred like the photo, in its exposure).
-    gain, offset : (H, W, 3) float32
-        The exposure fit.
+    film : (H, W, 3) float32
+        The bare film as the photo shows it, grey levels (:func:`workbench.validate.photometric.film_level`).
     res : (H, W) float32
         The model's largest channel residual.
     weight : (H, W) float32
@@ -109,6 +108,8 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
         Photo pixels per grid pixel.
     px_per_mm : float
         The grid's resolution (the scratch test's width).
+    blur : (H, W) float32
+        The photo's blur at each pixel, Gaussian sigma, grid px (what a scratch keeps of its step).
 
     Returns
     -------
@@ -131,9 +132,16 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
         A scratch's ink gone, and where a scratch would be found (:func:`thin_ink_loss`).
     """
     colour_scored = scored
-    # ink missing: the photo matches the bare film's colour, the design does not
-    film = np.asarray(FILM_RGB, np.float32)
-    film_pred = gain * film + offset
+    # ink missing: the photo matches the bare film's colour, the design does not. The film as the
+    # ink around shows it, in linear light (the exposure fit's gain and offset extrapolated from
+    # dark ink to the film's white erred by -90 to +30 grey levels along a face mask's scratch,
+    # 143 to 210 against the 235 four photos agree on: a scratch "found" by the error, or lost);
+    # the photo shows no more than its top. Ink only absorbs: the film is at least as bright as
+    # the ink under the same light, and where the film the ink around tells comes out darker
+    # than the model of the ink itself, the two accounts of the light disagree (near-white ink at
+    # a shadow's edge on a bunny: the film 150, the ink's model 180, the photo 100), and a darker
+    # photo is no step towards the film: there is no step to seek
+    film_pred = np.clip(film, pred, np.float32(255.0))
     # how much of the ink is gone, per pixel: the photo's step from the design's colour towards
     # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
     step = film_pred - pred
@@ -171,7 +179,9 @@ def colour_residuals(pho, pred, gain, offset, res, weight, scored, fp, px_per_mm
     # a scratch: ink gone along a line thinner than any shading, highlight or exposure error,
     # judged against its own surroundings, with no tolerance for what is broad
     thin_limit = position * np.hypot(gx, gy) + SIGNIFICANCE_Z * colour_noise
-    thin, thin_found, thin_alpha = thin_ink_loss(pho, pred, film_pred, colour_scored, px_per_mm, thin_limit)
+    thin, thin_found, thin_alpha = thin_ink_loss(
+        pho, pred, film_pred, colour_scored, px_per_mm, thin_limit, blur, colour_noise
+    )
     gone |= thin
     # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
     alpha = np.maximum(alpha, thin_alpha)

@@ -99,13 +99,17 @@ MEDIAN_FLOW_MM = 2.0  # the window of the flow's median the colour's model follo
 
 # the photo's local blur (blur.py)
 BLUR_LEVELS = (0.0, 0.75, 1.0, 1.5, 2.0, 3.0, 4.5, 6.0)  # grid px: the blurs a local PSF is rounded to
-PRINT_BLUR_PX = 0.5  # the print's own blur, grid px: see local_psf
+PRINT_BLUR_PX = 0.5  # the print's own blur, grid px: see blur.PhotoBlur
 
 # the regions taken for light that validation.json lists (light.py)
 MAX_NOT_COUNTED = 50  # regions listed at most (the largest); all of them are in the coverage map as highlight
 
 # scratches: thin lines of ink gone (lines.py)
 SCRATCH_MM = 1.5  # ink gone along a line narrower than about half this is a scratch (thin_ink_loss)
+# the scratch the detection map states: a line of ink gone this wide on the print (print mm), the
+# corpus's scratches (20 x 0.5 mm); a wider one steps further towards the film through the same
+# blur, so it is found wherever this one is
+SCRATCH_WIDTH_MM = 0.5
 # a scratch's line is judged without the broad colour tolerance only where the film is stretched
 # less than this (surface mm per print mm): beyond, a thin line of print is broad on the part
 THIN_MAX_STRETCH = 2.0

@@ -10,7 +10,7 @@ import numpy as np
 
 from workbench.validate import detection, photometric
 from workbench.validate.dense._channels import _cmax, _cmin
-from workbench.validate.dense.blur import blur_locally, estimate_blur, local_psf, unresolved_detail
+from workbench.validate.dense.blur import blur_locally, estimate_blur, unresolved_detail
 from workbench.validate.dense.defects import find_defects, shift_explained
 from workbench.validate.dense.exposure import (
     _residual,
@@ -41,6 +41,7 @@ from workbench.validate.dense.options import (
     MIN_TWO_WAY,
     MISSING_GAP_MM,
     NOISE_FLOOR,
+    SATURATED,
     SHADOW,
     SHIFT_EXPLAINS,
     SIGNIFICANCE_Z,
@@ -70,6 +71,7 @@ from workbench.validate.print_warp import (
     _csum,
     rim_band,
 )
+from workbench.validate.shading import fit_shading, shaded, shading_factor
 
 
 def analyse(
@@ -167,12 +169,16 @@ class _Start:
     early : (H, W, 2) float32
         The placement's misregistration, grid px (0 where it moves the print by less than a
         measuring pixel's uncertainty may be).
+    shade : (H, W, 3) float32
+        The shading of the surface's normal relative to its median (:func:`shading_factor`),
+        linear light; 1 without a model. The flow compares the photo with the print so shaded.
     """
 
     fs: FlowStart
     state: np.ndarray
     ref: np.ndarray
     early: np.ndarray
+    shade: np.ndarray
 
 
 @dataclass
@@ -184,9 +190,9 @@ class _Model:
     back, detail : Future
         The flow back (:func:`dis_flow`) and the print's unresolved detail (:func:`unresolved_detail`).
     blur : float
-        The photo's blur on the grid, grid px.
+        The photo's blur on the grid where it samples the print at its median, grid px.
     local_blur : (H, W) float32
-        Its blur at each grid pixel (:func:`local_psf`).
+        Its blur at each grid pixel (:meth:`~workbench.validate.dense.blur.PhotoBlur.on_grid`).
     moved : (H, W, 3) float32
         The print moved by the flow's median and blurred like the photo.
     weight : (H, W) float32
@@ -194,7 +200,8 @@ class _Model:
     gain, offset : (H, W, 3) float32
         The exposure fit.
     pred : (H, W, 3) float32
-        The model: ``gain · moved + offset``.
+        The model: the exposure fit of the print as the shading shows it (:mod:`workbench.validate.shading`), about
+        ``gain · moved + offset``.
     res : (H, W) float32
         Its largest channel residual.
     g0 : (3,) float or None
@@ -203,6 +210,11 @@ class _Model:
         Where the photo has lost the design's texture (:func:`texture_lost`).
     white : (H, W, 3) float32
         The film's white as the exposure fit extrapolates it.
+    shade : (H, W, 3) float32
+        The shading of the surface's normal relative to its median (:func:`shading_factor`),
+        linear light; 1 without a model.
+    lit : (H, W, 3) float32
+        ``moved`` as the shading shows it (:func:`shaded`), grey levels.
     """
 
     back: object
@@ -218,6 +230,8 @@ class _Model:
     g0: np.ndarray | None
     lost: np.ndarray
     white: np.ndarray
+    shade: np.ndarray
+    lit: np.ndarray
 
 
 @dataclass
@@ -384,8 +398,8 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # the colour test (with the scratch test and where ink that is gone would be found) needs
     # nothing of the flow's uncertainty: beside it; and after it a window's slide (below)
     colour_test = later.submit(
-        colour_residuals, pho, model.pred, model.gain, model.offset, model.res, model.weight, light.scored, fp,
-        grid.px_per_mm,
+        colour_residuals, pho, model.pred, light.film_lit.film, model.res, model.weight, light.scored, fp,
+        grid.px_per_mm, model.local_blur,
     )  # fmt: skip
     measures = _flow_measures(on, start, model, light)
     colour = _light_or_ink(on, start, model, light, measures, colour_test.result())
@@ -398,7 +412,18 @@ def _placed_flow(on: _Frame, state: np.ndarray) -> _Start:
     grid, pho, warped, scale, later = on.grid, on.pho, on.warped, on.scale, on.later
     jj, ii, mm_per_px, tolerance_mm = on.jj, on.ii, on.mm_per_px, on.tolerance_mm
     ref = grid.reference.astype(np.float32)
-    fs = flow_start(ref, pho, warped, state, scale, later)
+    # the shading: a function of the surface's normal over the whole part (:mod:`workbench.validate.shading`), so
+    # that what the photo is compared with is the print as the part's light shows it. The local
+    # exposure fit works in windows of the print, and where the design squeezed the print (the
+    # scanned face's crown: 12 surface mm a print mm) one window spans a surface turning through
+    # the lamp's light: the photo's shading there went from 0.25 to 0.97 of the print across a
+    # window whose fitted gain stayed at 0.40, and the lit side read as ink gone. (Fitted on the
+    # print before the flow: a global fit of nine numbers does not feel a millimetre's slide.)
+    shade = np.ones_like(ref)
+    if grid.normal is not None:
+        sat = _cmin(warped) >= SATURATED
+        shade = shading_factor(grid.normal, fit_shading(pho, ref, grid.normal, (state == FULL) & ~sat))
+    fs = flow_start(shaded(ref, shade), pho, warped, state, scale, later)
     H, W = state.shape
     # placement is not a defect: each film's placement (an affine field over the film, fitted to
     # this first flow where the print has texture both ways) is judged as placement, and the
@@ -421,10 +446,10 @@ def _placed_flow(on: _Frame, state: np.ndarray) -> _Start:
         state[(state == FULL) & ~from_film] = OFF_PART
         state = rim_band(state)
         state[(state == OFF_PART) & on_film.astype(bool)] = EDGE
-        fs = flow_start(ref, pho, warped, state, scale, later)
+        fs = flow_start(shaded(ref, shade), pho, warped, state, scale, later)
     else:
         early = np.zeros_like(early)
-    return _Start(fs, state, ref, early)
+    return _Start(fs, state, ref, early, shade)
 
 
 def _photo_model(on: _Frame, start: _Start) -> _Model:
@@ -440,24 +465,36 @@ def _photo_model(on: _Frame, start: _Start) -> _Model:
     # neighbouring ink over the bare film, would explain the ink that is gone away)
     mc = median_flow(fs.m, grid.px_per_mm)
     moved = cv2.remap(ref, jj - mc[..., 0], ii - mc[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat)
     # the blur where the photo samples the print coarser than its median (a surface seen
     # obliquely or from farther): a photo pixel spans 1 / footprint grid pixels there, so its
     # blur on the grid grows in proportion (one blur for a whole photo of a deep part made
     # the creases seen at a slant "colour defects": the print's detail the photo cannot show)
-    # (rounded to the level of the median where the photo is not scored: nothing there asks for more)
-    local_blur = np.where(inner, local_psf(blur, scale, fp), np.float32(blur))
+    photo_blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat, fp, scale)
+    blur = float(photo_blur.on_grid(scale, scale))
+    # (the median's where the photo is not scored: nothing there asks for more)
+    local_blur = np.where(inner, photo_blur.on_grid(fp, scale), np.float32(blur))
     # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
     detail = later.submit(unresolved_detail, rg, local_blur, MIN_EDGE)
     moved = blur_locally(moved, local_blur)
-    # exposure: a robust local fit (a second pass without the first pass's outliers)
     weight = (inner & ~sat).astype(np.float32)
-    gain, offset, _ = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
-    res = _residual(pho, gain * moved + offset)
+    shade = start.shade
+    lit = shaded(moved, shade)
+    # exposure: a robust local fit of the photo to the shaded print (a second pass without the
+    # first pass's outliers), which is left the exposure, vignetting and what the normal's
+    # shading does not hold (cast shadows, interreflections)
+    gain, offset, _ = exposure_fit(lit, pho, weight, EXPOSURE_SIGMA_PX)
+    res = _residual(pho, gain * lit + offset)
     weight = weight * (res < COLOUR_TOL)
-    gain, offset, contrast = exposure_fit(moved, pho, weight, EXPOSURE_SIGMA_PX)
-    pred = gain * moved + offset
+    gain, offset, contrast = exposure_fit(lit, pho, weight, EXPOSURE_SIGMA_PX)
+    pred = gain * lit + offset
     res = _residual(pho, pred)
+    # the gain of the print itself, in grey levels: the fit's times the shading's at the film's
+    # white (grey(E · lin(255)) = grey(E)), so that gain · 255 + offset is the film's white exactly
+    at_white = photometric.grey_levels(shade) / np.float32(255.0)
+    gain = gain * at_white
+    # (the design's own contrast in the window, not the shaded design's: where the shading is
+    # wrong, and takes the contrast away, the decoration painted over is still the design's)
+    contrast = contrast / np.maximum(at_white, np.float32(1e-3))
     # the design's texture gone from the photo: light scales it (shading, vignetting) or adds
     # to it (glare), never takes it away; where the window's design has contrast, a local gain
     # that collapses against the photo's own is the decoration painted over, covered or torn
@@ -473,7 +510,7 @@ def _photo_model(on: _Frame, start: _Start) -> _Model:
     )
     lost = texture_lost(gain, determined, seen & ~sat, g0, brightness)
     white = gain * np.float32(255.0) + offset  # the film's white as the exposure fit extrapolates it
-    return _Model(back, detail, blur, local_blur, moved, weight, gain, offset, pred, res, g0, lost, white)
+    return _Model(back, detail, blur, local_blur, moved, weight, gain, offset, pred, res, g0, lost, white, shade, lit)
 
 
 def _sure_light(on: _Frame, start: _Start, model: _Model) -> _SureLight:
@@ -490,9 +527,14 @@ def _sure_light(on: _Frame, start: _Start, model: _Model) -> _SureLight:
     # clips where the film may clip too, a white dropout included, is judged with its region below
     noise0 = float(1.4826 * np.median(res[weight > 0])) if (weight > 0).any() else NOISE_FLOOR
     sheen = photometric.linear(np.maximum(_cmin(offset), 0.0))  # the light the exposure fit adds over the ink
+    # (each inked pixel measures the film as the shading lights it there: the print shaded, its
+    # level then the exposure's, smooth over the window; the shading put back per pixel)
     film_lit = photometric.film_level(
-        pho, moved, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, white, sheen, photometric.window_shares(on.grid.X)
-    )
+        pho, model.lit, weight > 0, noise0, 0.5 * EXPOSURE_SIGMA_PX, white, sheen,
+        photometric.window_shares(on.grid.X),
+    )  # fmt: skip
+    known = film_lit.sigma < photometric.UNKNOWN
+    film_lit.film[known] = shaded(film_lit.film, model.shade)[known]
     if (unknown := film_lit.sigma >= photometric.UNKNOWN).any():
         # (where no ink around tells the film, the exposure fit's white in the film's one colour)
         film_lit.film[unknown] = film_colour(white, moved, weight > 0, unknown)[unknown]

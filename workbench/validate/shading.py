@@ -106,22 +106,26 @@ def fit_irradiance(
     # nothing from the first round.
     coef = np.zeros(SH_TERMS)
     coef[0] = float(np.median(y / a))
-    r = y - M @ coef
     level = float(np.median(np.abs(y)))
-    s = min(max(1.4826 * float(np.median(np.abs(r))), SCALE_FLOOR * level, 1e-12), SCALE_CAP * level)
-    u = r / (TUKEY_C * s)
-    w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+    r = y - M @ coef
+    w = _tukey_weights(r, r, level)
     for _ in range(IRLS_ROUNDS):
         Mw = M * w[:, None]
         coef = np.linalg.lstsq(Mw.T @ M + ridge, Mw.T @ y, rcond=1e-12)[0]
         r = y - M @ coef
         # (the scale from the samples the last round kept: the outliers do not inflate it)
-        s = min(max(1.4826 * float(np.median(np.abs(r[w > 0]))), SCALE_FLOOR * level, 1e-12), SCALE_CAP * level)
-        u = r / (TUKEY_C * s)
-        w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        w = _tukey_weights(r, r[w > 0], level)
     inlier = np.zeros(len(keep), bool)
     inlier[np.flatnonzero(keep)] = w > 0
     return coef, inlier
+
+
+def _tukey_weights(r: np.ndarray, kept: np.ndarray, level: float) -> np.ndarray:
+    """Tukey's biweight of residuals ``r``, its scale from the residuals ``kept`` (MAD) within
+    SCALE_FLOOR and SCALE_CAP of the photo's ``level``; (n,) float64."""
+    s = min(max(1.4826 * float(np.median(np.abs(kept))), SCALE_FLOOR * level, 1e-12), SCALE_CAP * level)
+    u = r / (TUKEY_C * s)
+    return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
 
 
 def fit_shading(photo: np.ndarray, design: np.ndarray, normal: np.ndarray, weight: np.ndarray) -> np.ndarray | None:

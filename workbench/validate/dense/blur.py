@@ -101,10 +101,8 @@ def estimate_blur(
     # third decimal, and the 20 candidates each index the whole stack)
     at = at[:: -(-len(at) // BLUR_SAMPLES)]
 
-    def detail(img):
-        return (img - cv2.GaussianBlur(img, (0, 0), DETAIL_SIGMA_PX)).ravel()[at]
-
-    w = detail(warped_gray.astype(np.float32))
+    photo = warped_gray.astype(np.float32)
+    w = (photo - cv2.GaussianBlur(photo, (0, 0), DETAIL_SIGMA_PX)).ravel()[at]
     w = w - w.mean()
     ww = float((w * w).sum())
     # (the print's detail at every level of blur once; a candidate takes each pixel's level. The

@@ -112,7 +112,8 @@ def thin_ink_loss(
     # (a face mask's 0.5 mm scratch seen at 1.6 grid px: 0.45 predicted at its core, 0.46
     # measured in four photos)
     w = SCRATCH_WIDTH_MM * px_per_mm
-    reach = line_profile(0.0, w, blur) - line_profile(float(r), w, blur)
+    at_core = line_profile(0.0, w, blur)
+    reach = at_core - line_profile(float(r), w, blur)
     step_core = reach * size
     # (a step to the film under LOST_MIN_CONTRAST twice over is pale ink a line of film barely
     # changes: a perfect render's antialiased edges reach half of it, measured 6 grey levels)
@@ -135,7 +136,7 @@ def thin_ink_loss(
     # (and the line itself beyond the limit at its core, as found lines must be: over pale ink on a
     # photo whose model misses by 12 grey levels, a scratch's top-hat cleared its threshold along
     # its whole length, the line itself along a third)
-    core = line_profile(0.0, w, blur) * size
+    core = at_core * size
     findable = sought & (step_core - DETECT_Z * spread >= threshold) & (core - DETECT_Z * noise >= limit)
     with np.errstate(invalid="ignore", divide="ignore"):
         # (where the step to the film is twice the limit: below, the share is the noise's)

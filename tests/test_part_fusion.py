@@ -184,3 +184,48 @@ def test_a_defect_seen_in_several_photos_is_sized_by_the_median_of_those_that_se
     # ink gone that one photo finds is ink gone, where another finds a colour defect there
     views[1]["kind"] = "colour"
     assert fused_view(views[:2])["kind"] == "missing" and fused_view(views[1:2])["kind"] == "colour"
+
+
+def test_what_one_photo_found_apart_stays_apart_and_each_photo_shows_a_defect_once():
+    """Two dropouts 14 mm apart whose boxes touch: the photo that found both keeps them two
+    defects of the part (merged, they were one 54 mm² defect between them, and both escaped); a
+    photo that found one joins the one its box overlaps most; each part defect lists a photo once."""
+    from types import SimpleNamespace
+
+    from workbench.validate.part import part_summary
+
+    H, W = 100, 100
+    state = np.full((H, W), print_warp.FULL, np.uint8)
+    grid = SimpleNamespace(owner=np.zeros((H, W), np.int32))
+    left = {
+        "id": 1,
+        "kind": "missing",
+        "area_mm2": 28.1,
+        "bbox_mm": [109.0, 134.9, 120.9, 147.1],
+        "centre_mm": [113.3, 140.5],
+    }
+    right = {
+        "id": 2,
+        "kind": "missing",
+        "area_mm2": 25.1,
+        "bbox_mm": [118.9, 130.3, 131.1, 144.0],
+        "centre_mm": [125.7, 136.0],
+    }
+    other = {
+        "id": 1,
+        "kind": "missing",
+        "area_mm2": 25.9,
+        "bbox_mm": [109.0, 134.9, 120.1, 145.3],
+        "centre_mm": [113.0, 140.1],
+    }
+    entries = [
+        {"photo": "a.png", "verdict": "FAIL", "defects": [left, right]},
+        {"photo": "b.png", "verdict": "FAIL", "defects": [other]},
+    ]
+    _, _, defects = part_summary([state, state], grid, ["top"], entries)
+    assert len(defects) == 2
+    by_centre = sorted(defects, key=lambda d: d["centre_mm"][0])
+    assert by_centre[0]["photos"] == ["a.png", "b.png"]
+    assert by_centre[0]["area_mm2_by_photo"] == {"a.png": 28.1, "b.png": 25.9}
+    assert by_centre[0]["centre_mm"] == pytest.approx([113.15, 140.3])
+    assert by_centre[1]["photos"] == ["a.png"] and by_centre[1]["area_mm2"] == 25.1

@@ -276,6 +276,26 @@ def test_a_rotationally_symmetric_part_says_its_turn_about_the_axis_is_undetermi
     assert abs(e["film_rotation_deg"] - 0.8) <= 0.05 and np.hypot(*e["film_offset_mm"]) <= 0.05
 
 
+def test_a_grazing_photo_does_not_move_the_part_along_what_its_outline_cannot_tell(tmp_path):
+    """The lily from 20° above: its outline, 11 samples against the plate's foreshortened squares,
+    leaves the part's moves in the plane undetermined (to 1 mm and more), and what is undetermined
+    is held at zero, as the seating reports it. (Its steps, which weigh the outline at half a pixel
+    whatever it fits to, walked the part 2.2 mm along them, and the perfect film read as a 108 mm²
+    slide.)"""
+    d = tmp_path / "lilium"
+    assert main(["design", str(ROOT / "tests" / "data" / "validate_corpus" / "lilium" / "job.toml"),
+                 "--out", str(d), "-q"]) == 0  # fmt: skip
+    p = tmp_path / "grazing.jpg"
+    assert main(["render", str(d), "--orbit=210,20,346.2", "--fov-deg", "40", "--size", "1400x1050",
+                 "--realistic", "--seed", "5", "-o", str(p), "-q"]) == 0  # fmt: skip
+    _, report = validate(Design(d), [p], tmp_path / "out")
+    e = report["photos"][0]
+    s = e["seating"]
+    assert any(u["motion"].startswith("translation") for u in s["undetermined"]), s["undetermined"]
+    assert s["largest_vertex_motion_mm"] < s["min_applied_mm"] and not s["applied"], s
+    assert e["verdict"] == "PASS", e["reason"]
+
+
 # -- an independent renderer --------------------------------------------------------------
 
 

@@ -182,13 +182,21 @@ def part_summary(
             if (k, d.get("id")) in gone:
                 continue  # light in this photo: another photo sees the ink (light_in_one_photo)
             x0, y0, x1, y1 = d["bbox_mm"]
+            seen = _seen(d, e)
+            # (into the part defect whose box it overlaps most, among those this photo has not shown
+            # yet: what one photo found apart stays apart, two dropouts 14 mm apart whose boxes
+            # touched included; what several photos found at one place is one defect)
+            best, most = None, 0.0
             for m in defects:
                 a0, b0, a1, b1 = m["bbox_mm"]
-                if x0 < a1 and a0 < x1 and y0 < b1 and b0 < y1:
-                    m["bbox_mm"] = [min(x0, a0), min(y0, b0), max(x1, a1), max(y1, b1)]
-                    m["photos"].append(Path(e["photo"]).name)
-                    m["seen"].append(_seen(d, e))
-                    break
+                overlap = max(0.0, min(x1, a1) - max(x0, a0)) * max(0.0, min(y1, b1) - max(y0, b0))
+                if overlap > most and seen["photo"] not in m["photos"]:
+                    best, most = m, overlap
+            if best is not None:
+                a0, b0, a1, b1 = best["bbox_mm"]
+                best["bbox_mm"] = [min(x0, a0), min(y0, b0), max(x1, a1), max(y1, b1)]
+                best["photos"].append(seen["photo"])
+                best["seen"].append(seen)
             else:
                 defects.append(
                     {
@@ -197,8 +205,8 @@ def part_summary(
                         "area_mm2": d["area_mm2"],
                         "bbox_mm": list(d["bbox_mm"]),
                         "view": d.get("view"),
-                        "photos": [Path(e["photo"]).name],
-                        "seen": [_seen(d, e)],
+                        "photos": [seen["photo"]],
+                        "seen": [seen],
                     }
                 )
     for m in defects:

@@ -197,27 +197,13 @@ def test_what_one_photo_found_apart_stays_apart_and_each_photo_shows_a_defect_on
     H, W = 100, 100
     state = np.full((H, W), print_warp.FULL, np.uint8)
     grid = SimpleNamespace(owner=np.zeros((H, W), np.int32))
-    left = {
-        "id": 1,
-        "kind": "missing",
-        "area_mm2": 28.1,
-        "bbox_mm": [109.0, 134.9, 120.9, 147.1],
-        "centre_mm": [113.3, 140.5],
-    }
-    right = {
-        "id": 2,
-        "kind": "missing",
-        "area_mm2": 25.1,
-        "bbox_mm": [118.9, 130.3, 131.1, 144.0],
-        "centre_mm": [125.7, 136.0],
-    }
-    other = {
-        "id": 1,
-        "kind": "missing",
-        "area_mm2": 25.9,
-        "bbox_mm": [109.0, 134.9, 120.1, 145.3],
-        "centre_mm": [113.0, 140.1],
-    }
+
+    def missing(i, area, bbox, centre):
+        return {"id": i, "kind": "missing", "area_mm2": area, "bbox_mm": bbox, "centre_mm": centre}
+
+    left = missing(1, 28.1, [109.0, 134.9, 120.9, 147.1], [113.3, 140.5])
+    right = missing(2, 25.1, [118.9, 130.3, 131.1, 144.0], [125.7, 136.0])
+    other = missing(1, 25.9, [109.0, 134.9, 120.1, 145.3], [113.0, 140.1])
     entries = [
         {"photo": "a.png", "verdict": "FAIL", "defects": [left, right]},
         {"photo": "b.png", "verdict": "FAIL", "defects": [other]},

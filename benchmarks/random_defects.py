@@ -358,6 +358,32 @@ def distance_to(t: dict, c) -> float:
     return float(np.linalg.norm(np.asarray(c, np.float64) - np.asarray(t["centre_mm"], np.float64)))
 
 
+def visible_part(t: dict, design: Path) -> tuple[float, list[float]] | None:
+    """A dropout's visible part: its area (mm²) and centroid (print mm) where the design's ink shows when gone.
+
+    Where the design is the bare film's colour (within the colour tolerance, ΔE 3 as
+    :func:`workbench.validate.coverage.where_defects_show` takes it), ink gone changes nothing: a disc
+    across the design's white is found, and sized, by its inked part alone.
+    """
+    from workbench.render.defects import FILM_RGB
+    from workbench.validate.coverage import design_lab
+
+    img = cv2.imread(str(design / "print.png"), cv2.IMREAD_UNCHANGED)
+    ppm = json.loads((design / "design.json").read_text())["print"]["dpi"] / 25.4
+    (cx, cy), r = t["centre_mm"], t["radius_mm"]
+    i0, i1 = max(int((cy - r) * ppm) - 1, 0), min(int((cy + r) * ppm) + 2, img.shape[0])
+    j0, j1 = max(int((cx - r) * ppm) - 1, 0), min(int((cx + r) * ppm) + 2, img.shape[1])
+    ii, jj = np.mgrid[i0:i1, j0:j1]
+    disc = np.hypot((jj + 0.5) / ppm - cx, (ii + 0.5) / ppm - cy) <= r
+    rgb = np.ascontiguousarray(img[i0:i1, j0:j1, 2::-1]).astype(np.float32)
+    film = design_lab(np.asarray(FILM_RGB, np.float32).reshape(1, 1, 3))[0, 0]
+    shows = disc & (np.linalg.norm(design_lab(rgb) - film, axis=-1) > 3.0)
+    if not shows.any():
+        return None
+    centre = [float((jj[shows] + 0.5).mean() / ppm), float((ii[shows] + 0.5).mean() / ppm)]
+    return float(shows.sum() / ppm**2), centre
+
+
 def judge(report: dict, vdir: Path, truth: list[dict], design: Path, cams: list[tuple]) -> dict:
     part = report.get("part") or {}
     films = (part.get("coverage") or {}).get("films", [])
@@ -412,13 +438,18 @@ def judge(report: dict, vdir: Path, truth: list[dict], design: Path, cams: list[
             rec["covered_share_per_photo"] = per
         else:
             rec["covered_share"], rec["covered"] = None, False
-        # found: a part defect of a matching kind near it
+        # found: a part defect of a matching kind near it (a dropout: near its visible part, and
+        # that part's size)
         reach = SCRATCH_LOCATE_MM if t["kind"] == "scratch" else LOCATE_MM
+        seen = {**t}
+        if t["kind"] == "dropout" and (vis := visible_part(t, design)) is not None:
+            seen["area_mm2"], seen["centre_mm"] = vis
+            rec["visible_area_mm2"], rec["visible_centre_mm"] = round(vis[0], 2), [round(v, 2) for v in vis[1]]
         match = None
-        for d in sorted(defects, key=lambda d: distance_to(t, d["centre_mm"])):
-            if d["kind"] not in MATCH_KINDS[t["kind"]] or distance_to(t, d["centre_mm"]) > reach:
+        for d in sorted(defects, key=lambda d: distance_to(seen, d["centre_mm"])):
+            if d["kind"] not in MATCH_KINDS[t["kind"]] or distance_to(seen, d["centre_mm"]) > reach:
                 continue
-            if t["kind"] == "dropout" and abs(d["area_mm2"] / t["area_mm2"] - 1) > AREA_SHARE:
+            if t["kind"] == "dropout" and abs(d["area_mm2"] / seen["area_mm2"] - 1) > AREA_SHARE:
                 continue
             match = d
             break

@@ -54,10 +54,43 @@ def test_ink_gone_stays_when_no_other_photo_shows_the_ink(b_state, b_finds, why)
     assert light_in_one_photo(entries, states, maps, PPM, 4.0) == [], why
 
 
+@pytest.mark.parametrize(
+    "b_state, b_limit_um, dismissed",
+    [
+        (print_warp.FULL, 420, True),  # the other photo would find a slide of 0.42 mm there, and found none
+        (print_warp.FULL, 460, False),  # it would find only a larger one than this photo's 0.44 mm
+        (print_warp.DEFECT, 300, False),  # it found a defect there too: a slide stays put
+        (print_warp.HIGHLIGHT, 300, False),  # it does not measure it
+    ],
+)
+def test_a_slide_in_one_photo_that_another_sees_in_place_is_light(b_state, b_limit_um, dismissed):
+    """A slid film stays on the print in every photo, as ink gone does: a slide one photo finds and
+    another, which states it finds a slide that large there, does not, is light in the first."""
+    entries, states, maps = two_photos(b_state, True)
+    entries[0]["defects"][0].update(kind="shift", peak_mm=0.44, mean_mm=0.38)
+    for k, um in ((0, 300), (1, b_limit_um)):
+        maps[f"photo{k}_shift_limit_um"] = np.full(states[0].shape, um, np.uint16)
+    got = light_in_one_photo(entries, states, maps, PPM, 4.0)
+    assert bool(got) == dismissed
+    if dismissed:
+        assert got[0]["kind"] == "shift" and "finds a slide there and found none" in got[0]["decided_by"]["words"]
+
+
+def test_a_photo_from_the_same_direction_overrules_nothing():
+    """Two photos from one direction show one lamp's reflection alike: where they disagree, neither is light."""
+    entries, states, maps = two_photos(print_warp.FULL, True)
+    X = np.zeros((100, 100, 3))
+    for e, c in zip(entries, ([0.0, 0.0, 300.0], [10.0, 0.0, 300.0]), strict=True):  # 1.9° apart
+        e["pose"] = {"camera_center_mm": c}
+    assert light_in_one_photo(entries, states, maps, PPM, 4.0, X) == []
+    entries[1]["pose"]["camera_center_mm"] = [150.0, 0.0, 300.0]  # 26.6° apart
+    assert len(light_in_one_photo(entries, states, maps, PPM, 4.0, X)) == 1
+
+
 def three_photos(angle_deg: float):
     """Photos A and C find the same 16 mm² of ink gone, B measures it clean and would find it; the
-    surface is the plane z = 0 (1 mm per grid px / 10), A's camera straight above the region and
-    C's ``angle_deg`` from it, both 500 mm away."""
+    surface is the plane z = 0 (1 mm per grid px / 10), A's camera straight above the region, B's
+    20° from it one way and C's ``angle_deg`` the other, all 500 mm away."""
     (entries, states, maps) = two_photos(print_warp.FULL, True)
     sc = states[0].copy()
     states = [states[0], states[1], sc]
@@ -68,7 +101,8 @@ def three_photos(angle_deg: float):
     X = np.stack([(jj + 0.5) / PPM, (ii + 0.5) / PPM, np.zeros(sc.shape)], axis=-1)
     p = np.array([5.0, 6.0, 0.0])
     t = np.radians(angle_deg)
-    for e, v in zip(entries, ([0, 0, 1], [0, 0, 1], [np.sin(t), 0, np.cos(t)]), strict=True):
+    b = np.radians(-20.0)  # (B 20° the other way: from A's own direction it could overrule nothing)
+    for e, v in zip(entries, ([0, 0, 1], [np.sin(b), 0, np.cos(b)], [np.sin(t), 0, np.cos(t)]), strict=True):
         e["pose"] = {"camera_center_mm": list(p + 500.0 * np.asarray(v, float))}
     return entries, states, maps, X
 

@@ -23,6 +23,7 @@ from workbench.atomic import check_output_dir, check_outputs, safe_name, write_f
 from workbench.camera import load_camera_profile
 from workbench.design_dir import Design, design_files
 from workbench.errors import UsageError, WorkbenchError
+from workbench.export import png_bytes
 from workbench.jsonfile import recorded_path
 from workbench.options import Number, parse_part_offset, parse_part_rotation
 from workbench.validate import detection, landing, pictures
@@ -34,6 +35,7 @@ from workbench.validate.coverage import (
     part_coverage,
 )
 from workbench.validate.part import light_in_one_photo, part_summary
+from workbench.validate.part_colour import fused_colour, photo_names, take_colour_maps
 from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
 from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, photo_verdict, verdict_rule
@@ -414,20 +416,31 @@ def run(args) -> int:
         grid = design_print_grid(design)
     t_part = time.perf_counter()
     maps = detection.part_maps(entries)
-    # several photos, one part: ink gone that another photo sees intact is light where it was found
+    # several photos, one part: ink gone or a slide that another photo sees intact is light where it was found
     dismissed = light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2, grid.X) if grid else []
+    # one print, one colour: each print pixel judged in the photo that sees it most squarely
+    colour, colour_map = fused_colour(take_colour_maps(entries), photo_names(entries), args.max_delta_e)
     in_part = {}
-    for k in sorted({x["photo_index"] for x in dismissed}):
-        e = entries[k]
+    for k, e in enumerate(entries):
         gone = {x["id"] for x in dismissed if x["photo_index"] == k}
+        colour_failed = colour is not None and (e.get("colour") or {}).get("verdict") == "FAIL"
+        if not gone and not colour_failed:
+            continue
         kept = {**e, "defects": [d for d in e["defects"] if d.get("id") not in gone]}
+        if colour_failed:
+            kept.pop("colour")  # (the part's colour is judged over all its photos)
         in_part[k] = photo_verdict(kept, args.tolerance_mm, args.max_defect_mm2, args.max_delta_e)
     for x in dismissed:
         log(f"{x['photo']}: {x['kind']} of {x['area_mm2']:.1f} mm² is light: {x['decided_by']['words']}")
-    part, combined, part_defects = part_summary(states, grid, names, entries, dismissed, in_part)
+    part, combined, part_defects = part_summary(states, grid, names, entries, dismissed, in_part, colour)
     if dismissed:
         part["dismissed"] = [{k: v for k, v in x.items() if k != "photo_index"} for x in dismissed]
+    if in_part:
         part["photo_verdicts_in_part"] = {Path(entries[k]["photo"]).name: v for k, (v, _) in in_part.items()}
+    if colour_map is not None:
+        files[out / "colour_print.png"] = png_bytes(
+            pictures.colour_difference(grid.reference, colour_map, grid.px_per_mm, 2 * args.max_delta_e)
+        )
     part["seating"] = part_seating(entries, design, args.seating, args.max_seating_mm, held)
     if maps and combined is not None:
         # a PASS is evidence only where the photos could have found something: with less than

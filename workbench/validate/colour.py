@@ -572,7 +572,8 @@ def window_means(img: np.ndarray, ii: np.ndarray, jj: np.ndarray, r: np.ndarray)
     return total / ((2 * r + 1) ** 2)[:, None]
 
 
-def _figures(d: np.ndarray) -> dict:
+def delta_e_figures(d: np.ndarray) -> dict:
+    """A ΔE00 sample's mean, median, p95, max and size (all None but the size when empty)."""
     if len(d) == 0:
         return {"mean": None, "p95": None, "max": None, "pixels": 0}
     return {
@@ -653,7 +654,8 @@ def measure_colour(
         patches used, fit max, which were left out and why), ``regions`` {name: figures};
         with the normals ``shading`` (:func:`orientation_shading`).
     delta_e_map : (rows, cols) float32 or None
-        ΔE00 per grid pixel (NaN: not compared), for a colour-difference picture.
+        The ΔE00 the verdict judges per grid pixel (with the shading out under a directional
+        light; NaN: not compared), for a colour-difference picture and the part's colour.
     """
     if chart is None:
         return not_measured("the fixture has no colour chart (fixture.json: colour_chart)"), None
@@ -717,8 +719,8 @@ def measure_colour(
     dL = got[:, 0] - proof[:, 0]
     out = {
         "measured": True,
-        "delta_e00": _figures(de),
-        "delta_e00_chromatic": _figures(chromatic),
+        "delta_e00": delta_e_figures(de),
+        "delta_e00_chromatic": delta_e_figures(chromatic),
         "lightness": {
             "mean_delta_l": round(float(dL.mean()), 3),
             "mean_abs_delta_l": round(float(np.abs(dL).mean()), 3),
@@ -727,15 +729,19 @@ def measure_colour(
         "chart": chart_info,
         "soft_proof": "output profile" if output_profile is not None else "sRGB as designed",
         "compared_share": round(float(use.sum() / max(scored.sum(), 1)), 4),
+        "compared_pixels": int(use.sum()),
     }
+    judged = de
     if face is not None and face_normals is not None:
         f = face.reshape(-1)[idx]
         normals = face_normals[np.maximum(f, 0)]
-        out["shading"] = orientation_shading(proof, got, normals, chart_normal(chart, cam), de, opts)
+        out["shading"], without = orientation_shading(proof, got, normals, chart_normal(chart, cam), de, opts)
+        if out["shading"]["directional"]:
+            judged = without  # (what the verdict judges: see workbench.validate.rule.colour_verdict)
     de_map = np.full(scored.shape, np.nan, dtype=np.float32)
-    de_map.reshape(-1)[idx] = de
+    de_map.reshape(-1)[idx] = judged
     if regions:
-        out["regions"] = {name: _figures(de[mask.reshape(-1)[idx]]) for name, mask in regions.items()}
+        out["regions"] = {name: delta_e_figures(de[mask.reshape(-1)[idx]]) for name, mask in regions.items()}
     return out, de_map
 
 
@@ -784,6 +790,16 @@ def orientation_median(values: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return medians[inverse]
 
 
+def take_light_out(lab: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """CIELAB (n, 3) with a light of ``ln(k) / 3 = h`` (n,) taken out of X, Y and Z alike.
+
+    A factor k on XYZ scales L* + 16, a* and b* by k^(1/3): taken out of L* alone, a shaded
+    saturated ink kept a* and b* as shaded (on perfect renders under a directional lamp 0.1 to
+    1.6 ΔE00 of "ink", and a print off in a* and b* read weaker than it is).
+    """
+    return xyz_to_lab(lab_to_xyz(lab) * np.exp(-3.0 * h)[:, None])
+
+
 def orientation_shading(
     proof: np.ndarray,
     got: np.ndarray,
@@ -791,7 +807,7 @@ def orientation_shading(
     n_chart: np.ndarray,
     de: np.ndarray,
     opts: ColourOptions = ColourOptions(),
-) -> dict:
+) -> tuple[dict, np.ndarray]:
     """How much of the difference is lightness that follows the surface's orientation: shading.
 
     The chart corrects the photo for the light the chart receives. Under even, diffuse
@@ -799,15 +815,19 @@ def orientation_shading(
     towards the lamp receives more: its X, Y and Z look larger by a factor ``k(n)``, which
     the camera cannot tell from ink density. A factor on the light is a factor ``k`` on Y,
     so ``ln((L* + 16) / (L*_proof + 16)) = ln(k) / 3`` whatever the colour; it is fitted,
-    least squares, as ``a + b · (n - mean n)`` over the compared pixels; the shading at a pixel
-    is ``b · (n - n_chart)``, nothing where the surface faces as the chart does (a surface of
-    one orientation, such as a flat film, shows none: there the camera cannot separate shading
-    from ink at all), plus what the linear model leaves at the pixel's orientation, the median
-    over its cell of normals (:func:`orientation_median`). An ink that is too light or dark moves
-    every surface alike and stays in ``a``. The factor is taken out of X, Y and Z, so out of L*,
-    a* and b* alike. (Second-order spherical harmonics of the normal in place of the linear
-    model, or a lamp's clamped cosine with them, left more on perfect renders of the cow under
-    a directional lamp: 4.7 to 7.6 ΔE00 against 3.2 to 4.5, before the cells.)
+    least squares, as ``a + b · (n - mean n)`` over the compared pixels, plus what that leaves
+    at the pixel's orientation, the median over its cell of normals (:func:`orientation_median`).
+    The shading at a pixel is that light less the linear model's at the chart's normal: nothing
+    where the surface faces as the chart does (a surface of one orientation, such as a flat
+    film, shows none: there the camera cannot separate shading from ink at all); its mean |ΔL*|
+    says whether the light is directional. Under even light an ink that is too light or dark
+    moves every surface alike and stays. Under a directional light the level itself (the part's
+    light where it faces as the chart does) is left free, the print's overall lightness not
+    judged: see the comment in the code for what it was measured on. The factor is taken out
+    of X, Y and Z, so out of L*, a* and b* alike (:func:`take_light_out`). (Second-order
+    spherical harmonics of the normal in place of the linear model, or a lamp's clamped cosine
+    with them, left more on perfect renders of the cow under a directional lamp: 4.7 to 7.6
+    ΔE00 against 3.2 to 4.5, before the cells.)
 
     Parameters
     ----------
@@ -823,11 +843,15 @@ def orientation_shading(
 
     Returns
     -------
-    dict
+    summary : dict
         ``mean_abs_delta_l`` (ΔL* that follows the orientation, mean over the pixels),
         ``delta_e00`` (the figures with it taken out of L*, a* and b*), ``share`` (of the mean
         ΔE00 that it is), ``directional`` (``mean_abs_delta_l`` at least
-        ``opts.shading_delta_l``) and a ``note``.
+        ``opts.shading_delta_l``), ``level`` (``judged``: false under a directional light;
+        ``log_ratio``: the linear model's ``ln(k) / 3`` at the chart's normal; ``delta_l``: the
+        mean ΔL* the print would show with that level, beyond what is judged) and a ``note``.
+    without : (n,) float
+        Each pixel's ΔE00 with the shading taken out.
     """
     with np.errstate(invalid="ignore", divide="ignore"):
         g = np.log(np.maximum(got[:, 0] + 16.0, 1.0) / np.maximum(proof[:, 0] + 16.0, 1.0))
@@ -838,35 +862,49 @@ def orientation_shading(
     AtA = np.einsum("ij,ik->jk", A, A)
     Atg = np.einsum("ij,i->j", A, g)
     coef = np.linalg.lstsq(AtA, Atg, rcond=1e-9)[0]
-    h = ((normals - n_chart) * coef[1:]).sum(axis=1)
     # lightness that follows the orientation is shading whatever its shape: what the linear model
     # leaves, as the median over each cell of normals, is shading too (a lamp's clamped cosine and
     # its ambient are no linear function: on perfect renders of the cow it left 3.2 to 4.5 ΔE00)
-    h = h + orientation_median(g - A @ coef, normals)
-    # the light scales X, Y and Z alike: taken out there, it leaves L*, a* and b* as the ink's (in
-    # CIELAB a factor k on XYZ scales L* + 16, a* and b* by k^(1/3); taken out of L* alone, a
-    # shaded saturated ink kept a* and b* as shaded: on perfect renders under a directional lamp
-    # 0.1 to 1.6 ΔE00 of "ink", and a print off in a* and b* read weaker than it is)
-    without_lab = xyz_to_lab(lab_to_xyz(got) * np.exp(-3.0 * h)[:, None])
-    shade_dl = got[:, 0] - without_lab[:, 0]
-    without = delta_e00(proof, without_lab)
+    left = g - A @ coef
+    s = A @ coef + orientation_median(left, normals)  # ln(k) / 3 at each pixel's orientation
+    # the linear model's value at the chart's normal: the light there against the chart's
+    level = float(coef[0] + (np.asarray(n_chart) - normals.mean(axis=0)) @ coef[1:])
+    anchored = take_light_out(got, s - level)
+    shade_dl = got[:, 0] - anchored[:, 0]
     mean_abs = float(np.abs(shade_dl).mean())
     directional = mean_abs >= opts.shading_delta_l
+    # under a directional light the part's light where it faces as the chart does is not the
+    # chart's: a cast shadow, a sheen, the lamp's falloff between chart and part. Over seven
+    # perfect photos under a lamp (of the cow, the lily and the face, both renderers) the linear
+    # model put that level at -0.096 to +0.027 of ln(k) / 3, the pixels that face as the chart
+    # does at -0.119 to +0.174 (shadows, sheen): 4.3 to 11.8 ΔE00 of "ink" on perfect prints,
+    # where neither held. The print's overall lightness is then not told from the light: the level is
+    # left free (the colours against each other, and their chroma, are judged), and what it
+    # would make of the lightness is reported (``level``)
+    without_lab = take_light_out(got, s) if directional else anchored
+    without = delta_e00(proof, without_lab)
     share = max(0.0, 1.0 - float(without.mean()) / float(de.mean())) if de.mean() > 0 else 0.0
     note = (
         f"{100 * share:.0f} % of the mean ΔE00 is lightness that follows the surface's orientation "
         f"(mean |ΔL*| {mean_abs:.2f}): shading under a directional light, which a camera cannot tell from ink; "
-        "measure colour under even, diffuse light (a light tent or viewing booth)"
+        "the print's overall lightness is not judged under it; measure colour under even, diffuse light (a light "
+        "tent or viewing booth)"
         if directional
         else "no lightness difference follows the surface's orientation: the light is even"
     )
-    return {
+    summary = {
         "mean_abs_delta_l": round(mean_abs, 3),
-        "delta_e00": _figures(without),
+        "delta_e00": delta_e_figures(without),
         "share": round(share, 4),
         "directional": bool(directional),
+        "level": {
+            "judged": not directional,
+            "log_ratio": round(level, 4),
+            "delta_l": round(float((anchored[:, 0] - without_lab[:, 0]).mean()), 3),
+        },
         "note": note,
     }
+    return summary, without
 
 
 def photo_colour(
@@ -880,7 +918,7 @@ def photo_colour(
     depth: np.ndarray,
     output_profile: bytes | None = None,
     opts: ColourOptions = ColourOptions(),
-) -> tuple[dict, np.ndarray | None]:
+) -> tuple[dict, np.ndarray | None, np.ndarray | None]:
     """:func:`measure_colour` on what validate has of a photo once its dense analysis is done.
 
     Parameters
@@ -908,6 +946,12 @@ def photo_colour(
     -------
     colour : dict
     delta_e_map : (rows, cols) float32 or None
+        :func:`measure_colour`'s.
+    seen : dict or None
+        For the part's colour (:func:`workbench.validate.part_colour.fused_colour`): ``facing``
+        (rows, cols) float16, the cosine of the angle between the surface's normal and the
+        direction to the camera at every pixel the photo scores (1: seen square on; NaN
+        elsewhere), and ``weight``, the compared pixels each sample of ``delta_e_map`` stands for.
     """
 
     scored = np.isin(state, (print_warp.COLOUR_ONLY, print_warp.UNRESOLVED, print_warp.NORMAL, print_warp.FULL))
@@ -917,7 +961,8 @@ def photo_colour(
         i0, j0 = (np.asarray(f["atlas_px"][:2]) / grid.factor).round().astype(int)
         box[i0 : i0 + round(f["height_px"] / grid.factor), j0 : j0 + round(f["width_px"] / grid.factor)] = True
         regions[f"film {f['name']}"] = box
-    return measure_colour(
+    normals = face_normals(np.asarray(design.V, dtype=np.float64), np.asarray(design.F))
+    colour, de_map = measure_colour(
         photo,
         cam,
         design.fixture.get("colour_chart"),
@@ -929,9 +974,19 @@ def photo_colour(
         part_depth=depth,
         photo_px_per_grid_px=footprint,
         face=grid.face,
-        face_normals=face_normals(np.asarray(design.V, dtype=np.float64), np.asarray(design.F)),
+        face_normals=normals,
         opts=opts,
     )
+    if de_map is None:
+        return colour, None, None
+    # each scored pixel's viewing angle, for the part to tell which photo sees it most squarely
+    on = scored & (grid.face >= 0)
+    towards = np.asarray(cam.center, np.float64) - grid.X[on]
+    facing = np.full(de_map.shape, np.nan, np.float16)  # (to a thousandth: enough to tell the squarer view)
+    facing[on] = (normals[grid.face[on]] * towards).sum(axis=1) / np.linalg.norm(towards, axis=1)
+    # (each sample stands for this many compared pixels: the subsample's even share of them)
+    weight = colour["compared_pixels"] / max(colour["delta_e00"]["pixels"], 1)
+    return colour, de_map, {"facing": facing, "weight": float(weight)}
 
 
 def colour_difference_picture(de_map: np.ndarray, vmax: float = 10.0) -> np.ndarray:

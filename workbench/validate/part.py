@@ -7,26 +7,35 @@ from pathlib import Path
 import numpy as np
 
 from workbench.validate import dense, print_warp
+from workbench.validate.rule import judged_delta_e
 
 
 def light_in_one_photo(
     entries: list[dict], states: list, maps: dict, px_per_mm: float, max_defect_mm2: float, X: np.ndarray | None = None
 ) -> list:
-    """Ink gone that another photo of the part sees intact: light in the photo that found it.
+    """Ink gone, or a slide, that another photo of the part sees intact: light in the photo that found it.
 
-    Ink that is gone stays at its print position in every photo; a glint or a reflection moves
-    with the camera. A region a photo takes for ink gone (``missing``) is light when another photo
-    of the part measured it, found no defect there, and states that it finds ink gone there (its
-    detection map, ``photoK_dropout`` or ``photoK_scratch``, over at least DROPOUT_SHARE of the
-    region: the share at which the stated limit counts a dropout as found). The defect stays in
-    its photo's entry as its photo found it; for the part it is dismissed, with what decided it.
+    Ink that is gone stays at its print position in every photo, and so does a slid film; a
+    glint or a reflection moves with the camera. A region a photo takes for ink gone
+    (``missing``) is light when another photo of the part measured it, found no defect there, and
+    states that it finds ink gone there (its detection map, ``photoK_dropout`` or
+    ``photoK_scratch``, over at least DROPOUT_SHARE of the region: the share at which the stated
+    limit counts a dropout as found). A region it takes for a slide (``shift``) is light when
+    another photo measured it, found no defect there, and states that it finds a slide as large
+    as the region's there (``photoK_shift_limit_um`` at most its peak, over at least SHIFT_SHARE
+    of the region): a glint on a glossy cow pulled one photo's flow up to 0.44 mm over 17 mm²
+    where three others, which state slides from 0.40 to 0.43 mm there, saw the print in place.
+    The other photo must see the region from more than MIRROR_DEG away (seen from the surface):
+    from nearly the same direction it would show the same reflection, and a disagreement there
+    says the two photos are not of one print under one light. The defect stays in its photo's
+    entry as its photo found it; for the part it is dismissed, with what decided it.
 
-    Unless a third photo, from another direction, found ink gone there too: the same glint at the
+    Unless a third photo, from another direction, found it there too: the same glint at the
     same print position in two photos needs one lamp mirrored into both cameras, and reflection
     keeps the angle between two rays, so the two photos' mirror directions there lie as far apart
     as their cameras seen from the surface point. Cameras more than twice MIRROR_DEG apart (the
     lamp's reach either side, as :func:`workbench.validate.dense.mirrors_highlights` takes it)
-    cannot share it: their agreement is ink gone, and one photo that saw nothing there is overruled
+    cannot share it: their agreement is the print's, and one photo that saw nothing there is overruled
     (a 20 mm scratch on the scanned face, Mitsuba, glossy: found in three photos 30° apart,
     14 to 21 mm², and dismissed in all three by the photo from above, which saw nothing of it).
 
@@ -52,17 +61,19 @@ def light_in_one_photo(
         One per defect dismissed: ``photo_index``, ``photo`` (its file name), ``id`` (the
         defect's in that photo), ``kind``, ``area_mm2``, ``centre_mm`` and ``decided_by``
         (``hypothesis`` light, the ``photo`` that sees the ink, the ``share`` of the region it
-        measured and would find ink gone in, ``found_as``: what the photo that found it decided,
-        ``words``).
+        measured and would find ink gone, or the slide, in, ``found_as``: what the photo that
+        found it decided, ``words``).
     """
-    from workbench.validate.detection import DROPOUT_SHARE
+    from workbench.validate.detection import DROPOUT_SHARE, SHIFT_SHARE
 
     out = []
     for a, (ea, sa) in enumerate(zip(entries, states, strict=True)):
         if sa is None:
             continue
         for d in ea.get("defects", []):
-            if d["kind"] != "missing" or d["area_mm2"] <= max_defect_mm2:
+            # (the slide as the photo states it: "up to" its peak)
+            slide_um = 1000.0 * float(d.get("peak_mm") or 0.0)
+            if d["area_mm2"] <= max_defect_mm2 or not (d["kind"] == "missing" or (d["kind"] == "shift" and slide_um)):
                 continue
             x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
             box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
@@ -75,10 +86,16 @@ def light_in_one_photo(
             for b, sb in enumerate(states):
                 if b == a or sb is None or f"photo{b}_dropout" not in maps:
                     continue
-                finds = maps[f"photo{b}_dropout"][box].astype(bool) | maps[f"photo{b}_scratch"][box].astype(bool)
+                if _apart_deg(entries[a], entries[b], d, X, px_per_mm) <= dense.MIRROR_DEG:
+                    continue  # (a light one photo shows, another from the same direction shows too)
+                if d["kind"] == "shift":
+                    finds, need, what = maps[f"photo{b}_shift_limit_um"][box] <= slide_um, SHIFT_SHARE, "a slide"
+                else:
+                    finds = maps[f"photo{b}_dropout"][box].astype(bool) | maps[f"photo{b}_scratch"][box].astype(bool)
+                    need, what = DROPOUT_SHARE, "ink gone"
                 clean = np.isin(sb[box], print_warp.MEASURED) & (sb[box] != print_warp.DEFECT)
                 share = float((region & finds & clean).sum()) / n
-                if share >= DROPOUT_SHARE:
+                if share >= need:
                     seen_by, found_in = Path(entries[b]["photo"]).name, Path(ea["photo"]).name
                     out.append(
                         {
@@ -94,8 +111,8 @@ def light_in_one_photo(
                                 "share": round(share, 3),
                                 "found_as": d.get("decided_by"),
                                 "words": (
-                                    f"{seen_by} measured {100 * share:.0f} % of it, finds ink gone there and found "
-                                    f"none: ink gone stays on the print in every photo, so this is light in {found_in}"
+                                    f"{seen_by} measured {100 * share:.0f} % of it, finds {what} there and found "
+                                    f"none: {what} stays on the print in every photo, so this is light in {found_in}"
                                 ),
                             },
                         }
@@ -104,30 +121,39 @@ def light_in_one_photo(
     return out
 
 
-def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> int | None:
-    """Another photo that found ink gone over most of a region, from a direction no lamp shares with photo ``a``."""
+def _apart_deg(ea: dict, eb: dict, d: dict, X: np.ndarray | None, px_per_mm: float) -> float:
+    """The angle between two photos' cameras seen from a defect's centre on the surface, degrees.
+
+    A light moves with the camera only as far as the camera moves: seen from the surface, two
+    cameras within MIRROR_DEG of each other see one lamp's reflection alike. NaN (no angle
+    known: without ``X``, or a camera or point not known) compares as far apart.
+    """
     if X is None:
-        return None
+        return float("inf")
     cx, cy = (int(np.clip(v * px_per_mm, 0, n - 1)) for v, n in zip(d["centre_mm"], X.shape[1::-1], strict=True))
     p = X[cy, cx]
-    if not np.isfinite(p).all():
-        return None
 
     def towards(e):
         c = np.asarray(((e.get("pose") or {}).get("camera_center_mm")) or [np.nan] * 3, float)
         v = c - p
         return v / max(float(np.linalg.norm(v)), 1e-12)
 
-    va = towards(entries[a])
+    va, vb = towards(ea), towards(eb)
+    if not (np.isfinite(va).all() and np.isfinite(vb).all()):
+        return float("inf")
+    return float(np.degrees(np.arccos(np.clip(float(va @ vb), -1.0, 1.0))))
+
+
+def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> int | None:
+    """Another photo that found ink gone over most of a region, from a direction no lamp shares with photo ``a``."""
+    if X is None:
+        return None
     for c, sc in enumerate(states):
         if c == a or sc is None or (entries[c].get("photo_quality") or {}).get("problems"):
             continue
         if float((region & (sc[box] == print_warp.DEFECT)).sum()) < 0.5 * region.sum():
             continue
-        vc = towards(entries[c])
-        if not (np.isfinite(va).all() and np.isfinite(vc).all()):
-            continue
-        if np.degrees(np.arccos(np.clip(float(va @ vc), -1.0, 1.0))) > 2.0 * dense.MIRROR_DEG:
+        if np.isfinite(apart := _apart_deg(entries[a], entries[c], d, X, px_per_mm)) and apart > 2 * dense.MIRROR_DEG:
             return c
     return None
 
@@ -139,6 +165,7 @@ def part_summary(
     entries: list[dict],
     dismissed: list | None = None,
     in_part: dict | None = None,
+    colour: dict | None = None,
 ) -> tuple[dict, np.ndarray, list]:
     """What all photos of the part show together, on its print.
 
@@ -149,8 +176,11 @@ def part_summary(
     -------
     summary : dict
         verdict (FAIL when any photo fails, by its verdict in the part, ``in_part``, where another
-        photo showed one of its defects to be light, PASS when every scored photo passes,
-        INVALID when none was scored), coverage of the part's print and of each view's region, defects.
+        photo showed one of its defects to be light or its colour is the part's to judge, or when
+        the part's ``colour`` (:func:`workbench.validate.part_colour.fused_colour`) fails; PASS
+        when every scored photo passes, INVALID when none was scored), coverage of the part's
+        print and of each view's region, defects, ``colour`` (:func:`colour_summary`) and, when
+        its colour fails it, ``reason``.
     combined : (rows, cols) uint8
         The combined state map.
     defects : list of dict
@@ -167,8 +197,10 @@ def part_summary(
         verdict = "PASS"
     else:
         verdict = "INVALID"
+    colour_failed = verdict != "INVALID" and colour is not None and colour["verdict"] == "FAIL"
+    verdict = "FAIL" if colour_failed else verdict
     if not scored:
-        return {"verdict": verdict, "photos_scored": 0, "colour": colour_summary(entries)}, None, []
+        return {"verdict": verdict, "photos_scored": 0, "colour": colour_summary(entries, colour)}, None, []
     combined = np.maximum.reduce(scored)
     on = combined != print_warp.OFF_PART
     n_on = max(int(on.sum()), 1)
@@ -227,8 +259,10 @@ def part_summary(
         "measured_share_of_part": float(np.isin(combined, print_warp.MEASURED).sum() / n_on),
         "coverage_by_view": dense.coverage_by_view(combined, grid.owner, names),
         "defects": defects,
-        "colour": colour_summary(entries),
+        "colour": colour_summary(entries, colour),
     }
+    if colour_failed:
+        summary["reason"] = colour["words"]
     return summary, combined, defects
 
 
@@ -283,11 +317,14 @@ def fused_view(seen: list[dict]) -> dict:
     return {**finest, "kind": kind, "centre_mm": centre, "area_mm2": float(np.median([x["area_mm2"] for x in whole]))}
 
 
-def colour_summary(entries: list[dict]) -> dict:
+def colour_summary(entries: list[dict], fused: dict | None = None) -> dict:
     """The part's colour over its photos: each measured photo's mean ΔE00, the worst, and the colour's verdict.
 
-    FAIL when any photo's colour fails, PASS when every measured one passes, "not measured" (with
-    each photo's reason) when none was; INVALID photos do not count.
+    With ``fused`` (:func:`workbench.validate.part_colour.fused_colour`: each print pixel from the
+    photo that sees it most squarely) the verdict is the fused colour's, its figures and the
+    photos that decided them beside; without it, FAIL when any photo's colour fails, PASS when
+    every measured one passes. "not measured" (with each photo's reason) when none was; INVALID
+    photos do not count.
     """
     # an INVALID photo's colour is no more the print's than its other figures
     measured = [e for e in entries if (e.get("colour") or {}).get("measured") and e["verdict"] != "INVALID"]
@@ -296,15 +333,24 @@ def colour_summary(entries: list[dict]) -> dict:
             "colour not measured: no valid photo measured it"
         ]
         return {"verdict": "not measured", "photos_measured": 0, "reasons": reasons}
-    means = {Path(e["photo"]).name: e["colour"]["delta_e00"]["mean"] for e in measured}
-    worst = max(measured, key=lambda e: e["colour"]["delta_e00"]["mean"])
+    # (each photo's figures as its verdict judges them: under a directional light, without the shading)
+    means = {Path(e["photo"]).name: judged_delta_e(e["colour"])["mean"] for e in measured}
+    worst = max(measured, key=lambda e: judged_delta_e(e["colour"])["mean"])
     verdicts = [e["colour"].get("verdict") for e in measured]
+    part = {"verdict": "FAIL" if "FAIL" in verdicts else "PASS"}
+    if fused is not None:
+        part = {
+            "verdict": fused["verdict"],
+            "delta_e00": fused["delta_e00"],
+            "decided_by_photo": fused["decided_by_photo"],
+            "words": fused["words"],
+        }
     return {
-        "verdict": "FAIL" if "FAIL" in verdicts else "PASS",
+        **part,
         "photos_measured": len(measured),
         "delta_e00_mean_by_photo": means,
         "worst_photo": Path(worst["photo"]).name,
-        "worst_delta_e00": worst["colour"]["delta_e00"],
+        "worst_delta_e00": judged_delta_e(worst["colour"]),
         "chart_fit_delta_e00": max(e["colour"]["chart_fit_delta_e00"] for e in measured),
         "shading_directional": any((e["colour"].get("shading") or {}).get("directional") for e in measured),
     }

@@ -375,7 +375,7 @@ def _validate_photo(
     colour_state = dr.state
     if dr.lamp_cone is not None and dr.lamp_cone.any():
         colour_state = np.where(dr.lamp_cone, np.uint8(print_warp.HIGHLIGHT), dr.state).astype(np.uint8)
-    entry["colour"], de_map = photo_colour(
+    entry["colour"], de_map, seen_colour = photo_colour(
         photo, pose.camera, design, grid, on_print, colour_state, footprint, depth, output_profile
     )
     entry["colour"]["verdict"] = colour_verdict(entry["colour"], max_delta_e)[0]
@@ -390,6 +390,9 @@ def _validate_photo(
         # (the calibration film's pattern is locally unique: its rim is measured too)
         else photo_landing(dr, grid, film_of_face(design.info, len(design.F)), scale, rim="pattern" in design.info)
     )
+    if de_map is not None and not entry["photo_quality"]["problems"]:
+        # (the part judges its colour pixel by pixel from the photo that sees each most squarely)
+        entry["colour_maps"] = {"delta_e00": de_map, **seen_colour}
     if not entry["photo_quality"]["problems"]:
         entry["detection_maps"] = {
             "shift_limit_um": detection.to_stored(dr.shift_limit_mm),

@@ -335,6 +335,13 @@ def colour_line(colour: dict | None, max_delta_e: float | None) -> str:
         return "colour: not measured"
     if colour["verdict"] == "not measured":
         return f"colour: not measured ({'; '.join(r.removeprefix('colour not measured: ') for r in colour['reasons'])})"
+    if colour.get("delta_e00"):  # the part's own: each print pixel from its squarest photo
+        n = len(colour.get("decided_by_photo") or {})
+        return (
+            f"colour: {colour['verdict']}, mean ΔE00 {colour['delta_e00']['mean']:.2f} (limit {max_delta_e:g}) over "
+            f"the part, each print pixel from the photo that sees it most squarely ({n} photo(s))"
+            + ("; shading taken out" if colour.get("shading_directional") else "")
+        )
     worst = colour["worst_delta_e00"]
     return (
         f"colour: {colour['verdict']}, mean ΔE00 {worst['mean']:.2f} (limit {max_delta_e:g}) in the worst of "
@@ -395,16 +402,18 @@ def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, b
             c.showPage()
             c.setFont("Helvetica", 8)
             y = H - 20 * mm
+    shown = []
+    part = report["part"].get("colour") or {}
+    if part.get("delta_e00") and "colour_print.png" in pictures:
+        decided = "; ".join(
+            f"{k}: {100 * v['share']:.0f} % of it, mean {v['mean']:.2f}" for k, v in part["decided_by_photo"].items()
+        )
+        shown.append(("colour_print.png", [f"the part: {part['verdict']}; {part['words']}", f"by photo: {decided}"]))
     for e in photos:
         col = e["colour"]
         name = f"{e.get('pictures') or ''}_colour_print.png"
         if not col.get("measured") or (name not in pages and name not in pictures):
             continue
-        jpeg = pages.get(name) or page_picture(Image.open(io.BytesIO(pictures[name])))
-        img = ImageReader(io.BytesIO(jpeg))
-        iw, ih = img.getSize()
-        h = min((W - 40 * mm) * ih / iw, (H - 60 * mm) / 2)
-        w = h * iw / ih
         regions = ", ".join(
             f"{k} {v['mean']:.2f}" if v.get("mean") is not None else f"{k} -" for k, v in col.get("regions", {}).items()
         )
@@ -416,6 +425,13 @@ def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, b
             + (col.get("shading") or {}).get("note", ""),
             f"mean ΔE00 by region: {regions}",
         ]
+        shown.append((name, text))
+    for name, text in shown:
+        jpeg = pages.get(name) or page_picture(Image.open(io.BytesIO(pictures[name])))
+        img = ImageReader(io.BytesIO(jpeg))
+        iw, ih = img.getSize()
+        h = min((W - 40 * mm) * ih / iw, (H - 60 * mm) / 2)
+        w = h * iw / ih
         if y - h - 20 * mm < 20 * mm:
             c.showPage()
             y = H - 15 * mm

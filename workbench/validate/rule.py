@@ -36,8 +36,10 @@ def verdict_rule(
         ""
         if min_coverage is None
         else (
-            " The part: FAIL when any photo fails (ink gone that another photo of the part measures and sees "
-            "intact is light in the photo that found it, and does not count); PASS when its photos pass and "
+            " The part: FAIL when any photo fails (ink gone or a slide that another photo of the part measures "
+            "and sees intact is light in the photo that found it, and does not count) or its colour fails (each "
+            "print pixel from the photo that sees it most squarely, the mean against the limit; a photo's own "
+            "colour then does not fail the part); PASS when its photos pass and "
             f"together can find a slide, ink gone and a scratch on at least {100 * min_coverage:.0f} % of each film "
             "where each would show; INCOMPLETE when they pass and cover less (the uncovered regions, why, and the "
             "next photo are reported). A misregistration the film's fitted placement explains is reported as "
@@ -54,7 +56,8 @@ def verdict_rule(
             f"does not match the design (SSIM < {MIN_SSIM}), or the colour "
             f"differs from the design's soft proof by a mean CIEDE2000 above {max_delta_e:g} (the photo corrected "
             "by the fixture's colour chart; lightness that follows the surface's orientation, shading under a "
-            "directional light, taken out and reported; without a usable chart colour is not measured, which "
+            "directional light, taken out and reported, and under such a light the print's overall lightness "
+            "not judged; without a usable chart colour is not measured, which "
             "is no FAIL); INVALID when the photo is at fault (over-exposed: more than "
             f"{100 * QualityOptions.max_clipped_share:.0f} % of the inked print it sees clipped; a JPEG below "
             f"quality {QualityOptions.min_jpeg_quality:g}; no colour in the photo where the design has colour), or "
@@ -155,6 +158,12 @@ def defects_reason(big: list[dict], max_defect_mm2: float) -> str:
     )
 
 
+def judged_delta_e(colour: dict) -> dict:
+    """A measured photo's ΔE00 figures as its verdict judges them: without the shading under a directional light."""
+    shading = colour.get("shading") or {}
+    return shading["delta_e00"] if shading.get("directional") else colour["delta_e00"]
+
+
 def colour_verdict(colour: dict | None, max_delta_e: float = MAX_DELTA_E) -> tuple[str, str]:
     """The colour's part of the verdict: 'PASS', 'FAIL' or 'not measured', and its words.
 
@@ -176,9 +185,8 @@ def colour_verdict(colour: dict | None, max_delta_e: float = MAX_DELTA_E) -> tup
     de = colour["delta_e00"]["mean"]
     shading = colour.get("shading") or {}
     words = f"colour mean ΔE00 {de:.2f}"
-    judged = de
+    judged = judged_delta_e(colour)["mean"]
     if shading.get("directional"):
-        judged = shading["delta_e00"]["mean"]
         words += (
             f", {judged:.2f} without the shading it cannot tell from ink ({100 * shading['share']:.0f} % of it is "
             f"lightness that follows the surface's orientation, mean |ΔL*| {shading['mean_abs_delta_l']:.1f}: "

@@ -32,21 +32,31 @@ def test_colour_takes_the_light_out_of_all_three_coordinates():
     assert r["mean_abs_delta_l"] > 2.0  # (the shading was there to take out)
 
 
+LAMP = np.array([0.3, -0.5, 1.0]) / np.linalg.norm([0.3, -0.5, 1.0])
+N_CHART = np.array([0.0, 0.0, 1.0])
+
+
+def _under_the_lamp(v: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Random inks on surfaces of normals along ``v`` (m, 3), and the photo of them under a lamp
+    (ambient plus a clamped cosine, against the chart's light): the proof and the photo, CIELAB."""
+    n = v / np.linalg.norm(v, axis=1, keepdims=True)
+    m = len(n)
+    proof = np.column_stack([rng.uniform(35, 80, m), rng.uniform(-50, 50, m), rng.uniform(-50, 50, m)])
+    k = (0.35 + 0.65 * np.maximum(n @ LAMP, 0)) / (0.35 + 0.65 * max(N_CHART @ LAMP, 0))
+    return proof, xyz_to_lab(lab_to_xyz(proof) * k[:, None])
+
+
 def test_colour_takes_a_lamps_clamped_shading_out_and_keeps_an_inks_error():
     """A lamp's shading (ambient plus a clamped cosine) is no linear function of the normal: what
     the linear model leaves follows the orientation and is shading too; an ink off by 5 in a* and
     b*, or one ink of two 8 L* too dark, stays. A print 5 L* too dark all over is the light's
     level under a lamp: not judged, and reported as such."""
     rng = np.random.default_rng(8)
-    m = 20000
-    v = rng.normal(size=(m, 3))
+    v = rng.normal(size=(20000, 3))
     v[:, 2] = np.abs(v[:, 2]) + 0.3
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
-    proof = np.column_stack([rng.uniform(35, 80, m), rng.uniform(-50, 50, m), rng.uniform(-50, 50, m)])
-    lamp = np.array([0.3, -0.5, 1.0]) / np.linalg.norm([0.3, -0.5, 1.0])
-    n_chart = np.array([0.0, 0.0, 1.0])
-    k = (0.35 + 0.65 * np.maximum(n @ lamp, 0)) / (0.35 + 0.65 * max(n_chart @ lamp, 0))
-    got = xyz_to_lab(lab_to_xyz(proof) * k[:, None])
+    proof, got = _under_the_lamp(v, rng)
+    n_chart = N_CHART
     # (the linear model alone left 0.73 here, the cells 0.43, the level left free 0.31)
     perfect = orientation_shading(proof, got, n, n_chart, delta_e00(proof, got))[0]
     assert perfect["delta_e00"]["mean"] < 0.6 and perfect["directional"] and not perfect["level"]["judged"]
@@ -69,18 +79,15 @@ def test_a_part_seen_from_behind_its_lamp_is_judged_without_the_lights_level():
     ΔE00 off here, the cow seen from behind 4.3. Under a directional light the level is left
     free, and a real ink error in a* and b* stays."""
     rng = np.random.default_rng(3)
-    m = 20000
-    v = rng.normal(size=(m, 3))
+    v = rng.normal(size=(20000, 3))
     v[:, 1] = np.abs(v[:, 1]) + 0.8  # turned away from the lamp (its y is negative)
     v[:, 2] = np.abs(v[:, 2])
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
-    proof = np.column_stack([rng.uniform(35, 80, m), rng.uniform(-50, 50, m), rng.uniform(-50, 50, m)])
-    lamp = np.array([0.3, -0.5, 1.0]) / np.linalg.norm([0.3, -0.5, 1.0])
-    n_chart = np.array([0.0, 0.0, 1.0])
-    k = (0.35 + 0.65 * np.maximum(n @ lamp, 0)) / (0.35 + 0.65 * max(n_chart @ lamp, 0))
-    got = xyz_to_lab(lab_to_xyz(proof) * k[:, None])
+    proof, got = _under_the_lamp(v, rng)
+    n_chart = N_CHART
     r = orientation_shading(proof, got, n, n_chart, delta_e00(proof, got))[0]
     assert r["directional"] and r["delta_e00"]["mean"] < 0.6, r
     assert r["level"]["delta_l"] < -1.0  # (what the extrapolated level would have called ink)
-    off = xyz_to_lab(lab_to_xyz(proof + [0.0, 3.5, 4.5]) * k[:, None])
+    # (the same light on inks off by 3.5 in a* and 4.5 in b*: the photo's XYZ over the proof's)
+    off = xyz_to_lab(lab_to_xyz(proof + [0.0, 3.5, 4.5]) * (lab_to_xyz(got) / lab_to_xyz(proof))[:, 1:2])
     assert orientation_shading(proof, off, n, n_chart, delta_e00(proof, off))[0]["delta_e00"]["mean"] > 3.0

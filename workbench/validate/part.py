@@ -86,7 +86,9 @@ def light_in_one_photo(
             for b, sb in enumerate(states):
                 if b == a or sb is None or f"photo{b}_dropout" not in maps:
                     continue
-                if _apart_deg(entries[a], entries[b], d, X, px_per_mm) <= dense.MIRROR_DEG:
+                if (
+                    apart := _apart_deg(entries[a], entries[b], d, X, px_per_mm)
+                ) is not None and apart <= dense.MIRROR_DEG:
                     continue  # (a light one photo shows, another from the same direction shows too)
                 if d["kind"] == "shift":
                     finds, need, what = maps[f"photo{b}_shift_limit_um"][box] <= slide_um, SHIFT_SHARE, "a slide"
@@ -121,15 +123,15 @@ def light_in_one_photo(
     return out
 
 
-def _apart_deg(ea: dict, eb: dict, d: dict, X: np.ndarray | None, px_per_mm: float) -> float:
+def _apart_deg(ea: dict, eb: dict, d: dict, X: np.ndarray | None, px_per_mm: float) -> float | None:
     """The angle between two photos' cameras seen from a defect's centre on the surface, degrees.
 
     A light moves with the camera only as far as the camera moves: seen from the surface, two
-    cameras within MIRROR_DEG of each other see one lamp's reflection alike. NaN (no angle
-    known: without ``X``, or a camera or point not known) compares as far apart.
+    cameras within MIRROR_DEG of each other see one lamp's reflection alike. None: no angle
+    known (without ``X``, or a camera or the point not known).
     """
     if X is None:
-        return float("inf")
+        return None
     cx, cy = (int(np.clip(v * px_per_mm, 0, n - 1)) for v, n in zip(d["centre_mm"], X.shape[1::-1], strict=True))
     p = X[cy, cx]
 
@@ -140,7 +142,7 @@ def _apart_deg(ea: dict, eb: dict, d: dict, X: np.ndarray | None, px_per_mm: flo
 
     va, vb = towards(ea), towards(eb)
     if not (np.isfinite(va).all() and np.isfinite(vb).all()):
-        return float("inf")
+        return None
     return float(np.degrees(np.arccos(np.clip(float(va @ vb), -1.0, 1.0))))
 
 
@@ -153,7 +155,7 @@ def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> i
             continue
         if float((region & (sc[box] == print_warp.DEFECT)).sum()) < 0.5 * region.sum():
             continue
-        if np.isfinite(apart := _apart_deg(entries[a], entries[c], d, X, px_per_mm)) and apart > 2 * dense.MIRROR_DEG:
+        if (apart := _apart_deg(entries[a], entries[c], d, X, px_per_mm)) is not None and apart > 2 * dense.MIRROR_DEG:
             return c
     return None
 

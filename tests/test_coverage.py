@@ -50,6 +50,24 @@ def test_where_each_defect_would_show_is_the_designs():
     assert share(shows["slide"], 5) == 0 and share(shows["slide_not_sought"], 5) == 1
 
 
+def test_a_slide_along_a_line_that_turns_slowly_does_not_show_and_one_over_dots_does():
+    # a ring of 12 mm radius, 0.4 mm wide, of dark ink: over the slide's window (a Gaussian of
+    # 1.2 mm) the line turns by about 10°, so a slide along it moves the line by a sixth of
+    # itself, within the misregistration tolerance, though that sixth changes the colour of
+    # its edge pixels by far more than ΔE 3; dots of 1 mm on a 2 mm pitch show a slide in every
+    # direction whole
+    ref = np.full((300, 600, 3), 255, np.uint8)
+    ii, jj = np.mgrid[0:300, 0:600]
+    ring = np.abs(np.hypot(ii - 150, jj - 150) - 120) < 2
+    ref[ring] = 30
+    ref[(np.hypot(ii % 20 - 10, (jj - 300) % 20 - 10) < 5) & (jj >= 300)] = 30
+    for tol in (0.2, 0.5):
+        shows = coverage.where_defects_show(ref, PPM, FILM, coverage.CoverageOptions(tolerance_mm=tol))
+        either = shows["slide"] | shows["slide_not_sought"]
+        assert not either[ring & (jj < 300)].any()
+        assert shows["slide"][100:200, 400:500].all()
+
+
 def test_each_films_share_is_counted_over_where_the_class_shows():
     H, W = 100, 200
     film = np.full((H, W), -1, np.int16)

@@ -22,7 +22,10 @@ Where a defect class would show (its denominator) is the design's, not the photo
 - a slide of the film shows where it changes the colour seen by more than that tolerance in
   any direction, over the window a slide is judged on: the design's colour change (ΔE per mm,
   along the window's weaker direction) times a slide of twice the tolerance, the slide the
-  flow is gated to find at its significance (:mod:`workbench.validate.dense`). The flow finds a
+  flow is gated to find at its significance (:mod:`workbench.validate.dense`), and where it
+  moves what is seen by more than the misregistration tolerance in any direction (a slide
+  along a line moves the line by the share of it across the line: twice the tolerance along a
+  line that turns by a few degrees over the window moves it by less than the tolerance). The flow finds a
   slide in any direction only where the print's texture has two directions over its window;
   elsewhere (along a straight edge, over stretched stripes) a slide is reported as not sought
   (``slide_not_sought_mm2``) and left out of the share.
@@ -111,17 +114,24 @@ def where_defects_show(reference: np.ndarray, px_per_mm: float, film_rgb, opts: 
     # a slide s along the unit direction d changes the colour at a pixel by J d s (J the Lab
     # colour's Jacobian, ΔE per print mm); over the window a slide is judged on (the flow's wide
     # window, where a bubble's slide is found), its mean square is s² dᵀ <JᵀJ> d, smallest along
-    # the weaker eigenvector of the window's tensor <JᵀJ>. A slide shows where even that
-    # direction changes the colour by more than the tolerance: along a straight edge a slide
-    # parallel to it changes nothing, and is no defect there
+    # the weaker eigenvector of the window's tensor <JᵀJ>, eigenvalue λ2 (λ1 the stronger)
     gx = (np.roll(lab, -1, 1) - np.roll(lab, 1, 1)) * 0.5 * px_per_mm
     gy = (np.roll(lab, -1, 0) - np.roll(lab, 1, 0)) * 0.5 * px_per_mm
     sigma = 4.0 * dense.TENSOR_SIGMA_PX
     jxx = cv2.GaussianBlur((gx * gx).sum(-1), (0, 0), sigma)
     jyy = cv2.GaussianBlur((gy * gy).sum(-1), (0, 0), sigma)
     jxy = cv2.GaussianBlur((gx * gy).sum(-1), (0, 0), sigma)
-    weaker = 0.5 * (jxx + jyy) - np.sqrt(0.25 * (jxx - jyy) ** 2 + jxy * jxy)
-    slide = np.sqrt(np.maximum(weaker, 0.0)) * SLIDE_TOLERANCES * opts.tolerance_mm > opts.max_delta_e
+    root = np.sqrt(0.25 * (jxx - jyy) ** 2 + jxy * jxy)
+    weaker = np.maximum(0.5 * (jxx + jyy) - root, 0.0)
+    stronger = 0.5 * (jxx + jyy) + root
+    s = SLIDE_TOLERANCES * opts.tolerance_mm
+    # a slide shows where even the weaker direction changes the colour by more than the colour
+    # tolerance, and moves what is seen by more than the misregistration tolerance: content
+    # moved by s along d is seen moved by s sqrt(dᵀ <JᵀJ> d / λ1) (an edge with normal n by
+    # s |d·n|, texture of every direction by s), at least s sqrt(λ2 / λ1). Along a line that
+    # turns by a few degrees over the window a slide moves the line by a fraction of itself:
+    # within the tolerance, as the tiles measure misregistration
+    slide = (np.sqrt(weaker) * s > opts.max_delta_e) & (weaker * SLIDE_TOLERANCES**2 > stronger)
     # the flow finds a slide where the print's texture has two directions over its window (the
     # weaker eigenvalue of the window's structure tensor at the pixel's gate, MIN_TWO_WAY grey
     # levels² per px², on the print smoothed as the flow sees it): along an edge or over a
@@ -388,7 +398,8 @@ def part_coverage(
         "note": (
             "per film and defect class, the share of the film where the defect would show (ink and scratches: "
             f"where the design's colour differs from the bare film's by more than ΔE {opts.max_delta_e:g}; a "
-            f"slide: where one of {SLIDE_TOLERANCES:g} times the tolerance changes the colour by more than that) "
+            f"slide: where one of {SLIDE_TOLERANCES:g} times the tolerance, in any direction, changes the colour by "
+            "more than that and moves what is seen by more than the tolerance) "
             "and the part's photos together find it (detection.npz, part_*); a part that passes with a share "
             "below min_coverage is INCOMPLETE. Broad ink loss is not sought where the ink's step to the film is "
             f"within {2 * dense.COLOUR_TOL:g} grey levels (the colour test's tolerance, twice): "

@@ -4,10 +4,12 @@ Each case runs the real command in its own process (``python -m workbench``), as
 would, under one environment class: a terminal that speaks only ASCII or Latin-1, an absurd
 ``SOURCE_DATE_EPOCH`` or thread count, ``umask 777``, a current folder removed under the shell,
 standard output on a full disk, a HOME that cannot be written or must not be, file names that
-are not UTF-8, SIGTERM or SIGINT (Ctrl-C) at a random moment. What is asserted, for every case: no traceback and no
-"internal error" (those are bugs), exit status 0, 1, 2 or 130, a failure is one line and writes
-nothing, and no file is created or changed outside the declared output and the workbench's own
-cache. A fast subset runs by default (each class once, on commands in turn); ``make bench`` runs
+are not UTF-8, SIGTERM or SIGINT (Ctrl-C) at a random moment, an address-space limit
+(``ulimit -v``) drawn from below what the libraries need to what the work needs. What is
+asserted, for every case: no traceback and no "internal error" (those are bugs), exit status 0,
+1, 2 or 130, a failure is one line and writes nothing, and no file is created or changed outside
+the declared output and the workbench's own cache. A fast subset runs by default (each class
+once, on commands in turn); ``make bench`` runs
 every class on every command.
 """
 
@@ -41,9 +43,13 @@ CLASSES = (
     "names-not-utf-8",
     "sigterm",
     "sigint",
+    "address-space-limit",
 )
 # cases per command in `make bench` for the classes that draw a value (a moment, a variable's value)
-DRAWS = {"sigterm": 10, "sigint": 10, "source-date-epoch": 5, "thread-count": 4}
+DRAWS = {"sigterm": 10, "sigint": 10, "source-date-epoch": 5, "thread-count": 4, "address-space-limit": 6}
+# `ulimit -v` drawn over this range, GiB: below what the libraries map when they load (about 0.85
+# here), through what a command's data takes, to enough for the base job
+ADDRESS_SPACE_GIB = (0.4, 2.5)
 SIGNAL_DELAYS_S = (0.05, 4.0)  # after Python's own start (about 40 ms here), to the end of the slowest case
 
 
@@ -133,6 +139,11 @@ def run_case(cls: str, command: str, draw: int, root: Path, base: Path, home: Pa
         Path(env["HOME"]).write_text("")
     elif cls in ("sigterm", "sigint"):
         delay = float(rng.uniform(*SIGNAL_DELAYS_S))
+    elif cls == "address-space-limit":
+        import resource
+
+        limit = int(rng.uniform(*ADDRESS_SPACE_GIB) * 2**30)
+        preexec = lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit))  # noqa: E731
     if cls == "sigint":  # as a terminal's Ctrl-C reaches it (a test runner may start children ignoring it)
         preexec = lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)  # noqa: E731
     cmd = [sys.executable, "-m", "workbench", *map(str, argv)]
@@ -166,6 +177,12 @@ def test_every_command_under_every_environment(cls, command, draw, tmp_path, bas
     if cls in ("source-date-epoch", "thread-count", "current-folder-removed"):
         named = {"source-date-epoch": "SOURCE_DATE_EPOCH", "current-folder-removed": "current folder"}
         assert status == 1 and len(lines) == 1 and named.get(cls, "_THREADS") in lines[0], err
+        assert not out.exists()
+        return
+    if cls == "address-space-limit" and status != 0:
+        # what did not fit says so in one line of its own (never a loader's crash or a library's fatal line)
+        said = ("address-space limit (ulimit -v)", "out of memory", "a library could not be loaded")
+        assert status == 1 and len(lines) == 1 and any(w in lines[0] for w in said), (status, err)
         assert not out.exists()
         return
     if cls in ("sigterm", "sigint"):

@@ -340,3 +340,52 @@ def test_an_interrupt_python_swallows_is_raised_at_the_next_safe_point(monkeypat
         with pytest.raises(KeyboardInterrupt):
             atomic.deliver_pending()
         atomic.deliver_pending()  # delivered once
+
+
+def test_an_interrupt_python_wraps_while_a_class_is_made_is_an_interrupt(tmp_path, capsys, monkeypatch):
+    """SIGTERM while numba loaded came out as "RuntimeError: Error calling __set_name__ on
+    'cached_property' instance", an internal error: its cause is the interrupt."""
+    import signal
+
+    import workbench.commands.board as board
+
+    class Described:
+        def __set_name__(self, owner, name):
+            raise atomic.Interrupted(signal.SIGTERM)
+
+    def loading(_args):
+        class Loaded:  # noqa: F841 - made for its descriptor's __set_name__
+            indexers = Described()
+
+    monkeypatch.setattr(board, "run", loading)
+    assert main(["board", "charuco", "-o", str(tmp_path / "b.pdf")]) == 130
+    assert one_line(capsys) == "workbench board: interrupted; nothing written"
+
+
+@pytest.mark.parametrize(
+    ("raised", "said"),
+    [
+        (
+            lambda: __import__("cv2").error("OpenCV(5.1.0) alloc.cpp:73: error: (-4:Insufficient memory)"),
+            "out of memory",
+        ),
+        (lambda: OSError(12, "Cannot allocate memory"), "out of memory"),
+        (lambda: RuntimeError("can't start new thread"), "out of memory"),
+        (
+            lambda: OSError("Could not find/load shared object file 'libllvmlite.so'"),
+            "a library could not be loaded (Could not find/load shared object file",
+        ),
+    ],
+    ids=["opencv", "enomem", "thread", "shared-object"],
+)
+def test_the_machine_running_out_is_said_as_such_not_as_a_bug(tmp_path, capsys, monkeypatch, raised, said):
+    # under a memory limit (ulimit -v) libraries say so in their own exceptions: one line, exit 1
+    import workbench.commands.board as board
+
+    def failing(_args):
+        raise raised()
+
+    monkeypatch.setattr(board, "run", failing)
+    assert main(["board", "charuco", "-o", str(tmp_path / "b.pdf")]) == 1
+    line = one_line(capsys)
+    assert line.startswith(f"workbench board: error: {said}") and line.endswith("nothing written"), line

@@ -41,13 +41,14 @@ from workbench.environment import (  # noqa: E402
     cache_dir,
     check_current_folder,
     check_thread_counts,
+    fit_the_address_space,
     keep_owner_permissions,
     load_reportlab,
     source_date_epoch,
     speak_the_terminals_language,
     use_writable_caches,
 )
-from workbench.errors import UsageError, WorkbenchError  # noqa: E402
+from workbench.errors import UsageError, WorkbenchError, exhausted  # noqa: E402
 from workbench.text import one_line  # noqa: E402
 
 # exit status of an internal error (a bug), as sysexits.h's EX_SOFTWARE
@@ -159,18 +160,10 @@ def main(argv: list[str] | None = None) -> int:
             status = exc.exit_status
         except MemoryError:
             # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
-            print(f"{prog}: error: out of memory; nothing written (lower the resolution or the size)", file=sys.stderr)
+            print(f"{prog}: error: out of memory (lower the resolution or the size); nothing written", file=sys.stderr)
             status = 1
         except KeyboardInterrupt:
-            # Ctrl-C or SIGTERM: a write undoes itself (no temporary left) unless its renames
-            # were done, and then the output is complete: that is what the user needs to know
-            if written:
-                done = ", ".join(map(str, written))
-                print(f"{prog}: interrupted after writing {done}, which is complete", file=sys.stderr)
-                status = 0
-            else:
-                print(f"{prog}: interrupted; nothing written", file=sys.stderr)
-                status = 130
+            status = _interrupted(prog, written)
         except SystemExit as exc:
             # argparse's --help and --version: their text is on stdout, which may still fail to flush
             status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
@@ -183,8 +176,58 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{prog}: error: a library could not be loaded ({why}); nothing written", file=sys.stderr)
                 status = 1
         except Exception as exc:
-            status = _internal_error(prog, exc)
+            if _wraps_an_interrupt(exc):
+                status = _interrupted(prog, written)
+            elif (why := _resources_exhausted(exc)) is not None:
+                print(f"{prog}: error: {why}; nothing written", file=sys.stderr)
+                status = 1
+            else:
+                status = _internal_error(prog, exc)
     return _finish_output(status, prog)
+
+
+def _interrupted(prog: str, written: list[Path]) -> int:
+    """Ctrl-C or SIGTERM, said in one line: the exit status.
+
+    A write undoes itself (no temporary left) unless its renames were done, and then the output
+    is complete: that is what the user needs to know.
+    """
+    if written:
+        done = ", ".join(map(str, written))
+        print(f"{prog}: interrupted after writing {done}, which is complete", file=sys.stderr)
+        return 0
+    print(f"{prog}: interrupted; nothing written", file=sys.stderr)
+    return 130
+
+
+def _wraps_an_interrupt(exc: BaseException) -> bool:
+    """Whether an interrupt is the cause of ``exc``: Python wraps what a class's creation raises.
+
+    (SIGTERM while numba loaded came out as "RuntimeError: Error calling __set_name__ on
+    'cached_property' instance", its cause the interrupt.)
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _resources_exhausted(exc: BaseException) -> str | None:
+    """What the machine ran out of, where a library says so in its own exception; None for anything else.
+
+    Under a memory limit, memory runs out in C++ (OpenCV's ``cv2.error``: "Insufficient memory") and
+    shared objects fail to map while a library loads (llvmlite's ``OSError``: "Could not find/load
+    shared object file", ctypes': "failed to map segment"): no bug of ours, the machine's limit.
+    """
+    text = str(exc)
+    if exhausted(exc):
+        return "out of memory (lower the resolution or the size)"
+    if isinstance(exc, OSError) and ("shared object" in text or "failed to map segment" in text):
+        return f"a library could not be loaded ({one_line(text)})"
+    return None
 
 
 def _internal_error(prog: str, exc: BaseException) -> int:
@@ -204,6 +247,7 @@ def _main(argv: list[str] | None, args_in: list[str], first: str | None) -> int:
     check_current_folder()
     keep_owner_permissions()
     check_thread_counts(os.environ)
+    fit_the_address_space(os.environ)  # before any command's module loads the numeric libraries
     source_date_epoch(os.environ)  # read by ReportLab when it loads, and by every PDF's date line
     use_writable_caches()  # before a command's modules load numba and matplotlib
     load_reportlab(os.environ)

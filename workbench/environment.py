@@ -173,6 +173,132 @@ def check_thread_counts(environ) -> None:
             raise WorkbenchError(f"{key}={value!r}: must be a positive whole number of threads, or unset")
 
 
+# the libraries every command loads: under an address-space limit (``ulimit -v``) below what they
+# map, loading one ends the process in the loader, not in Python (OpenCV segfaulted at 600 MB;
+# glibc aborted "cannot allocate memory for thread-local data" at 1 GB when a pool started a
+# thread), so they are tried first in a child process under the same limit
+LIBRARIES = ("numpy", "scipy.sparse", "scipy.spatial", "cv2", "numba")  # and MKL's PARDISO where installed
+# the address space a command needs beyond its libraries for the least of its work, its
+# compilers included: measured on the default job, flatten, pdf and suggest-views finished within
+# 0.20 to 0.25 GiB beyond the libraries' 0.85; within less, numba's compiler (LLVM) ended the
+# process with its own lines ("LLVM ERROR: out of memory", abort) where a region of Python would
+# have said "out of memory". A limit that leaves less is refused before any work
+HEADROOM_BYTES = 256 * 2**20
+# glibc's mallopt parameter for the number of malloc arenas (malloc.h's M_ARENA_MAX): each thread
+# otherwise gets its own, 64 MiB of address space reserved apiece on 64-bit Linux
+_M_ARENA_MAX = -8
+
+
+def address_space_limit() -> int | None:
+    """The process's soft address-space limit (``ulimit -v``, RLIMIT_AS), bytes; None where there is none."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        infinite = resource.RLIM_INFINITY
+    except (ImportError, AttributeError, OSError, ValueError):
+        return None
+    return None if soft == infinite or soft < 0 else int(soft)
+
+
+def load_libraries() -> None:
+    """Load :data:`LIBRARIES`, OpenBLAS's buffer with one product, and MKL's PARDISO with one small solve
+    where pypardiso is installed.
+
+    (MKL loads its threading layer and kernels at the first solve, and exits with its own fatal
+    lines where it cannot: loaded first, before a command's data takes the address space.)
+    """
+    import importlib
+
+    for name in LIBRARIES:
+        importlib.import_module(name)
+    import numpy as np
+
+    # (OpenBLAS takes its working buffer at the first product, and exits with its own line
+    # where it cannot: "Memory allocation still failed after 10 retries, giving up")
+    np.ones((128, 128)) @ np.ones((128, 128))
+    try:
+        import pypardiso
+    except ImportError:
+        return
+    import scipy.sparse as sp
+
+    pypardiso.spsolve(sp.identity(4, format="csr"), np.ones(4))
+
+
+def _libraries_load(raise_limit: bool) -> int | None:
+    """:func:`load_libraries` and HEADROOM_BYTES more in a child process; the address space it peaked
+    at, bytes, or None if it failed.
+
+    With ``raise_limit`` the child lifts its soft limit to the hard one first (what they need).
+    """
+    import subprocess
+    import sys
+
+    code = (
+        "import resource, sys\n"
+        + (
+            "resource.setrlimit(resource.RLIMIT_AS, (resource.getrlimit(resource.RLIMIT_AS)[1],) * 2)\n"
+            if raise_limit
+            else ""
+        )
+        + f"sys.path.insert(0, {str(Path(__file__).resolve().parents[1])!r})\n"
+        + "from workbench.environment import load_libraries\n"
+        + "load_libraries()\n"
+        + f"import numpy\nnumpy.empty({HEADROOM_BYTES}, numpy.uint8)\n"  # (address space, untouched)
+        + "print(next(int(l.split()[1]) * 1024 for l in open('/proc/self/status') if l.startswith('VmPeak')))\n"
+    )
+    try:
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if r.returncode != 0:
+        return None
+    try:
+        return int(r.stdout.split()[-1])
+    except (ValueError, IndexError):
+        return 0
+
+
+def fit_the_address_space(environ) -> None:
+    """Under an address-space limit, take less of it and refuse, in one line, a limit the libraries cannot load in.
+
+    One thread for the numeric libraries where the user set none (OpenBLAS reserves buffers per
+    thread: 0.72 GB of address space after the imports with one, 0.94 GB with two), one for
+    OpenCV's pool, and one malloc arena; then :data:`LIBRARIES` are loaded in a child process under
+    the same limit, and where they load there, here.
+
+    Raises
+    ------
+    WorkbenchError
+        The libraries cannot load within the limit: the limit, and what they need where that can be measured.
+    """
+    limit = address_space_limit()
+    if limit is None:
+        return
+    for key in THREAD_VARIABLES:
+        environ.setdefault(key, "1")
+    with contextlib.suppress(OSError, AttributeError):
+        import ctypes
+
+        ctypes.CDLL(None).mallopt(_M_ARENA_MAX, 1)
+    if _libraries_load(raise_limit=False) is not None:
+        # (and in this process, now, as the child did: a library that maps itself later, with a
+        # command's data in the address space, fails where no line of ours can say so)
+        load_libraries()
+        import cv2
+
+        cv2.setNumThreads(1)  # (its pool's threads, each a stack and an arena: "Can't spawn new thread")
+        return
+    need = _libraries_load(raise_limit=True)
+    what = f": they take {(need - HEADROOM_BYTES) / 2**30:.2f} GiB of it here" if need else ""
+    raise WorkbenchError(
+        f"the address-space limit (ulimit -v) of {limit / 2**20:,.0f} MiB is too small for the libraries every "
+        f"command loads (NumPy, SciPy, OpenCV, numba) and {HEADROOM_BYTES / 2**30:.2f} GiB of work{what}; "
+        "raise it (ulimit -v unlimited)"
+    )
+
+
 def check_current_folder() -> None:
     """Refuse to start in a current folder that no longer exists (removed under the shell).
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, exhausted
 from workbench.mesh.topology import unique_edges
 from workbench.sparse import CotanAssembler, SPDSolver
 
@@ -338,7 +338,9 @@ def _newton_direction(assembler: CotanAssembler, cot: np.ndarray, g: np.ndarray,
                 else:
                     solver = SPDSolver(H, backend=backend)
                 x = solver.solve(rhs)
-        except Exception:  # noqa: BLE001 - any backend failure (zero pivot, MKL error) has a fallback
+        except Exception as exc:  # noqa: BLE001 - any backend failure (zero pivot, MKL error) has a fallback
+            if exhausted(exc):  # (but not the machine's memory)
+                raise
             solver = None
             continue
         if np.all(np.isfinite(x)):

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, exhausted
 from workbench.sparse import CotanAssembler, SPDSolver
 
 # Default number of corner sites spread over the boundary by arc length.
@@ -120,7 +120,9 @@ def corner_response(
     for backend, shift in ((None, 1e-12), ("qdldl", 1e-9), ("qdldl", 1e-6)):
         try:
             x = SPDSolver(assembler.upper(cot, shift=shift), backend).solve(rhs[free])
-        except Exception:  # each backend raises its own error type on a failed factorisation
+        except Exception as exc:  # each backend raises its own error type on a failed factorisation
+            if exhausted(exc):  # (not the machine's memory)
+                raise
             continue
         if np.isfinite(x).all():
             G[free] = x

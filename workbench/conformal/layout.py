@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, exhausted
 from workbench.sparse import CotanAssembler, SPDSolver, preconditioned_cg, symmetric_matvec
 
 
@@ -209,7 +209,9 @@ def dirichlet_layout(
     rhs = -(L[assembler.free][:, loop] @ boundary_xy)
     try:
         xy[assembler.free] = SPDSolver(assembler.upper(cot)).solve(rhs)
-    except Exception as exc:  # noqa: BLE001 - any backend's failure is one refusal
+    except Exception as exc:  # noqa: BLE001 - any backend's failure is one refusal (but the machine's memory)
+        if exhausted(exc):
+            raise
         raise WorkbenchError(f"layout failed: the harmonic solve broke down ({type(exc).__name__})") from None
     if not np.isfinite(xy).all():
         raise WorkbenchError("layout failed: the harmonic solve gave non-finite positions")

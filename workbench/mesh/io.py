@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, exhausted
 
 UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
@@ -95,7 +95,9 @@ def read_mesh(path: str | Path, units: str = "mm") -> tuple[np.ndarray, np.ndarr
             V, F = _read_trimesh(path, suffix)
     except WorkbenchError:
         raise
-    except Exception as exc:  # every parser failure is the file's fault here
+    except Exception as exc:  # every parser failure is the file's fault here (but the machine's memory)
+        if exhausted(exc):
+            raise
         raise WorkbenchError(f"{path}: cannot read mesh: {exc}") from None
     if len(F) == 0:
         raise WorkbenchError(f"{path}: the file holds no triangles")

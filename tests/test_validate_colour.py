@@ -138,6 +138,28 @@ def test_perfect_passes_a_drift_fails_whatever_the_light(design, tmp_path):
     assert "colour: FAIL, mean" in pdf_text(tmp_path / "drifted" / "qa_report.pdf")
 
 
+def test_a_perfect_photo_against_a_recoloured_design_fails_on_its_colour(design, tmp_path):
+    # the other side of a drift (issue 41): the print is as designed, the design given is not. Its
+    # every colour moved by (-7, 7, 9) in L*, a*, b*: about 10 ΔE00, twice the drift above
+    import shutil
+
+    from workbench.render.photo import shift_colours
+
+    photo = render(design, tmp_path / "perfect.png", "--blur-px", "1", "--noise", "3")
+    other = tmp_path / "recoloured"
+    shutil.copytree(design.dir, other)
+    rgb = read_image(other / "print.png", "print")
+    cv2.imwrite(str(other / "print.png"), cv2.cvtColor(shift_colours(rgb, (-7.0, 7.0, 9.0)), cv2.COLOR_RGB2BGR))
+    status, report = validate(Design(other), [photo], tmp_path / "out")
+    assert status == 0
+    (e,) = report["photos"]
+    assert e["verdict"] == "FAIL" and e["colour"]["verdict"] == "FAIL" and e["colour"]["chart"]["patches_used"] == 24
+    assert report["part"]["verdict"] == "FAIL" and e["reason"].startswith("colour mean ΔE00")
+    # the truth: the ΔE00 between the design given and the print (that design moved back) on the pixels compared
+    mean, _ = truth(Design(other), photo, e, (7.0, -7.0, -9.0))
+    assert mean >= 9.0 and abs(e["colour"]["delta_e00"]["mean"] - mean) <= 1.5
+
+
 def hot_share(png) -> float:
     """Share of a colour-difference picture's compared (coloured, not grey) pixels past mid-scale."""
     rgb = cv2.cvtColor(cv2.imread(str(png)), cv2.COLOR_BGR2RGB).astype(int)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from workbench import atomic
+from workbench import atomic, interrupts
 from workbench.cli import main
 from workbench.errors import WorkbenchError
 
@@ -331,15 +331,15 @@ def test_an_interrupt_python_swallows_is_raised_at_the_next_safe_point(monkeypat
         for _ in range(1000):  # bytecodes: the handler runs here, inside the callback
             pass
 
-    monkeypatch.setattr("sys.unraisablehook", atomic.ignore_swallowed_interrupts)
-    with atomic.signals_handled():
+    monkeypatch.setattr("sys.unraisablehook", interrupts.ignore_swallowed_interrupts)
+    with interrupts.signals_handled():
         thing = Thing()
         ref = weakref.ref(thing, callback)
         del thing  # the callback runs now; what it raises is swallowed
         assert ref() is None
         with pytest.raises(KeyboardInterrupt):
-            atomic.deliver_pending()
-        atomic.deliver_pending()  # delivered once
+            interrupts.deliver_pending()
+        interrupts.deliver_pending()  # delivered once
 
 
 def test_an_interrupt_python_wraps_while_a_class_is_made_is_an_interrupt(tmp_path, capsys, monkeypatch):
@@ -351,7 +351,7 @@ def test_an_interrupt_python_wraps_while_a_class_is_made_is_an_interrupt(tmp_pat
 
     class Described:
         def __set_name__(self, owner, name):
-            raise atomic.Interrupted(signal.SIGTERM)
+            raise interrupts.Interrupted(signal.SIGTERM)
 
     def loading(_args):
         class Loaded:  # noqa: F841 - made for its descriptor's __set_name__

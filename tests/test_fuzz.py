@@ -691,7 +691,7 @@ def test_signal_anywhere_in_the_write(command, case, tmp_path, capsys, base, mon
     signum = signal.SIGINT if rng.random() < 0.5 else signal.SIGTERM
     at = int(rng.integers(1, 16))
     # (Ctrl-C as a terminal sends it: a runner started by `nohup` or with `&` ignores SIGINT, and
-    # the command rightly leaves it so; 197 of 1,400 cases "failed" that way)
+    # the command rightly leaves it so; 197 of 714 cases "failed" that way)
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         request.addfinalizer(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))

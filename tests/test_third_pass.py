@@ -389,3 +389,56 @@ def test_the_machine_running_out_is_said_as_such_not_as_a_bug(tmp_path, capsys, 
     assert main(["board", "charuco", "-o", str(tmp_path / "b.pdf")]) == 1
     line = one_line(capsys)
     assert line.startswith(f"workbench board: error: {said}") and line.endswith("nothing written"), line
+
+
+@pytest.mark.parametrize(
+    "then",
+    [
+        lambda: ImportError("generic_type: type 'ObjSense' is already registered!"),
+        lambda: ImportError("initialization failed"),
+        lambda: WorkbenchError("part.obj: cannot read mesh: "),
+        lambda: AttributeError("'PassBuilder' object has no attribute '_as_parameter_'"),
+    ],
+    ids=["registered", "initialization", "input", "half-made"],
+)
+def test_whatever_fails_after_an_interrupt_a_library_swallowed_is_the_interrupt(tmp_path, capsys, monkeypatch, then):
+    # SIGTERM while a library loaded: its import caught the interrupt, and the next try failed in its own
+    # words ("a library could not be loaded (generic_type: type 'ObjSense' is already registered!)", exit 1)
+    import signal
+
+    import workbench.commands.board as board
+
+    def loading(_args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):  # bytecodes: the handler raises here
+                pass
+        except BaseException:  # noqa: BLE001, S110 - as the library did
+            pass
+        raise then()
+
+    monkeypatch.setattr(board, "run", loading)
+    assert main(["board", "charuco", "-o", str(tmp_path / "b.pdf")]) == 130
+    assert one_line(capsys) == "workbench board: interrupted; nothing written"
+    assert not (tmp_path / "b.pdf").exists()
+
+
+def test_a_finaliser_that_fails_after_an_interrupt_says_nothing(capsys, monkeypatch):
+    # an object an interrupt left half made fails in its __del__ at exit ("Exception ignored in ...
+    # AttributeError"): after "interrupted; nothing written" that is noise; without an interrupt, news
+    import sys
+    import types
+
+    def unraisable():
+        return types.SimpleNamespace(
+            exc_type=AttributeError, exc_value=AttributeError("_as_parameter_"), exc_traceback=None,
+            err_msg="Exception ignored in", object=None,
+        )  # fmt: skip
+
+    monkeypatch.setattr(interrupts._SIGNALS, "came", True)
+    interrupts.ignore_swallowed_interrupts(unraisable())
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(interrupts._SIGNALS, "came", False)
+    monkeypatch.setattr(sys, "__unraisablehook__", lambda u: print("printed", file=sys.stderr))
+    interrupts.ignore_swallowed_interrupts(unraisable())
+    assert capsys.readouterr().err == "printed\n"

@@ -8,6 +8,7 @@ import sys
 from workbench.interrupts import (
     deliver_pending,
     ignore_swallowed_interrupts,
+    interrupt_came,
     release_early_signals,
     signals_handled,
     take_signals_early,
@@ -156,8 +157,11 @@ def main(argv: list[str] | None = None) -> int:
         try:
             status = _main(argv, args_in, first)
         except WorkbenchError as exc:
-            print(f"{prog}: error: {one_line(str(exc))}", file=sys.stderr)
-            status = exc.exit_status
+            if interrupt_came():  # (what an interrupt broke, reported as the input's fault by a caller)
+                status = _interrupted(prog, written)
+            else:
+                print(f"{prog}: error: {one_line(str(exc))}", file=sys.stderr)
+                status = exc.exit_status
         except MemoryError:
             # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
             print(f"{prog}: error: out of memory (lower the resolution or the size); nothing written", file=sys.stderr)
@@ -168,7 +172,9 @@ def main(argv: list[str] | None = None) -> int:
             # argparse's --help and --version: their text is on stdout, which may still fail to flush
             status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
         except ImportError as exc:
-            if (exc.name or "").startswith("workbench"):
+            if interrupt_came():  # (a library's import the interrupt broke, tried again)
+                status = _interrupted(prog, written)
+            elif (exc.name or "").startswith("workbench"):
                 status = _internal_error(prog, exc)  # our own module: a bug
             else:
                 # a library that cannot load: under a memory limit its shared objects cannot be mapped
@@ -176,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{prog}: error: a library could not be loaded ({why}); nothing written", file=sys.stderr)
                 status = 1
         except Exception as exc:
-            if _wraps_an_interrupt(exc):
+            if _wraps_an_interrupt(exc) or interrupt_came():
                 status = _interrupted(prog, written)
             elif (why := _resources_exhausted(exc)) is not None:
                 print(f"{prog}: error: {why}; nothing written", file=sys.stderr)

@@ -35,12 +35,13 @@ class _Signals:
     ``pending``: the last signal, until it is raised where the command stops (it arrived while
     held, or Python swallowed its raise: see :func:`_handler`); ``written``: outputs completed so far
     by the running command, so that an interrupt after them is not reported as "nothing
-    written".
+    written"; ``came``: a signal came during the running command (whether or not it was raised).
     """
 
     def __init__(self) -> None:
         self.held = 0
         self.pending: int | None = None
+        self.came = False
         self.written: list[Path] = []
         self.installed = False
         # the handlers before :func:`take_signals_early`, restored when the command ends
@@ -56,6 +57,7 @@ def _handler(signum, _frame) -> None:
     # in ...") and goes on: design then finished and exited 0 after a Ctrl-C (5 of 13 tries in
     # the issue). What is recorded is raised again at the next safe point (:func:`deliver_pending`).
     _SIGNALS.pending = signum
+    _SIGNALS.came = True
     if _SIGNALS.held:
         return
     raise Interrupted(signum)
@@ -77,10 +79,15 @@ def deliver_pending() -> None:
 def ignore_swallowed_interrupts(unraisable) -> None:
     """``sys.unraisablehook``: an interrupt raised where Python cannot raise it is kept for later, not printed.
 
-    Any other such exception is printed as Python prints it.
+    Any other such exception is printed as Python prints it, unless an interrupt came before it.
     """
     if isinstance(unraisable.exc_value, KeyboardInterrupt):
         return  # recorded by the handler; :func:`deliver_pending` raises it
+    if _SIGNALS.came:
+        # what an interrupt left half made fails in its finaliser (llvmlite's ObjectRef.__del__,
+        # after a Ctrl-C inside its constructor: "AttributeError: ... '_as_parameter_'"): a
+        # consequence of the interrupt the command has already reported, not news
+        return
     sys.__unraisablehook__(unraisable)
 
 
@@ -130,6 +137,7 @@ def signals_handled() -> Iterator[list[Path]]:
     _SIGNALS.written = []
     if not _SIGNALS.original:
         _SIGNALS.pending = None  # (one a process took early is still to be delivered)
+        _SIGNALS.came = False
     if threading.current_thread() is not threading.main_thread() or _SIGNALS.installed:
         yield _SIGNALS.written
         return
@@ -164,3 +172,13 @@ def _held() -> Iterator[None]:
     finally:
         _SIGNALS.held -= 1
         deliver_pending()
+
+
+def interrupt_came() -> bool:
+    """Whether Ctrl-C or SIGTERM came during the running command, raised or not.
+
+    A library that catches what its import raises turns an interrupt into its own error, later:
+    pybind11's "type ... is already registered" on the next try, "initialization failed". Such an
+    error after an interrupt is the interrupt.
+    """
+    return _SIGNALS.came

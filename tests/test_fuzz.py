@@ -674,7 +674,7 @@ def atomic_manifest() -> str:
 
 
 @pytest.mark.parametrize(("command", "case"), output_cases())
-def test_signal_anywhere_in_the_write(command, case, tmp_path, capsys, base, monkeypatch, request):
+def test_signal_anywhere_in_the_write(command, case, tmp_path, capsys, base, monkeypatch):
     """SIGINT or SIGTERM at a random step of the write: either the earlier output as it was (exit 130, "nothing
     written") or the new one complete (exit 0, "which is complete"), and never a temporary left."""
     import os
@@ -690,11 +690,6 @@ def test_signal_anywhere_in_the_write(command, case, tmp_path, capsys, base, mon
     before, digest = tree(tmp_path), digests(inputs)
     signum = signal.SIGINT if rng.random() < 0.5 else signal.SIGTERM
     at = int(rng.integers(1, 16))
-    # (Ctrl-C as a terminal sends it: a runner started by `nohup` or with `&` ignores SIGINT, and
-    # the command rightly leaves it so; 197 of 714 cases "failed" that way)
-    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        request.addfinalizer(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     calls = []
 
     def step(fn):

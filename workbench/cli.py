@@ -253,9 +253,9 @@ def _main(argv: list[str] | None, args_in: list[str], first: str | None) -> int:
     check_current_folder()
     keep_owner_permissions()
     check_thread_counts(os.environ)
-    fit_the_address_space(os.environ)  # before any command's module loads the numeric libraries
     source_date_epoch(os.environ)  # read by ReportLab when it loads, and by every PDF's date line
     use_writable_caches()  # before a command's modules load numba and matplotlib
+    fit_the_address_space(os.environ)  # (it loads numba: after its cache is set) before a command's modules
     load_reportlab(os.environ)
     parser = build_parser(first if first in COMMANDS else None)
     _refuse_empty_outputs(args_in)

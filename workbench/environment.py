@@ -226,6 +226,18 @@ def load_libraries() -> None:
     pypardiso.spsolve(sp.identity(4, format="csr"), np.ones(4))
 
 
+def address_space_peak() -> int:
+    """The most address space this process has held, bytes (Linux's VmPeak); 0 where the system does not say."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmPeak:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0
+
+
 def _libraries_load(raise_limit: bool) -> int | None:
     """:func:`load_libraries` and HEADROOM_BYTES more in a child process; the address space it peaked
     at, bytes, or None if it failed.
@@ -246,7 +258,8 @@ def _libraries_load(raise_limit: bool) -> int | None:
         + "from workbench.environment import load_libraries\n"
         + "load_libraries()\n"
         + f"import numpy\nnumpy.empty({HEADROOM_BYTES}, numpy.uint8)\n"  # (address space, untouched)
-        + "print(next(int(l.split()[1]) * 1024 for l in open('/proc/self/status') if l.startswith('VmPeak')))\n"
+        + "from workbench.environment import address_space_peak\n"
+        + "print(address_space_peak())\n"
     )
     try:
         r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)

@@ -7,7 +7,7 @@ runs the command in-process through ``workbench.cli.main`` and asserts the conve
 the README: no exception escapes, exit status 0, 1 or 2, a failure is one line
 ``workbench COMMAND: error: ...`` and leaves every file as it was (earlier output intact,
 nothing new). A fast subset runs by default; ``-m slow`` (``make bench``) runs 500 more
-cases per command.
+cases per command (``suggest-views`` among them).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from fixtures.make_fixtures import checker_image, domed_part, write_png
 from workbench.cli import main
 
 FAST, SLOW = 20, 500
-COMMANDS = ("flatten", "design", "pdf", "board", "render", "validate", "calibrate")
+COMMANDS = ("flatten", "design", "pdf", "board", "render", "validate", "calibrate", "suggest-views")
 CALIB = ROOT / "calib"
 
 
@@ -356,6 +356,58 @@ def test_design(case, tmp_path, capsys, base):
         assert (out / "design.json").is_file() and (out / "earlier.txt").is_file()
 
 
+@pytest.mark.parametrize("case", cases("suggest-views"))
+def test_suggest_views(case, tmp_path, capsys, base):
+    # the job broken as design's is (its values, its bytes, its mesh, its view image), or fine, with
+    # the options drawn from the absurd to the usual; a template the user drew on is never replaced
+    rng = rng_for("suggest-views", case)
+    job_dir = tmp_path / "job"
+    job_dir.mkdir()
+    for name in ("part.obj", "top.png"):
+        shutil.copy(base / name, job_dir / name)
+    choice = rng.random()
+    if choice < 0.3:
+        (job_dir / "job.toml").write_bytes(toml_text(BASE_JOB))
+    elif choice < 0.6:
+        (job_dir / "job.toml").write_bytes(toml_text(mutate_json(rng, BASE_JOB)))
+    elif choice < 0.75:
+        (job_dir / "job.toml").write_bytes(mutate_bytes(rng, toml_text(BASE_JOB)))
+    elif choice < 0.9:
+        data, suffix = mutate_mesh(rng, *_read(base / "part.obj"))
+        (job_dir / f"part{suffix}").write_bytes(data)
+        job = copy.deepcopy(BASE_JOB)
+        job["object"]["mesh"] = f"part{suffix}"
+        (job_dir / "job.toml").write_bytes(toml_text(job))
+    else:
+        (job_dir / "top.png").write_bytes(mutate_bytes(rng, (base / "top.png").read_bytes()))
+        (job_dir / "job.toml").write_bytes(toml_text(BASE_JOB))
+    out = tmp_path / "out"
+    earlier_output(out)
+    drawn = out / "suggest-1.png"
+    if rng.random() < 0.3:
+        drawn.parent.mkdir(parents=True, exist_ok=True)
+        write_png(drawn, np.tile(np.uint8([[30], [220]]), (24, 64))[..., None].repeat(3, axis=2))  # drawn on
+    argv = ["suggest-views", job_dir / "job.toml", "-o", out / "suggest.toml", "-q"]
+    options = {
+        "-n": ["0", "1", "2", "-1", "x", "1e9", "3"],
+        "--distance-mm": ["200", "0", "-5", "nan", "100,400", "400,100", "1e300", "a,b"],
+        "--min-elevation-deg": ["10", "-90", "90", "91", "nan"],
+        "--up": ["0,0,1", "0,0,0", "1,nan,0", "x"],
+        "--fov-deg": ["30", "0", "179", "180", "-1"],
+        "--size": ["320x240", "0x0", "1x1", "100000x100000", "axb"],
+        "--max-obliquity-deg": ["60", "0", "90", "-1"],
+        "--min-separation-deg": ["20", "0", "180", "-5"],
+    }
+    for flag, values in options.items():
+        if rng.random() < 0.25:
+            argv += [flag, str(rng.choice(values))]
+    before = drawn.read_bytes() if drawn.exists() else None
+    if run(capsys, tmp_path, argv) == 0:
+        assert (out / "suggest.toml").is_file() and (out / "earlier.txt").is_file()
+    if before is not None:
+        assert drawn.read_bytes() == before, "a template drawn on was replaced"
+
+
 def _read(path: Path):
     from workbench.mesh.io import read_mesh
 
@@ -590,14 +642,14 @@ def command_inputs(command: str, root: Path, base: Path) -> tuple[list, list[Pat
             ["calibrate", "printer", root / "scan.png", "--board", root / "target.json", "--dpi", "300"],
             [root / "scan.png", root / "target.json"],
         ),
+        "suggest-views": (["suggest-views", job / "job.toml"], [job / n for n in ("job.toml", "part.obj", "top.png")]),
     }[command]
     return argv, inputs
 
 
 def default_output(command: str, folder: Path) -> Path:
-    return folder / {"pdf": "print.pdf", "board": "board.pdf", "render": "photo.png", "calibrate": "printer.json"}.get(
-        command, "out"
-    )
+    names = {"pdf": "print.pdf", "board": "board.pdf", "render": "photo.png", "calibrate": "printer.json"}
+    return folder / {**names, "suggest-views": "suggest.toml"}.get(command, "out")
 
 
 def output_flag(command: str) -> str:

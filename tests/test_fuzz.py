@@ -326,30 +326,16 @@ def test_flatten(case, tmp_path, capsys):
 def test_design(case, tmp_path, capsys, base):
     rng = rng_for("design", case)
     job_dir = tmp_path / "job"
-    job_dir.mkdir()
-    for name in ("part.obj", "top.png"):
-        shutil.copy(base / name, job_dir / name)
-    choice = rng.random()
-    if choice < 0.2:  # a job that is fine: the command must succeed on its variations too
+
+    def varied(rng):  # a job that is fine: the command must succeed on its variations too
         job = copy.deepcopy(BASE_JOB)
         job["print"]["dpi"] = int(rng.integers(10, 60))
         job["print"]["scale"] = str(rng.choice(["isometric", "no-shrink", "width=70", "rim"]))
         job["views"][0]["fov_deg"] = float(rng.uniform(15, 40))
         job["views"][0]["position"] = [float(rng.uniform(-30, 30)), float(rng.uniform(-30, 30)), 200.0]
-        (job_dir / "job.toml").write_bytes(toml_text(job))
-    elif choice < 0.6:
-        (job_dir / "job.toml").write_bytes(toml_text(mutate_json(rng, BASE_JOB)))
-    elif choice < 0.75:
-        (job_dir / "job.toml").write_bytes(mutate_bytes(rng, toml_text(BASE_JOB)))
-    elif choice < 0.9:
-        data, suffix = mutate_mesh(rng, *_read(base / "part.obj"))
-        (job_dir / f"part{suffix}").write_bytes(data)
-        job = copy.deepcopy(BASE_JOB)
-        job["object"]["mesh"] = f"part{suffix}"
-        (job_dir / "job.toml").write_bytes(toml_text(job))
-    else:
-        (job_dir / "top.png").write_bytes(mutate_bytes(rng, (base / "top.png").read_bytes()))
-        (job_dir / "job.toml").write_bytes(toml_text(BASE_JOB))
+        return job
+
+    broken_job(rng, base, job_dir, 0.2, varied)
     out = tmp_path / "out"
     earlier_output(out)
     if run(capsys, tmp_path, ["design", job_dir / "job.toml", "--out", out, "-q"]) == 0:
@@ -362,25 +348,7 @@ def test_suggest_views(case, tmp_path, capsys, base):
     # the options drawn from the absurd to the usual; a template the user drew on is never replaced
     rng = rng_for("suggest-views", case)
     job_dir = tmp_path / "job"
-    job_dir.mkdir()
-    for name in ("part.obj", "top.png"):
-        shutil.copy(base / name, job_dir / name)
-    choice = rng.random()
-    if choice < 0.3:
-        (job_dir / "job.toml").write_bytes(toml_text(BASE_JOB))
-    elif choice < 0.6:
-        (job_dir / "job.toml").write_bytes(toml_text(mutate_json(rng, BASE_JOB)))
-    elif choice < 0.75:
-        (job_dir / "job.toml").write_bytes(mutate_bytes(rng, toml_text(BASE_JOB)))
-    elif choice < 0.9:
-        data, suffix = mutate_mesh(rng, *_read(base / "part.obj"))
-        (job_dir / f"part{suffix}").write_bytes(data)
-        job = copy.deepcopy(BASE_JOB)
-        job["object"]["mesh"] = f"part{suffix}"
-        (job_dir / "job.toml").write_bytes(toml_text(job))
-    else:
-        (job_dir / "top.png").write_bytes(mutate_bytes(rng, (base / "top.png").read_bytes()))
-        (job_dir / "job.toml").write_bytes(toml_text(BASE_JOB))
+    broken_job(rng, base, job_dir, 0.3, lambda _rng: BASE_JOB)
     out = tmp_path / "out"
     earlier_output(out)
     drawn = out / "suggest-1.png"
@@ -406,6 +374,30 @@ def test_suggest_views(case, tmp_path, capsys, base):
         assert (out / "suggest.toml").is_file() and (out / "earlier.txt").is_file()
     if before is not None:
         assert drawn.read_bytes() == before, "a template drawn on was replaced"
+
+
+def broken_job(rng, base: Path, job_dir: Path, fine_share: float, fine) -> None:
+    """A job folder from the base's files, broken one way or fine: ``fine(rng)``'s job with ``fine_share``,
+    else its values, its bytes, its mesh or its view image broken."""
+    job_dir.mkdir()
+    for name in ("part.obj", "top.png"):
+        shutil.copy(base / name, job_dir / name)
+    choice = rng.random()
+    if choice < fine_share:
+        (job_dir / "job.toml").write_bytes(toml_text(fine(rng)))
+    elif choice < 0.6:
+        (job_dir / "job.toml").write_bytes(toml_text(mutate_json(rng, BASE_JOB)))
+    elif choice < 0.75:
+        (job_dir / "job.toml").write_bytes(mutate_bytes(rng, toml_text(BASE_JOB)))
+    elif choice < 0.9:
+        data, suffix = mutate_mesh(rng, *_read(base / "part.obj"))
+        (job_dir / f"part{suffix}").write_bytes(data)
+        job = copy.deepcopy(BASE_JOB)
+        job["object"]["mesh"] = f"part{suffix}"
+        (job_dir / "job.toml").write_bytes(toml_text(job))
+    else:
+        (job_dir / "top.png").write_bytes(mutate_bytes(rng, (base / "top.png").read_bytes()))
+        (job_dir / "job.toml").write_bytes(toml_text(BASE_JOB))
 
 
 def _read(path: Path):

@@ -162,26 +162,13 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 print(f"{prog}: error: {one_line(str(exc))}", file=sys.stderr)
                 status = exc.exit_status
-        except MemoryError:
-            # the pre-checks (design's print, render's photo) refuse what cannot fit; this is what they missed
-            print(f"{prog}: error: out of memory (lower the resolution or the size); nothing written", file=sys.stderr)
-            status = 1
         except KeyboardInterrupt:
             status = _interrupted(prog, written)
         except SystemExit as exc:
             # argparse's --help and --version: their text is on stdout, which may still fail to flush
             status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-        except ImportError as exc:
-            if interrupt_came():  # (a library's import the interrupt broke, tried again)
-                status = _interrupted(prog, written)
-            elif (exc.name or "").startswith("workbench"):
-                status = _internal_error(prog, exc)  # our own module: a bug
-            else:
-                # a library that cannot load: under a memory limit its shared objects cannot be mapped
-                why = one_line(str(exc))
-                print(f"{prog}: error: a library could not be loaded ({why}); nothing written", file=sys.stderr)
-                status = 1
         except Exception as exc:
+            # (a library's import the interrupt broke, tried again, fails in its own words)
             if _wraps_an_interrupt(exc) or interrupt_came():
                 status = _interrupted(prog, written)
             elif (why := _resources_exhausted(exc)) is not None:
@@ -224,14 +211,17 @@ def _wraps_an_interrupt(exc: BaseException) -> bool:
 def _resources_exhausted(exc: BaseException) -> str | None:
     """What the machine ran out of, where a library says so in its own exception; None for anything else.
 
-    Under a memory limit, memory runs out in C++ (OpenCV's ``cv2.error``: "Insufficient memory") and
-    shared objects fail to map while a library loads (llvmlite's ``OSError``: "Could not find/load
-    shared object file", ctypes': "failed to map segment"): no bug of ours, the machine's limit.
+    Memory (:func:`workbench.errors.exhausted`: what the pre-checks of design's print and render's
+    photo did not foresee, or OpenCV's allocator in C++), or a library that cannot load: under a
+    memory limit its shared objects fail to map (an ``ImportError`` of a module not ours;
+    llvmlite's ``OSError``: "Could not find/load shared object file", ctypes': "failed to map
+    segment"). No bug of ours, the machine's limit; an ``ImportError`` of our own module is one.
     """
     text = str(exc)
     if exhausted(exc):
         return "out of memory (lower the resolution or the size)"
-    if isinstance(exc, OSError) and ("shared object" in text or "failed to map segment" in text):
+    library = isinstance(exc, ImportError) and not (exc.name or "").startswith("workbench")
+    if library or (isinstance(exc, OSError) and ("shared object" in text or "failed to map segment" in text)):
         return f"a library could not be loaded ({one_line(text)})"
     return None
 

@@ -24,6 +24,7 @@ from workbench.conformal.flatten import (
 )
 from workbench.conformal.layout import signed_areas
 from workbench.design_dir import read_image as read_image  # lives with the design folder's reading
+from workbench.environment import proc_bytes
 from workbench.errors import WorkbenchError
 from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, seams, split_films, submesh
 from workbench.job import Job, Material
@@ -397,13 +398,8 @@ def _design_films(job: Job, V, F, images, say, t, forming_profile: Path | None =
 def physical_memory() -> int:
     """The memory this command can have, bytes: what Linux says is available, else the machine's (16 GiB
     where the system does not say). Available, not installed: on a shared machine the rest is in use."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
+    if (available := proc_bytes("/proc/meminfo", "MemAvailable")) is not None:
+        return available
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):

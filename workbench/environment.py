@@ -226,16 +226,21 @@ def load_libraries() -> None:
     pypardiso.spsolve(sp.identity(4, format="csr"), np.ones(4))
 
 
-def address_space_peak() -> int:
-    """The most address space this process has held, bytes (Linux's VmPeak); 0 where the system does not say."""
+def proc_bytes(path: str, key: str) -> int | None:
+    """A ``KEY:  N kB`` line of one of Linux's ``/proc`` files, in bytes; None where the system does not say."""
     try:
-        with open("/proc/self/status") as fh:
+        with open(path) as fh:
             for line in fh:
-                if line.startswith("VmPeak:"):
+                if line.startswith(key + ":"):
                     return int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         pass
-    return 0
+    return None
+
+
+def address_space_peak() -> int:
+    """The most address space this process has held, bytes (Linux's VmPeak); 0 where the system does not say."""
+    return proc_bytes("/proc/self/status", "VmPeak") or 0
 
 
 def _libraries_load(raise_limit: bool) -> int | None:

@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/bench_calibrate_check.py PHOTO... --board BOARD.json
         [--profile-photos N] [--splits 20] [--seed 0] [--fx-pct 1] [--pp-px 8] [--tolerance-sigma 3]
+        [--block 1]
 
 The photos of one camera are dealt at random, ``--splits`` times, into a profile made from
 N of them (``calibrate camera``'s code: :func:`workbench.calibration.calibrate_views`) and
@@ -18,7 +19,9 @@ Each split checks the true profile, and the same profile with its focal lengths 
   standard deviations alone (``calibrateCameraExtended``, which assume independent corner
   errors);
 - the drift the check catches at its tolerance: tolerance-sigma x the median combined
-  standard deviation.
+  standard deviation;
+- how often the drift each check states it catches (``calibrate check``'s power,
+  :func:`workbench.calibration.check_power`), put in one intrinsic at a time, is caught.
 
 Corners are detected once; photos of another size than most are left out, by name.
 """
@@ -37,9 +40,11 @@ import numpy as np
 from workbench.calibration import (
     HOLD_DISTORTION,
     INTRINSICS,
+    POWER_PROBABILITY,
     TOLERANCE_SIGMA,
     board_views,
     calibrate_views,
+    check_power,
     check_views,
     fit_intrinsics,
 )
@@ -85,6 +90,7 @@ def measure(
     fx_pct: float = 1.0,
     pp_px: float = 8.0,
     tolerance_sigma: float = TOLERANCE_SIGMA,
+    block: int = 1,
 ) -> dict:
     """The check's false alarms and power over random splits of the views.
 
@@ -100,6 +106,9 @@ def measure(
         How many random splits, and their seed.
     fx_pct, pp_px, tolerance_sigma : float
         The drifts to catch, and the check's tolerance.
+    block : int
+        Views dealt in blocks of this many in their order: frames of one video, neighbours
+        near duplicates of each other, go to one side as a lab's two days would (1: each alone).
 
     Returns
     -------
@@ -118,8 +127,10 @@ def measure(
     caught = {k: [] for k in cases}
     plain = {k: [] for k in cases}  # the re-measure's verdict with |z| > tolerance_sigma, Student's t left aside
     deltas, zs, zs_cv, sigmas, fxs = [], [], [], [], []
+    at_limit = {k: [] for k in INTRINSICS}  # the stated drift caught, per split
     for _ in range(splits):
-        order = rng.permutation(len(views))
+        blocks = [list(range(i, min(i + block, len(views)))) for i in range(0, len(views), block)]
+        order = [i for b in rng.permutation(len(blocks)) for i in blocks[b]]
         P = [views[i] for i in sorted(order[:n_profile])]
         C = [views[i] for i in sorted(order[n_profile:])]
         try:
@@ -135,6 +146,15 @@ def measure(
             r = chk.remeasured
             if r is not None:
                 plain[case].append(any(abs(r[k]["z"]) > tolerance_sigma for k in r["measured"]))
+            if case == "true" and r is not None:
+                # the drift the check states it catches (POWER_PROBABILITY of the time), put in
+                # one intrinsic at a time: is it caught that often?
+                stated = check_power(r, np.asarray(prof["K"]), fx_pct, pp_px)["caught_px"]
+                for k, d in stated.items():
+                    moved = {**prof, "K": [list(row) for row in prof["K"]]}
+                    i, j = {"fx": (0, 0), "fy": (1, 1), "cx": (0, 2), "cy": (1, 2)}[k]
+                    moved["K"][i][j] += d
+                    at_limit[k].append(bool(check_views(*fresh(C), moved, None, tolerance_sigma).drift))
             if case == "true" and r is not None and len(r["measured"]) == len(INTRINSICS):
                 deltas.append([r[k]["delta"] for k in INTRINSICS])
                 zs.append([r[k]["z"] for k in INTRINSICS])
@@ -163,6 +183,7 @@ def measure(
             "fx_pct": float(100 * tolerance_sigma * sig[0] / fx),
         },
         "fx": fx,
+        "at_stated_limit": {k: (float(np.mean(v)), len(v)) for k, v in at_limit.items() if v},
     }
 
 
@@ -189,6 +210,7 @@ def main(argv=None) -> int:
     ap.add_argument("--fx-pct", type=float, default=1.0)
     ap.add_argument("--pp-px", type=float, default=8.0)
     ap.add_argument("--tolerance-sigma", type=float, default=TOLERANCE_SIGMA)
+    ap.add_argument("--block", type=int, default=1, help="deal the photos in blocks of this many, in their order")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     views, W, H, left = load_views(a.photos, load_board(Path(a.board)))
@@ -196,8 +218,11 @@ def main(argv=None) -> int:
         print(f"left out {why}", file=sys.stderr)
     n_profile = a.profile_photos or int(round(0.6 * len(views)))
     print(f"{len(views)} usable photos of {W} x {H}: profiles from {n_profile}, checks on {len(views) - n_profile}")
-    m = measure(views, W, H, n_profile, a.splits, a.seed, a.fx_pct, a.pp_px, a.tolerance_sigma)
-    print(f"{m['splits']} splits (seed {a.seed}), tolerance {a.tolerance_sigma:g} sigma; median fx {m['fx']:.1f} px")
+    m = measure(views, W, H, n_profile, a.splits, a.seed, a.fx_pct, a.pp_px, a.tolerance_sigma, max(1, a.block))
+    print(
+        f"{m['splits']} splits (seed {a.seed}, blocks of {max(1, a.block)}), tolerance {a.tolerance_sigma:g} sigma; "
+        f"median fx {m['fx']:.1f} px"
+    )
     labels = {
         "true": "true profile",
         "fx": f"fx, fy x {1 + a.fx_pct / 100:g}",
@@ -220,6 +245,8 @@ def main(argv=None) -> int:
         f"  caught at {a.tolerance_sigma:g} sigma: fx {d['fx']:.1f} px ({d['fx_pct']:.2f} %), "
         f"cx {d['cx']:.1f} px, cy {d['cy']:.1f} px"
     )
+    stated = "  ".join(f"{k} {100 * share:.0f} % of {n}" for k, (share, n) in m["at_stated_limit"].items())
+    print(f"  the drift each check states it catches ({100 * POWER_PROBABILITY:.0f} %), caught: {stated}")
     print(f"  {time.perf_counter() - t0:.0f} s")
     return 0
 

@@ -255,11 +255,65 @@ def check_sizes(images: list[tuple[str, np.ndarray]], expected: tuple[int, int] 
     return int(W), int(H)
 
 
-def board_views(images: list[tuple[str, np.ndarray]], definition: dict) -> tuple[list, list]:
+def grid_rms(board_mm: np.ndarray, px: np.ndarray, camera: tuple | None = None) -> float:
+    """How far a view's corners lie from the flat grid they were matched to, px.
+
+    A flat board's corners in a photo (its distortion taken out) are the board's points
+    through a homography, whatever the camera's intrinsics and pose; a detection that matched
+    corners to the wrong squares (a steeply tilted chessboard read one square off along a
+    row) fits none. The RMS of the best homography's residual, in the photo's pixels.
+
+    Parameters
+    ----------
+    board_mm : (n, 2) float
+        The corners' points on the board, mm.
+    px : (n, 2) float
+        The corners in the photo, px.
+    camera : (K, dist), optional
+        (3, 3) and (5,) float: the distortion to take out first (pixels kept in K's units).
+
+    Returns
+    -------
+    float
+        px; 0 for four corners or fewer (any four fit a homography).
+    """
+    px = np.asarray(px, np.float64).reshape(-1, 2)
+    if len(px) <= 4:
+        return 0.0
+    if camera is not None:
+        K, dist = camera
+        px = cv2.undistortPoints(px.reshape(-1, 1, 2), K, dist, P=K).reshape(-1, 2)
+    src = np.asarray(board_mm, np.float64).reshape(-1, 2)
+    Hm, _ = cv2.findHomography(src, px, 0)
+    if Hm is None:
+        return float("inf")
+    fit = cv2.perspectiveTransform(src.reshape(-1, 1, 2), Hm).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum((fit - px) ** 2, axis=1))))
+
+
+def board_views(
+    images: list[tuple[str, np.ndarray]],
+    definition: dict,
+    camera: tuple | None = None,
+    grid_limit_px: float | None = None,
+) -> tuple[list, list]:
     """The board's corners in each photo, and why a photo cannot serve as a view.
 
     A photo is left out (with its reason) when it shows no board, too few corners,
-    corners on one line of the board, or the same pose as an earlier photo.
+    corners on one line of the board, corners off the flat grid they were matched to
+    (:func:`grid_rms` above ``grid_limit_px``), or the same pose as an earlier photo.
+
+    Parameters
+    ----------
+    images : list of (name, (H, W) uint8)
+    definition : dict
+        The board.
+    camera : (K, dist), optional
+        A profile's intrinsics, to take the distortion out before the flat-grid test.
+    grid_limit_px : float, optional
+        The largest :func:`grid_rms` of a view, px (a profile's limit for a view's
+        reprojection: a homography fits at least as well as a pose); by default
+        :func:`view_rms_limit` of the photos' own median.
 
     Returns
     -------
@@ -268,13 +322,26 @@ def board_views(images: list[tuple[str, np.ndarray]], definition: dict) -> tuple
         name, corners, used, and reason when not used; in the photos' order.
     """
     board_mm = board_points_mm(definition)
+    found = [(name, *detect_corners(img, definition)) for name, img in images]
+    # (the flat-grid test against the photos' own median: a set taken through a strongly
+    # distorting lens bends every view's grid alike; on a real webcam's chessboard, good
+    # views fit to 0.05 to 0.2 px, the views read one square off to 2.3 to 3.5 px)
+    grids = [grid_rms(board_mm[ids], px, camera) if not problem else np.nan for _, px, ids, problem in found]
+    usable = [g for g in grids if np.isfinite(g)]
+    grid_limit = grid_limit_px
+    if grid_limit is None:
+        grid_limit = view_rms_limit(np.array(usable)) if usable else np.inf
     views, per_view, seen = [], [], []
-    for name, img in images:
-        px, ids, problem = detect_corners(img, definition)
+    for (name, px, ids, problem), grid in zip(found, grids, strict=True):
         if not problem and len(ids) < MIN_CORNERS:
             problem = f"too few corners ({len(ids)}, need {MIN_CORNERS})"
         if not problem and collinear(board_mm[ids]):
             problem = f"its {len(ids)} corners lie on one line of the board: no pose from them"
+        if not problem and not grid <= grid_limit:
+            problem = (
+                f"its corners lie off the board's flat grid by {grid:.2f} px RMS (limit {grid_limit:.2f} px): "
+                "matched to the wrong squares"
+            )
         if not problem:
             twin = duplicate_of(ids, px, seen)
             if twin is not None:
@@ -285,7 +352,7 @@ def board_views(images: list[tuple[str, np.ndarray]], definition: dict) -> tuple
         seen.append((name, ids, px))
         obj = np.column_stack([board_mm[ids], np.zeros(len(ids))]).astype(np.float32)
         views.append((name, obj, px.astype(np.float32)))
-        per_view.append({"name": name, "corners": int(len(ids)), "used": True})
+        per_view.append({"name": name, "corners": int(len(ids)), "used": True, "grid_rms_px": round(grid, 4)})
     return views, per_view
 
 
@@ -348,7 +415,11 @@ JACKKNIFE_GROUPS = 10
 def jackknife_std(views: list, width: int, height: int, flags: int, guess: tuple | None = None) -> np.ndarray | None:
     """Standard deviations of fx, fy, cx, cy (px) from the views' own scatter (grouped jackknife).
 
-    The views are dealt into G = min(n, JACKKNIFE_GROUPS) groups; each group is left out
+    The views are dealt into G = min(n, JACKKNIFE_GROUPS) groups of neighbours in their
+    order (photos taken one after another share a pose's neighbourhood; frames of a video are
+    near duplicates, and dealt one by one into every group they would leave each refit its
+    left-out views' twins: on a webcam's video split into blocks of 10 frames, the check's z
+    scattered 2 to 2.8 times its stated deviation); each group is left out
     in turn and the intrinsics refitted; the spread of the G refits, scaled by
     sqrt((G - 1) / G · Σ(θ_g - θ̄)²), estimates the standard error of the full fit. Unlike
     OpenCV's figures it includes what real photos add to the corner noise (a board not
@@ -366,7 +437,7 @@ def jackknife_std(views: list, width: int, height: int, flags: int, guess: tuple
         return None
     thetas = []
     for g in range(G):
-        rest = [v for k, v in enumerate(views) if k % G != g]
+        rest = [v for k, v in enumerate(views) if k * G // n != g]
         try:
             _, K, *_ = fit_intrinsics(rest, width, height, flags, guess)
         except WorkbenchError:
@@ -542,6 +613,14 @@ class CameraCheck:
     drift: list
 
 
+def stored_view_limit(profile: dict, tolerance_px: float | None = None) -> float:
+    """The largest reprojection RMS of a photo that agrees with a profile, px: ``tolerance_px`` or the profile's own."""
+    if tolerance_px is not None:
+        return float(tolerance_px)
+    stored_limit = profile.get("view_rms_limit_px")
+    return float(stored_limit or view_rms_limit(np.array([float(profile.get("rms_px") or 0.0)])))
+
+
 def check_camera(
     images: list[tuple[str, np.ndarray]],
     definition: dict,
@@ -583,7 +662,11 @@ def check_camera(
         A photo of another size than the profile's (naming it), or no photo showing the board.
     """
     check_sizes(images, tuple(int(v) for v in profile["image_size"]))
-    views, per_photo = board_views(images, definition)
+    K0 = np.asarray(profile["K"], dtype=np.float64)
+    dist0 = np.zeros(5)
+    d = np.asarray(profile.get("dist") or [], dtype=np.float64).ravel()[:5]
+    dist0[: len(d)] = d
+    views, per_photo = board_views(images, definition, (K0, dist0), stored_view_limit(profile, tolerance_px))
     if not views:
         raise WorkbenchError(
             "no photo shows the board: "
@@ -609,9 +692,7 @@ def check_views(
     dist0 = np.zeros(5)
     d = np.asarray(profile.get("dist") or [], dtype=np.float64).ravel()[:5]
     dist0[: len(d)] = d
-    if tolerance_px is None:
-        stored_limit = profile.get("view_rms_limit_px")
-        tolerance_px = float(stored_limit or view_rms_limit(np.array([float(profile.get("rms_px") or 0.0)])))
+    tolerance_px = stored_view_limit(profile, tolerance_px)
     drift = []
     # the used entries are the views, in order (by name, a photo given twice was the wrong one of two)
     used_entries = [v for v in per_photo if v["used"]]
@@ -682,6 +763,8 @@ def check_views(
             "z": float(z[i]),
             "limit": float(limit[i]),
             "dof": float(nu[i]),
+            "sigma_profile": float(std0[i]),
+            "sigma_photos": float(std[i]),
         }
         for i, k in enumerate(INTRINSICS)
         if k in names
@@ -738,6 +821,89 @@ def z_limits(
     tail = norm.sf(tolerance_sigma)
     limit = np.where(np.isfinite(nu), t.isf(tail, np.where(np.isfinite(nu), nu, 1.0)), tolerance_sigma)
     return limit, nu
+
+
+# the drift a check states it catches is caught with this probability (one-sided normal quantile
+# beyond its limit: a drift exactly at the limit is caught half the time)
+POWER_PROBABILITY = 0.95
+
+
+def check_power(remeasured: dict | None, K0: np.ndarray, focal_tolerance_pct: float, pp_tolerance_px: float) -> dict:
+    """The smallest drift a camera check catches, from its own photos and the profile's uncertainty.
+
+    A drift d of an intrinsic moves its z by d / σ (σ the combined standard deviation of the
+    profile and the re-measurement); the check fails it when |z| exceeds its limit, so it is
+    caught with probability POWER_PROBABILITY when d = (limit + q) σ, q the quantile of the
+    same t distribution (the combined deviation's degrees of freedom) that leaves 1 -
+    POWER_PROBABILITY below. The re-measurement's variance falls as 1 / photos, the
+    profile's does not: a check of n photos reaches a tolerance T with
+    n σ_photos² / ((T / (limit + q))² - σ_profile²) photos, when the profile's own
+    uncertainty leaves room for it.
+
+    Parameters
+    ----------
+    remeasured : dict or None
+        :class:`CameraCheck`'s ``remeasured``.
+    K0 : (3, 3) float
+        The profile's camera matrix, px.
+    focal_tolerance_pct, pp_tolerance_px : float
+        The lab's tolerances: a focal length drift, %; a principal point move, px.
+
+    Returns
+    -------
+    dict
+        ``probability``; ``focal_pct`` (the larger of fx, fy, % of the profile's) and
+        ``pp_px`` (the larger of cx, cy), None where not re-measured; ``caught_px``: each
+        re-measured intrinsic's, px; ``short``: a sentence for
+        each tolerance the check cannot see; ``photos_needed`` (None: no count of photos
+        reaches it, the profile's own uncertainty is too large).
+    """
+    from scipy.stats import t
+
+    out = {
+        "probability": POWER_PROBABILITY,
+        "focal_pct": None,
+        "pp_px": None,
+        "caught_px": {},
+        "short": [],
+        "photos_needed": None,
+    }
+    if remeasured is None:
+        out["short"].append("no intrinsic was re-measured: the check sees no drift of them")
+        return out
+    n = int(remeasured["views"])
+    focal = {"fx": float(K0[0, 0]), "fy": float(K0[1, 1])}
+    caught, needed = {}, []
+    for k in remeasured["measured"]:
+        r = remeasured[k]
+        reach = r["limit"] + float(t.isf(1 - POWER_PROBABILITY, r["dof"]))
+        caught[k] = reach * r["sigma"]
+        tol = focal_tolerance_pct / 100 * focal[k] if k in focal else pp_tolerance_px
+        if caught[k] > tol:
+            room = (tol / reach) ** 2 - r["sigma_profile"] ** 2
+            needed.append(int(np.ceil(n * r["sigma_photos"] ** 2 / room)) if room > 0 else None)
+    out["caught_px"] = caught
+    focal_pct = [100 * caught[k] / focal[k] for k in focal if k in caught]
+    pp = [caught[k] for k in ("cx", "cy") if k in caught]
+    out["focal_pct"] = max(focal_pct) if focal_pct else None
+    out["pp_px"] = max(pp) if pp else None
+    if out["focal_pct"] is not None and out["focal_pct"] > focal_tolerance_pct:
+        out["short"].append(
+            f"this check cannot see a {focal_tolerance_pct:g} % focal drift with {n} photos "
+            f"(it sees {out['focal_pct']:.2f} %)"
+        )
+    if out["pp_px"] is None:
+        out["short"].append(f"the principal point is not re-measured with {n} photos (it needs {MIN_VIEWS}, tilted)")
+    elif out["pp_px"] > pp_tolerance_px:
+        out["short"].append(
+            f"this check cannot see the principal point move by {pp_tolerance_px:g} px with {n} photos "
+            f"(it sees {out['pp_px']:.1f} px)"
+        )
+    if needed:
+        out["photos_needed"] = None if None in needed else max(needed)
+    elif out["pp_px"] is None:
+        out["photos_needed"] = MIN_VIEWS
+    return out
 
 
 def check_views_vary(views: list, width: int, height: int) -> float:

@@ -17,6 +17,7 @@ from workbench.calibration import (
     TOLERANCE_SIGMA,
     calibrate_camera,
     check_camera,
+    check_power,
     check_printer_scale,
     measure_printer,
     name_list,
@@ -92,6 +93,26 @@ def add_parser(sub) -> None:
         help="camera: largest difference between re-measured and stored fx, fy, cx, cy, in standard "
         f"deviations of the two (default {TOLERANCE_SIGMA:g}); a confidence in the units of a normal "
         "distribution, widened to Student's t where a standard deviation comes from the scatter of few photos",
+    )
+    k.add_argument(
+        "--focal-tolerance-pct",
+        **positive,
+        hi=100,
+        default=1.0,
+        help="camera: the focal length drift the lab must catch, %% (default 1); a check whose photos cannot "
+        "see it says so",
+    )
+    k.add_argument(
+        "--pp-tolerance-px",
+        **positive,
+        hi=1e5,
+        default=8.0,
+        help="camera: the principal point move the lab must catch, px (default 8)",
+    )
+    k.add_argument(
+        "--strict",
+        action="store_true",
+        help="camera: fail (exit 1) a check whose photos cannot see the drifts above, not only warn",
     )
     k.add_argument("-q", "--quiet", action="store_true")
     k.set_defaults(run=run_check)
@@ -286,8 +307,9 @@ def _measure(scan: Path, board: dict, dpi: float):
         raise WorkbenchError(str(exc) if str(exc).startswith(str(scan)) else f"{scan}: {exc}") from None
 
 
-def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[str], str]:
-    """The camera half of ``calibrate check``: what drifted (empty when within tolerance), and on what."""
+def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[str], str, str]:
+    """The camera half of ``calibrate check``: what drifted (empty when within tolerance), on what, and
+    what drift of the lab's tolerances the photos cannot see (empty when they see both)."""
     K = np.asarray(prof["K"], dtype=np.float64)
     problem = intrinsics_problem(K, *prof["image_size"])
     if problem:
@@ -324,8 +346,24 @@ def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[
         )
         if not r["profile_uncertainty"]:
             log("the profile records no uncertainty of its intrinsics (made before it did): the photos' alone counts")
+    power = check_power(r, K, args.focal_tolerance_pct, args.pp_tolerance_px)
+    sees = [f"a focal drift of {power['focal_pct']:.2f} %"] if power["focal_pct"] is not None else []
+    sees += [f"a principal point move of {power['pp_px']:.1f} px"] if power["pp_px"] is not None else []
+    if sees:
+        log(f"this check catches {' and '.join(sees)} ({100 * power['probability']:.0f} % of the time)")
+    short = ""
+    if power["short"]:
+        need = power["photos_needed"]
+        short = "; ".join(power["short"]) + (
+            f"; about {need} photos are needed"
+            if need
+            else "; no number of photos will do: the profile's own "
+            "uncertainty is larger than the tolerance (recalibrate with more photos)"
+        )
+        if not args.strict:
+            log(f"warning: {short}")
     left_out = len(c.per_photo) - used
-    return c.drift, f"{used} photos" + (f" ({left_out} left out)" if left_out else "")
+    return c.drift, f"{used} photos" + (f" ({left_out} left out)" if left_out else ""), short
 
 
 def run_check(args) -> int:
@@ -334,6 +372,8 @@ def run_check(args) -> int:
         ("--tolerance-pct", args.tolerance_pct),
         ("--tolerance-px", args.tolerance_px),
         ("--tolerance-sigma", args.tolerance_sigma),
+        ("--focal-tolerance-pct", args.focal_tolerance_pct),
+        ("--pp-tolerance-px", args.pp_tolerance_px),
     ):
         if v is not None and not (np.isfinite(v) and v > 0):
             raise UsageError(f"{flag} {v:g}: must be a positive number")
@@ -345,10 +385,12 @@ def run_check(args) -> int:
     board_path = resolve_recorded(prof["board"]["file"], path)
     board = load_board(board_path)
     if kind == "camera-profile":
-        drift, on = _check_camera(args, path, prof, board, log)
+        drift, on, short = _check_camera(args, path, prof, board, log)
         if drift:
             raise WorkbenchError(f"{path.name}: the camera drifted: {'; '.join(drift)}: recalibrate")
-        log(f"{path.name}: within tolerance on {on}")
+        if short and args.strict:
+            raise WorkbenchError(f"{path.name}: the check cannot see the lab's tolerance (--strict): {short}")
+        log(f"{path.name}: within tolerance on {on}" + (f"; warning: {short}" if short else ""))
         return 0
     failures = []
     for item in args.inputs:

@@ -490,7 +490,7 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     forming_profile = forming_profile or job.object.forming_profile
     t: dict[str, float] = {}
     t0 = time.perf_counter()
-    V, F = read_mesh(job.object.mesh, job.object.units)
+    V, F = read_mesh(job.object.mesh, job.object.units, log=say)
     images = [
         read_image(v.image, f"{job.path}: views[{i}].image", job.print.background) for i, v in enumerate(job.views)
     ]

@@ -110,8 +110,8 @@ class Design:
         self.info = read_design_json(directory / "design.json")
         self.fixture = load_board(directory / "fixture.json", "fixture definition", schemas.FIXTURE)
         # the decorated mesh: the part in mm, in the input's vertex order
-        self.V, self.F = read_mesh(directory / "decorated.obj")
-        flat, flat_F = read_mesh(directory / "flat.obj")
+        self.V, self.F = read_mesh(directory / "decorated.obj", solid=False)
+        flat, flat_F = read_mesh(directory / "flat.obj", solid=False)
         # the same triangles, vertex for vertex: the print's layout of the decorated part
         if flat.shape != self.V.shape or not np.array_equal(flat_F, self.F):
             raise WorkbenchError(

@@ -143,7 +143,7 @@ def run(args) -> int:
         raise UsageError("--corners belongs to --outline rectangle; a free outline has no corners")
     check_output_dir(out, inputs=[mesh_path])  # before the work, not after it
     t0 = time.perf_counter()
-    V, F = read_mesh(mesh_path, args.units)
+    V, F = read_mesh(mesh_path, args.units, log=log)
     t_read = time.perf_counter() - t0
     log(f"read {mesh_path}: {len(V)} vertices, {len(F)} faces ({t_read:.2f} s)")
     compared = None

@@ -173,7 +173,7 @@ def film_outline(path: Path) -> np.ndarray | None:
     when the file is not there."""
     if not path.is_file():
         return None
-    V, F = read_mesh(path)
+    V, F = read_mesh(path, solid=False)
     try:
         loops = boundary_loops(F)
     except (KeyError, IndexError, ValueError):  # a boundary that branches: not a manifold

@@ -254,7 +254,7 @@ def run(args) -> int:
     inputs += [Path(p) for p in (args.favour, args.avoid) if p]
     if out is not None:
         check_outputs(out, out.with_name(f"{out.stem}-views.png"), inputs=inputs)
-    V, F = read_mesh(job.object.mesh, job.object.units)
+    V, F = read_mesh(job.object.mesh, job.object.units, log=log)
     images = [read_image(v.image, f"{job.path}: views[{i}].image") for i, v in enumerate(job.views)]
     favour = avoid = None
     for flag, value in (("--favour", args.favour), ("--avoid", args.avoid)):

@@ -35,6 +35,10 @@ class ObjectSpec:
     corners: tuple[int, int, int, int] | str | None = None  # or "auto"
     material: Material = Material()
     forming_profile: Path | None = None  # a forming profile the print pre-compensates (workbench calibrate forming)
+    # the surface to print: None (the default: "seen" for a closed mesh, the whole mesh for an open
+    # one), "seen" (what the views see, grown by surface_margin_mm), "whole", or a file of face indices
+    surface: str | Path | None = None
+    surface_margin_mm: float | None = None  # None: the print's bleed_mm
 
 
 @dataclass(frozen=True)
@@ -348,7 +352,10 @@ def load_job(path: str | Path) -> Job:
     top = _Reader(path, "job", doc, {"object", "print", "views", "fixture", "films"})
 
     o = _Reader(
-        path, "object", top.get("object", required=True), {"mesh", "units", "corners", "material", "forming_profile"}
+        path,
+        "object",
+        top.get("object", required=True),
+        {"mesh", "units", "corners", "material", "forming_profile", "surface", "surface_margin_mm"},
     )
     corners = o.get("corners")
     if corners is not None and corners != "auto":
@@ -363,7 +370,19 @@ def load_job(path: str | Path) -> Job:
         corners=corners,
         material=material,
         forming_profile=o.file("forming_profile", required=False),
+        surface=_surface(o),
+        surface_margin_mm=o.number("surface_margin_mm", None, lo=-1e-300, hi=1e6),
     )
+    if obj.surface_margin_mm is not None and obj.surface == "whole":
+        o.fail(
+            'a margin grows the surface the views see; surface = "whole" takes the mesh as it is', "surface_margin_mm"
+        )
+    if isinstance(obj.corners, tuple) and obj.surface not in (None, "whole"):
+        o.fail(
+            "corner vertices are the mesh's, but a surface cut out of it is numbered anew: "
+            'use corners = "auto" or leave them out',
+            "corners",
+        )
 
     p = _Reader(path, "print", top.get("print", {}), {"dpi", "scale", "outline", "background", "margin_mm", "bleed_mm"})
     outline = p.string("outline", "rectangle", choices=("rectangle", "free"))
@@ -405,6 +424,18 @@ def load_job(path: str | Path) -> Job:
         fixture=fixture,
         films=films,
     )
+
+
+def _surface(o: _Reader) -> str | Path | None:
+    """``[object] surface``: "seen", "whole" or a text file of 0-based face indices (None: not given)."""
+    value = o.string("surface")
+    if value is None or value in ("seen", "whole"):
+        return value
+    if not (o.path.parent / value).exists():
+        o.fail(
+            f'must be "seen", "whole" or a file of face indices; no file {value!r} (looked beside the job)', "surface"
+        )
+    return o.file("surface")
 
 
 def _vertex_index(c) -> bool:

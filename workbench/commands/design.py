@@ -15,7 +15,15 @@ from workbench import __version__
 from workbench.atomic import check_output_dir, safe_name, write_folder
 from workbench.commands.flatten import summary
 from workbench.conformal.distortion import weighted_quantiles
-from workbench.design import background_share, design, film_area_mm2, fit_warnings, read_image, view_statistics
+from workbench.design import (
+    background_share,
+    design,
+    film_area_mm2,
+    fit_warnings,
+    read_image,
+    surface_line,
+    view_statistics,
+)
 from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
@@ -194,6 +202,9 @@ def run(args) -> int:
         "views": stats,
         "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
+    if result.surface is not None:
+        # what of the part is printed and why: the views' surface, margin, holes, islands, seams
+        info["surface"] = result.surface
     comps = [f.compensation for f in result.films] if result.films else [result.compensation]
     comp = comps[0]
     if comp is not None:
@@ -255,7 +266,8 @@ def run(args) -> int:
             [s["print_share"] for s in stats],
             flat.width_mm,
             flat.height_mm,
-            f"{job.name}: which view owns each print pixel",
+            f"{job.name}: which view owns each print pixel"
+            + ("" if result.surface is None else "\n" + "\n".join(textwrap.wrap(surface_line(result.surface), 95))),
             film=None if result.film.all() else result.film,
             labels=labels,
         ),
@@ -315,6 +327,8 @@ def run(args) -> int:
         + "; ".join(f"{s['name']} {100 * s['print_share']:.1f} %" for s in stats)
         + f"; background {100 * info['print']['background_share']:.1f} %"
     )
+    if result.surface is not None:
+        log(surface_line(result.surface))
     left_mm2, left_share = result.undecorated
     log(
         f"undecorated: {100 * left_share:.1f} % of the surface ({left_mm2:.0f} mm²) no view owns"

@@ -1,0 +1,274 @@
+"""Closed parts: the decorated surface chosen from the views, cut out of the solid into a disc."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from workbench.cli import main
+from workbench.design import decorated_surface, design, read_image, surface_mode
+from workbench.job import load_job
+from workbench.mesh.cut import CutOptions, cut_to_disc, is_disc, path_length
+from workbench.mesh.io import format_obj, read_mesh
+from workbench.mesh.topology import boundary_loops, unique_edges
+from workbench.views.visibility import view_visibility
+
+# the box: 100 x 60 x 30 mm, x and y on a 5 mm grid, z on a 2.5 mm grid (2,496 triangles; the
+# one with the hole through it 2,880): every edge of the seams below lies on a grid line
+STEP_XY, STEP_Z = 5.0, 2.5
+HOLE = (30.0, 20.0)  # a hole through the box's middle, top to bottom, x by y, mm
+
+
+def panel(p0, U, W, nu, nv, keep=None):
+    """Quads p0 + i/nu U + j/nv W, two triangles each, facing U x W; cells whose centre ``keep`` refuses left out."""
+    p0, U, W = (np.asarray(a, float) for a in (p0, U, W))
+    i, j = np.meshgrid(np.arange(nu + 1), np.arange(nv + 1), indexing="ij")
+    P = p0 + (i.ravel()[:, None] / nu) * U + (j.ravel()[:, None] / nv) * W
+    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    F = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    if keep is not None:
+        centre = (P[a] + P[c]) / 2
+        ok = keep(centre)
+        F = np.concatenate([np.stack([a, b, c], 1)[ok], np.stack([a, c, d], 1)[ok]])
+    return P, F
+
+
+def box_mesh(hole: bool = False):
+    """A closed box 100 x 60 x 30 mm (z 0 to 30, centred in x and y), faces outward; optionally a hole through it."""
+    nx, ny, nz = int(100 / STEP_XY), int(60 / STEP_XY), int(30 / STEP_Z)
+    hx, hy = HOLE[0] / 2, HOLE[1] / 2
+
+    def solid(c):
+        return ~((np.abs(c[:, 0]) < hx) & (np.abs(c[:, 1]) < hy)) if hole else np.ones(len(c), bool)
+
+    panels = [
+        panel((-50, -30, 30), (100, 0, 0), (0, 60, 0), nx, ny, solid),  # top, +z
+        panel((-50, -30, 0), (0, 60, 0), (100, 0, 0), ny, nx, solid),  # bottom, -z
+        panel((-50, -30, 0), (100, 0, 0), (0, 0, 30), nx, nz),  # front, -y
+        panel((-50, 30, 0), (0, 0, 30), (100, 0, 0), nz, nx),  # back, +y
+        panel((-50, -30, 0), (0, 0, 30), (0, 60, 0), nz, ny),  # left, -x
+        panel((50, -30, 0), (0, 60, 0), (0, 0, 30), ny, nz),  # right, +x
+    ]
+    if hole:
+        mx, my = int(HOLE[0] / STEP_XY), int(HOLE[1] / STEP_XY)
+        panels += [
+            panel((-hx, -hy, 0), (0, 2 * hy, 0), (0, 0, 30), my, nz),  # x = -15, facing +x (into the hole)
+            panel((hx, -hy, 0), (0, 0, 30), (0, 2 * hy, 0), nz, my),  # x = +15, facing -x
+            panel((-hx, -hy, 0), (0, 0, 30), (2 * hx, 0, 0), nz, mx),  # y = -10, facing +y
+            panel((-hx, hy, 0), (2 * hx, 0, 0), (0, 0, 30), mx, nz),  # y = +10, facing -y
+        ]
+    P = np.concatenate([p for p, _ in panels])
+    offsets = np.cumsum([0] + [len(p) for p, _ in panels[:-1]])
+    F = np.concatenate([f + o for (_, f), o in zip(panels, offsets, strict=True)])
+    # weld the panels' shared rims (coordinates on the grid: exact to 1e-9 mm)
+    _, first, inverse = np.unique(np.round(P, 9), axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty(len(first), np.int64)
+    rank[order] = np.arange(len(first))
+    return P[first[order]], rank[inverse.ravel()][F]
+
+
+TOP = {"position": [0, 0, 300], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_deg": 30}
+FRONT = {"position": [0, -300, 15], "look_at": [0, 0, 15], "up": [0, 0, 1], "fov_deg": 30}
+
+
+def view_image(path, seed, size=(640, 480)):
+    """A textured view image (smooth colour blobs and a grid): something to register."""
+    rng = np.random.default_rng(seed)
+    w, h = size
+    small = rng.integers(0, 256, (6, 8, 3), dtype=np.uint8)
+    img = cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
+    img[::40] = 0
+    img[:, ::40] = 0
+    cv2.imwrite(str(path), img)
+
+
+def write_job(tmp_path, V, F, views, extra_object="", outline="free", suffix=".obj"):
+    mesh = tmp_path / f"part{suffix}"
+    if suffix == ".stl":
+        import trimesh
+
+        trimesh.Trimesh(V, F, process=False).export(mesh)
+    else:
+        mesh.write_bytes(format_obj(V, F))
+    blocks = []
+    for k, (name, cam) in enumerate(views):
+        view_image(tmp_path / f"{name}.png", k)
+        pose = "\n".join(f"{key} = {json.dumps(value)}" for key, value in cam.items())
+        blocks.append(f'[[views]]\nname = "{name}"\nimage = "{name}.png"\n{pose}\n')
+    job = tmp_path / "job.toml"
+    job.write_text(
+        f'[object]\nmesh = "{mesh.name}"\n{extra_object}\n[print]\ndpi = 50\noutline = "{outline}"\n'
+        + "\n".join(blocks)
+    )
+    return job
+
+
+def seen_faces(V, F, cams):
+    """Every face a view sees (in whole or in part), computed here on the whole solid."""
+    from workbench.camera import Camera
+
+    seen = np.zeros(len(F), bool)
+    for c in cams:
+        cam = Camera.look_at(c["position"], c["look_at"], c["up"], c["fov_deg"], 640, 480)
+        vis = view_visibility(V, F, cam)
+        seen |= vis.full | vis.partial
+    return seen
+
+
+def euler(F):
+    E, _, _ = unique_edges(F)
+    return len(np.unique(F)) - len(E) + len(F)
+
+
+def test_the_box_is_closed_and_the_default_surface_is_seen(tmp_path):
+    V, F = box_mesh()
+    E, _, count = unique_edges(F)
+    assert len(F) == 2496 and (count == 2).all() and euler(F) == 2
+    job = load_job(write_job(tmp_path, V, F, [("top", TOP)]))
+    assert surface_mode(job, F) == "seen"
+
+
+def test_closed_box_designs_end_to_end_on_what_the_views_see(tmp_path):
+    # a closed STL of the lid, a top and a front view: design selects the top and the front (and
+    # the default 3 mm margin round them), cuts them out as one disc with no seam, and prints
+    V, F = box_mesh()
+    job_path = write_job(tmp_path, V, F, [("top", TOP), ("front", FRONT)], suffix=".stl")
+    out = tmp_path / "d"
+    assert main(["design", str(job_path), "--out", str(out), "-q"]) == 0
+    info = json.loads((out / "design.json").read_text())
+    s = info["surface"]
+    assert s["mode"] == "seen" and s["margin_mm"] == 3.0  # the print's bleed, 3 mm by default
+    # seen: the top 100 x 60 and the front 100 x 30 exactly (6,000 + 3,000 of the box's 21,600 mm²)
+    assert s["seen_mm2"] == pytest.approx(9000.0, abs=1e-6)
+    assert s["mesh_mm2"] == pytest.approx(21600.0, abs=1e-6)
+    # the margin: the faces whose centroid is within 3 mm of the seen faces along the surface,
+    # a strip along the seen surface's 380 mm rim (100 + 2 x 60 + 2 x 30 + 100) whose edge lands
+    # within a triangle of 3 mm: between half and one and a half times 3 mm wide (measured: 662.5
+    # mm², 86 triangles: the first row of the 2.5 mm cells and one triangle of the 5 mm ones)
+    assert 0.5 * 380 * 3 <= s["margin_mm2"] <= 1.5 * 380 * 3
+    assert s["margin_mm2"] == pytest.approx(662.5) and s["margin_faces"] == 86
+    # two holes filled: the triangle at each end of the top's front edge on the side walls, between
+    # the strip below the top and the strip beside the front (6.25 mm² each, below the limit of 2 %
+    # of the selection)
+    assert s["holes_filled"] == 2 and s["holes_filled_mm2"] == pytest.approx(12.5)
+    assert s["hole_limit_mm2"] == pytest.approx(0.02 * (9000 + 662.5))
+    assert s["islands_dropped"] == 0
+    assert s["selected_mm2"] == pytest.approx(9000 + 662.5 + 12.5)
+    assert s["selected_share"] == pytest.approx(9675 / 21600)
+    assert s["rims"] == 1 and s["genus"] == 0 and s["seams"]["count"] == 0
+    # what was designed is a disc holding every face the views see
+    Vd, Fd = read_mesh(out / "decorated.obj")
+    assert is_disc(Fd) and euler(Fd) == 1 and len(boundary_loops(Fd)) == 1
+    Vs, Fs = read_mesh(tmp_path / "part.stl")
+    seen = seen_faces(Vs, Fs, [TOP, FRONT])
+    centroid_d = np.round(Vd[Fd].mean(axis=1), 6)
+    centroid_s = np.round(Vs[Fs[seen]].mean(axis=1), 6)
+    have = {tuple(c) for c in centroid_d.tolist()}
+    assert all(tuple(c) in have for c in centroid_s.tolist())
+    assert (out / "print.png").is_file() and (out / "views.png").is_file()
+
+
+def test_pdf_prints_the_cut_surface(tmp_path):
+    V, F = box_mesh()
+    job_path = write_job(tmp_path, V, F, [("top", TOP)])
+    out = tmp_path / "d"
+    assert main(["design", str(job_path), "--out", str(out), "-q"]) == 0
+    assert main(["pdf", str(out), "-o", str(tmp_path / "p.pdf"), "--paper", "auto"]) == 0
+    assert (tmp_path / "p.pdf").stat().st_size > 1000
+
+
+def test_a_hole_through_the_box_is_cut_open_along_the_shortest_seam(tmp_path):
+    # a 30 x 20 mm hole through the box, seen from above: the top and the hole's four walls (the
+    # camera sees them from inside the opening) are a ring, an annulus with two rims: the top's
+    # outer edge and the hole's bottom edge. One seam joins them: up a long wall of the hole
+    # (30 mm) and across the top where it is narrowest (20 mm from the hole to the rim): 50 mm,
+    # which the 5 mm and 2.5 mm grid has as edges, so the seam is exact.
+    V, F = box_mesh(hole=True)
+    assert len(F) == 2880 and euler(F) == 0  # genus 1
+    job_path = write_job(tmp_path, V, F, [("top", TOP)], extra_object="surface_margin_mm = 0")
+    r = design(load_job(job_path))
+    s = r.surface
+    top, walls = 100 * 60 - HOLE[0] * HOLE[1], 2 * (HOLE[0] + HOLE[1]) * 30
+    assert s["seen_mm2"] == pytest.approx(top + walls, abs=1e-6)
+    assert s["selected_share"] == pytest.approx((top + walls) / (2 * top + 2 * (100 + 60) * 30 + walls))
+    assert s["rims"] == 2 and s["genus"] == 0
+    assert s["seams"]["count"] == 1 and s["seams"]["joining_rims"] == 1
+    assert s["seams"]["length_mm"] == pytest.approx(50.0, abs=1e-9)
+    assert is_disc(r.F)  # what was designed: the cut surface (its common subdivision)
+
+
+def test_with_a_margin_the_seam_grows_by_it_at_both_ends(tmp_path):
+    # the default margin (3 mm) reaches down the outer walls and onto the bottom round the hole:
+    # the seam runs on to both rims, 50 + 2 x 3 mm, within the triangles the margin takes whole
+    # (the rim lands within a grid cell of 3 mm: at 2.5 or 5 mm)
+    V, F = box_mesh(hole=True)
+    job = load_job(write_job(tmp_path, V, F, [("top", TOP)]))
+    images = [read_image(v.image, "view") for v in job.views]
+    Vd, Fd, s = decorated_surface(job, V, F, images, lambda _m: None)
+    assert is_disc(Fd) and s["rims"] == 2 and s["margin_mm"] == 3.0
+    seam = s["seams"]["length_mm"]
+    assert s["seams"]["count"] == 1
+    assert abs(seam - 56.0) <= 2 * STEP_XY - 3.0 + 1e-9, seam
+
+
+def test_tree_cotree_cuts_a_torus_into_a_disc_along_its_two_loops():
+    # a whole torus (R 40, r 10 mm) opened at one face: one rim, genus 1, two seams (around the
+    # tube and around the hole) through that face; each no longer than the polygon's own loop
+    # through it: the tube's circle (32 segments) and the hole's inner equator reached from it
+    import trimesh
+
+    m = trimesh.creation.torus(major_radius=40, minor_radius=10, major_sections=64, minor_sections=32)
+    V, F = np.asarray(m.vertices), np.asarray(m.faces)
+    Fc, source, seams = cut_to_disc(V, F[1:], np.zeros(len(F) - 1), CutOptions())
+    assert is_disc(Fc) and euler(Fc) == 1 and len(seams) == 2
+    lengths = sorted(path_length(V, s) for s in seams)
+    tube = 2 * 32 * 10 * np.sin(np.pi / 32)
+    assert lengths[0] <= tube + 1e-9
+    assert lengths[1] <= 2 * np.pi * 50  # shorter than the outer equator: it goes round inside
+    assert len(source) == len(np.unique(Fc))
+
+
+def test_a_faces_file_is_taken_as_the_surface(tmp_path):
+    V, F = box_mesh()
+    centroid = V[F].mean(axis=1)
+    top = np.flatnonzero(centroid[:, 2] > 29.99)
+    (tmp_path / "faces.txt").write_text("\n".join(map(str, top)) + "\n")
+    job = load_job(write_job(tmp_path, V, F, [("top", TOP)], extra_object='surface = "faces.txt"'))
+    r = design(job)
+    assert r.surface["mode"] == "faces file" and r.surface["selected_faces"] == len(top)
+    assert r.surface["selected_mm2"] == pytest.approx(6000.0)
+
+
+def run_bad(capsys, job_path, out):
+    status = main(["design", str(job_path), "--out", str(out), "-q"])
+    err = capsys.readouterr().err.strip()
+    assert not out.exists(), "a failed run must write nothing"
+    assert "Traceback" not in err and len(err.splitlines()) == 1, err
+    return status, err
+
+
+@pytest.mark.parametrize(
+    ("extra", "faces", "fragment"),
+    [
+        ('surface = "nope.txt"', None, 'object.surface: must be "seen", "whole" or a file of face indices'),
+        ('surface = "faces.txt"', "0 1 x", "object.surface: "),
+        ('surface = "faces.txt"', "0 99999", "indices must lie in 0..2495"),
+        ('surface = "faces.txt"', "0 1300", "the faces form 2 pieces"),
+        ('surface = "whole"', None, "mesh is closed (no boundary)"),
+        ("surface_margin_mm = -1", None, "object.surface_margin_mm: must be a number"),
+        ("corners = [0, 1, 2, 3]", None, "object.corners: corner vertices are the mesh's"),
+    ],
+)
+def test_bad_surface_input_is_one_line(capsys, tmp_path, extra, faces, fragment):
+    V, F = box_mesh()
+    if faces is not None:
+        (tmp_path / "faces.txt").write_text(faces)
+    outline = "rectangle" if "corners" in extra else "free"
+    job_path = write_job(tmp_path, V, F, [("top", TOP)], extra_object=extra, outline=outline)
+    status, err = run_bad(capsys, job_path, tmp_path / "out")
+    assert status == 1 and fragment in err, err

@@ -679,6 +679,12 @@ def decorated_surface(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nd
                     f"{job.path}: films[{i}].faces: face indices of the mesh, but the film's surface is cut out "
                     "of it (a closed mesh, or [object] surface): give the film as views = [...]"
                 )
+    bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
+    if len(bad):
+        raise WorkbenchError(f"{name}: {len(bad)} vertices have NaN or infinite coordinates (vertex {int(bad[0])})")
+    repeated = np.flatnonzero((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0]))
+    if len(repeated):
+        raise WorkbenchError(f"{name}: {len(repeated)} faces repeat a vertex ({MeshName(name).faces(repeated)})")
     E, FE, count = unique_edges(F)
     if (count > 2).any():
         e = E[np.argmax(count > 2)]

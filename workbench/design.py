@@ -31,6 +31,7 @@ from workbench.job import Job, Material
 from workbench.mesh import cut as surface_cut
 from workbench.mesh.cut import path_length, split_along
 from workbench.mesh.io import MeshName, read_mesh
+from workbench.mesh.refine import subdivide_to_edge
 from workbench.mesh.selection import SelectionOptions, edge_faces, face_components, read_face_list, select_surface
 from workbench.mesh.topology import boundary_loops, half_edges, unique_edges
 from workbench.mesh.validate import face_areas
@@ -109,6 +110,10 @@ class DesignResult:
     # with a surface cut out of the mesh (a closed part, or [object] surface): what was selected
     # and cut, and why (:func:`decorated_surface`); None when the mesh is the surface
     surface: dict | None = None
+
+
+# a closed part's faces are split to edges of at most its diagonal over this (decorated_surface)
+REFINE_DIAGONAL = 50
 
 
 def undecorated_surface(V: np.ndarray, F: np.ndarray, status: np.ndarray) -> tuple[float, float]:
@@ -685,6 +690,23 @@ def decorated_surface(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nd
     repeated = np.flatnonzero((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0]))
     if len(repeated):
         raise WorkbenchError(f"{name}: {len(repeated)} faces repeat a vertex ({MeshName(name).faces(repeated)})")
+    margin = job.print.bleed_mm if job.object.surface_margin_mm is None else job.object.surface_margin_mm
+    refined = None
+    if not isinstance(mode, Path):
+        # the surface is chosen in whole faces and its margin measured along edges, but a CAD
+        # export spans a flat side with two triangles (a 12-triangle box left a rim of 3
+        # vertices): its faces are split until no edge exceeds the margin (the film's rim then
+        # lies from the margin to twice it beyond what the views see) nor 1 / REFINE_DIAGONAL of
+        # the part's diagonal (the map's sampling of a flat side: a box of 100 x 60 x 30 mm in
+        # 12 triangles becomes 49k, its 5 mm grid of 2,496 triangles 40k); a scan's fine faces
+        # stay as they are
+        diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+        max_edge = min(margin if margin > 0 else np.inf, diagonal / REFINE_DIAGONAL)
+        n0 = len(F)
+        V, F = subdivide_to_edge(V, F, max_edge)
+        if len(F) != n0:
+            refined = {"faces_before": n0, "faces_after": len(F), "max_edge_mm": round(max_edge, 4)}
+            say(f"{name.name}: faces split to edges of at most {max_edge:.2f} mm: {n0} -> {len(F)} faces")
     E, FE, count = unique_edges(F)
     if (count > 2).any():
         e = E[np.argmax(count > 2)]
@@ -711,7 +733,6 @@ def decorated_surface(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nd
             raise WorkbenchError(f"{where}: {mode}: the faces form {pieces} pieces (joined by edges); a film is one")
         region, sel = select_surface(V, F, E, ef, wanted, SelectionOptions(0.0, 0.0), seen_cos)
     else:
-        margin = job.print.bleed_mm if job.object.surface_margin_mm is None else job.object.surface_margin_mm
         region, sel = select_surface(V, F, E, ef, seen, SelectionOptions(margin), seen_cos)
     faces = np.flatnonzero(region)
     Vs, Fs, _ = submesh(V, F, faces)
@@ -740,6 +761,7 @@ def decorated_surface(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nd
             "vertices": [[int(v) for v in s] for s in seams],
         },
         "disc": {"vertices": len(Vd), "faces": len(Fd), "euler_characteristic": 1},
+        **({"refined": refined} if refined else {}),
         "warnings": [],
     }
     if sel.islands_over_limit_mm2 > 0:

@@ -113,3 +113,72 @@ def test_power_is_the_limit_plus_the_one_sided_quantile_in_standard_deviations()
     fx_only = {"fx": dict(entry), "views": 4, "measured": ["fx"]}
     p = check_power(fx_only, K0, 1.0, 8.0)
     assert p["pp_px"] is None and any("principal point is not re-measured" in s for s in p["short"])
+
+
+def _views_of(K, W, H, poses):
+    """Board views (name, (24, 3) mm, (24, 2) px) of the 7 x 5 chessboard for (rvec, tvec) poses."""
+    board = np.array([[(i + 1) * 30.0, (j + 1) * 30.0, 0.0] for j in range(4) for i in range(6)])
+    views = []
+    for k, (r, t) in enumerate(poses):
+        px = cv2.projectPoints(board, np.float64(r), np.float64(t), K, np.zeros(5))[0].reshape(-1, 2)
+        views.append((f"v{k}", board.astype(np.float32), px.astype(np.float32)))
+    return views
+
+
+def test_coverage_names_the_frame_corners_and_borders_no_corner_reaches_and_the_tilt_to_add():
+    from workbench.calibration import photo_coverage
+
+    W, H = 640, 480
+    K = np.array([[640.0, 0, 319.5], [0, 640.0, 239.5], [0, 0, 1]])  # the nominal camera the tilts are read with
+    # the board (150 x 90 mm centred on its middle, 105, 75 mm) 800 mm away in the frame's middle,
+    # turned 35 degrees about the image's vertical axis, then 10 about the horizontal
+    Ry = cv2.Rodrigues(np.array([0.0, np.radians(35), 0.0]))[0]
+    Rx = cv2.Rodrigues(np.array([np.radians(10), 0.0, 0.0]))[0]
+    poses = []
+    for R in (Ry, Rx):
+        t = np.array([0.0, 0.0, 800.0]) - R @ np.array([105.0, 75.0, 0.0])
+        poses.append((cv2.Rodrigues(R)[0].ravel(), t))
+    cov = photo_coverage(_views_of(K, W, H, poses), W, H)
+    # the board's normal turned away from the camera: |tilt| as set, to the solver's precision
+    assert sorted(np.abs(cov["tilt_y_deg"])) == pytest.approx([0.0, 35.0], abs=0.05)
+    assert sorted(np.abs(cov["tilt_x_deg"])) == pytest.approx([0.0, 10.0], abs=0.05)
+    assert set(cov["missing"]) == {
+        "top-left",
+        "top-right",
+        "bottom-left",
+        "bottom-right",
+        "top",
+        "bottom",
+        "left",
+        "right",
+    }
+    assert cov["next"][0] == "the board in the frame's four corners"
+    assert cov["next"][1] == "the board along the frame's four borders"
+    # 35 degrees about the vertical axis is enough; 10 about the horizontal is not
+    assert cov["next"][2:] == ["the board turned 30 to 45 degrees about the image's horizontal axis (the most now: 10)"]
+    assert sum(map(sum, cov["cells"])) == 48 and cov["share"] == pytest.approx(np.mean(np.array(cov["cells"]) > 0))
+
+
+def test_calibrate_camera_and_check_draw_the_coverage(tmp_path):
+    left = ROOT / "calib" / "regression" / "opencv-chessboard"
+    photos = sorted(str(p) for p in left.glob("left0*.jpg"))
+    out = tmp_path / "cam.json"
+    board = ROOT / "calib" / "boards" / "chessboard-10x7-25mm.json"
+    cmd = [sys.executable, "-m", "workbench", "calibrate", "camera", *photos, "--board", str(board), "-o", str(out)]
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    said = (r.stdout + r.stderr).splitlines()
+    assert any(line.startswith("coverage: corners reach ") and "next photos:" in line for line in said)
+    prof = json.loads(out.read_text())
+    assert prof["frame_coverage"]["next"] and (tmp_path / "cam-coverage.png").stat().st_size > 10_000
+    pic = tmp_path / "check.png"
+    others = sorted(str(p) for p in left.glob("left1*.jpg"))
+    check = [sys.executable, "-m", "workbench", "calibrate", "check", str(out), *others, "-q"]
+    r = subprocess.run([*check, "--coverage", str(pic)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    assert cv2.imread(str(pic)).shape[1] >= 1000
+    # a picture over an input: refused, nothing written
+    before = Path(others[0]).read_bytes()
+    r = subprocess.run([*check, "--coverage", others[0]], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode != 0 and len(r.stderr.strip().splitlines()) == 1
+    assert Path(others[0]).read_bytes() == before

@@ -114,6 +114,12 @@ def add_parser(sub) -> None:
         action="store_true",
         help="camera: fail (exit 1) a check whose photos cannot see the drifts above, not only warn",
     )
+    k.add_argument(
+        "--coverage",
+        metavar="PICTURE.png",
+        default=None,
+        help="camera: write a picture of what of the frame and which tilts the photos cover, and what to add",
+    )
     k.add_argument("-q", "--quiet", action="store_true")
     k.set_defaults(run=run_check)
     from workbench.commands import calibrate_forming
@@ -203,6 +209,74 @@ def residual_picture(cal, title: str) -> bytes:
     return figure_png(fig)
 
 
+def coverage_picture(views: list, coverage: dict, width: int, height: int, title: str) -> bytes:
+    """What of the frame and which tilts the photos cover, and what the next photos should add.
+
+    Left: the frame with :data:`~workbench.calibration.COVERAGE_GRID`'s cells shaded by how many
+    corners fall in them (red where none), every corner a dot; the frame's corners and borders
+    without any named in red. Right: each photo's board tilt about the image's vertical (x of
+    the plot) and horizontal axis, degrees, with the advised band from
+    :data:`~workbench.calibration.TILT_ADVISED_DEG` to 45.
+    """
+    from matplotlib.patches import Rectangle
+
+    from workbench.calibration import TILT_ADVISED_DEG
+    from workbench.figures import _figure, figure_png
+
+    plt = _figure()
+    cells = np.asarray(coverage["cells"])
+    rows, cols = cells.shape
+    fig, (ax, at) = plt.subplots(
+        1, 2, figsize=(12, 5.2), dpi=100, gridspec_kw={"width_ratios": [width / height * 1.0, 0.8]}
+    )
+    shade = np.log1p(cells) / max(np.log1p(cells.max()), 1e-9)
+    ax.imshow(shade, cmap="Greens", vmin=0, vmax=1.2, extent=(0, width, height, 0), interpolation="nearest")
+    for r, c in zip(*np.nonzero(cells == 0), strict=True):
+        w, h = width / cols, height / rows
+        ax.add_patch(Rectangle((c * w, r * h), w, h, facecolor=(1, 0.85, 0.85), edgecolor="none"))
+    for _, _, px in views:
+        ax.plot(np.asarray(px)[:, 0], np.asarray(px)[:, 1], ".", ms=1.5, color="0.25")
+    for k in range(1, cols):
+        ax.axvline(k * width / cols, color="0.8", lw=0.5)
+    for k in range(1, rows):
+        ax.axhline(k * height / rows, color="0.8", lw=0.5)
+    spots = {
+        "top-left": (0.12, 0.1), "top-right": (0.88, 0.1), "bottom-left": (0.12, 0.9), "bottom-right": (0.88, 0.9),
+        "top": (0.5, 0.06), "bottom": (0.5, 0.94), "left": (0.06, 0.5), "right": (0.94, 0.5),
+    }  # fmt: skip
+    for name in coverage["missing"]:
+        x, y = spots[name]
+        ax.text(x * width, y * height, "none here", color="red", ha="center", va="center", fontsize=8)
+    ax.set_xlim(0, width)
+    ax.set_ylim(height, 0)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (px)")
+    ax.set_ylabel("y (px, down)")
+    ax.set_title(f"corners over the frame: {100 * coverage['share']:.0f} % of its {cols} x {rows} cells", fontsize=9)
+    ty, tx = np.asarray(coverage["tilt_y_deg"]), np.asarray(coverage["tilt_x_deg"])
+    lo, hi = TILT_ADVISED_DEG, 45.0
+    for a in (lo, hi):
+        at.add_patch(Rectangle((-a, -a), 2 * a, 2 * a, fill=False, ls="--", color="0.6", lw=0.8))
+    at.plot(ty, tx, "o", ms=4, color="tab:blue")
+    at.set_xlim(-70, 70)
+    at.set_ylim(-70, 70)
+    at.set_aspect("equal")
+    at.axhline(0, color="0.85", lw=0.5)
+    at.axvline(0, color="0.85", lw=0.5)
+    at.set_xlabel("tilt about the image's vertical axis (deg)")
+    at.set_ylabel("tilt about its horizontal axis (deg)")
+    at.set_title(f"board tilts (dashed: {lo:g} and {hi:g} deg)", fontsize=9)
+    advice = coverage["next"]
+    fig.suptitle(title + ("\nnext: " + "; ".join(advice) if advice else "\nframe and tilts covered"), fontsize=9)
+    fig.tight_layout()
+    return figure_png(fig)
+
+
+def coverage_path(out: Path) -> Path:
+    """Where a profile's coverage picture goes: beside it, NAME-coverage.png."""
+    return out.with_name(out.stem + "-coverage.png")
+
+
 def run_camera(args) -> int:
     log = _log(args)
     board_path = Path(args.board)
@@ -210,7 +284,7 @@ def run_camera(args) -> int:
     out = Path(args.output)
     inputs = [board_path, *map(Path, args.photos)]
     # before the calibration, not after it; `-o cam.png` would give the profile and its picture one name
-    check_outputs(out, out.with_suffix(".png"), inputs=inputs)
+    check_outputs(out, out.with_suffix(".png"), coverage_path(out), inputs=inputs)
     images = [(str(p), _gray(Path(p))) for p in args.photos]
     try:
         cal = calibrate_camera(images, board)
@@ -227,6 +301,8 @@ def run_camera(args) -> int:
         "k3_fixed": cal.k3_fixed,
         "corner_coverage": cal.coverage,
         "tilt_spread_deg": cal.tilt_spread_deg,
+        # which parts of the frame and which tilts the used photos cover, and what to add
+        "frame_coverage": cal.frame_coverage,
         # standard deviations of fx, fy, cx, cy (px): what calibrate check measures drift against
         "intrinsics_std": dict(zip(INTRINSICS, map(float, cal.std), strict=True)),
         "intrinsics_std_opencv": dict(zip(INTRINSICS, map(float, cal.std_opencv), strict=True)),
@@ -241,17 +317,36 @@ def run_camera(args) -> int:
     pic = residual_picture(
         cal, f"{out.name}: RMS {cal.rms_px:.3f} px over {sum(v['used'] for v in cal.per_view)} views"
     )
-    write_files({out: (json.dumps(profile, indent=1) + "\n").encode(), out.with_suffix(".png"): pic}, inputs=inputs)
+    cover = coverage_picture(
+        cal.used_views, cal.frame_coverage, *cal.image_size, f"{out.name}: {len(cal.used_views)} photos"
+    )
+    write_files(
+        {
+            out: (json.dumps(profile, indent=1) + "\n").encode(),
+            out.with_suffix(".png"): pic,
+            coverage_path(out): cover,
+        },
+        inputs=inputs,
+    )
     for v in cal.per_view:
         if not v["used"]:
             log(f"left out {v['name']}: {v['reason']}")
     for w in cal.warnings:
         log(f"warning: {w}")
+    log(coverage_line(cal.frame_coverage) + f" (picture: {coverage_path(out).name})")
     log(
         f"fx {cal.K[0, 0]:.2f} fy {cal.K[1, 1]:.2f} cx {cal.K[0, 2]:.2f} cy {cal.K[1, 2]:.2f} px; dist "
         f"{np.round(cal.dist, 5).tolist()}; RMS {cal.rms_px:.3f} px; wrote {out}"
     )
     return 0
+
+
+def coverage_line(coverage: dict) -> str:
+    """One line: the share of the frame the corners reach, and what the next photos should add."""
+    advice = coverage["next"]
+    return f"coverage: corners reach {100 * coverage['share']:.0f} % of the frame's cells; " + (
+        "next photos: " + "; ".join(advice) if advice else "the frame's corners and borders and both tilts are covered"
+    )
 
 
 def _check_dpi(path: Path, dpi: float) -> None:
@@ -314,6 +409,8 @@ def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[
     problem = intrinsics_problem(K, *prof["image_size"])
     if problem:
         raise WorkbenchError(f"{path}: {problem}")
+    if args.coverage is not None:
+        check_outputs(Path(args.coverage), inputs=[path, *map(Path, args.inputs)])
     images = [(str(p), _gray(Path(p))) for p in args.inputs]
     c = check_camera(images, board, prof, args.tolerance_px, args.tolerance_sigma)
     used = sum(v["used"] for v in c.per_photo)
@@ -346,6 +443,12 @@ def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[
         )
         if not r["profile_uncertainty"]:
             log("the profile records no uncertainty of its intrinsics (made before it did): the photos' alone counts")
+    log(coverage_line(c.frame_coverage))
+    if args.coverage is not None:
+        W, H = (int(v) for v in prof["image_size"])
+        pic = coverage_picture(c.used_views, c.frame_coverage, W, H, f"check of {path.name}: {used} photos")
+        write_files({Path(args.coverage): pic}, inputs=[path, *map(Path, args.inputs)])
+        log(f"wrote {args.coverage}")
     power = check_power(r, K, args.focal_tolerance_pct, args.pp_tolerance_px)
     sees = [f"a focal drift of {power['focal_pct']:.2f} %"] if power["focal_pct"] is not None else []
     sees += [f"a principal point move of {power['pp_px']:.1f} px"] if power["pp_px"] is not None else []

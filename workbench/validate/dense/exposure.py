@@ -87,6 +87,43 @@ def exposure_fit(model: np.ndarray, photo: np.ndarray, weight: np.ndarray, sigma
     return back(gains), back(offsets), back(contrasts)
 
 
+def window_ratio(num: np.ndarray, den: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
+    """The ratio of two images' weighted means over a Gaussian window: the light a photo holds over a design.
+
+    Σ w num / Σ w den in each window (where the window's weights are nearly all 0, the mean of
+    ``den`` is floored at the weights' own sum). The fields are smooth on the window's scale:
+    with a window of 16 px or more the sums are taken at a quarter of the resolution and the
+    ratio interpolated back (as :func:`exposure_fit`; a 12 Mpx photo's took 1.9 s at full).
+
+    Parameters
+    ----------
+    num, den : (H, W, C) float32
+        Grey levels.
+    weight : (H, W) bool or float32
+        Which pixels the windows take.
+    sigma : float
+        Window, Gaussian sigma, px.
+
+    Returns
+    -------
+    (H, W, C) float32
+    """
+    H, W = weight.shape
+    q = 4 if sigma >= 16 else 1
+    small = (max(W // q, 1), max(H // q, 1))
+
+    def down(a):
+        return cv2.resize(a, small, interpolation=cv2.INTER_AREA) if q > 1 else a
+
+    fw = weight.astype(np.float32)
+    sw = cv2.GaussianBlur(down(fw), (0, 0), sigma / q)[..., None]
+    fw = fw[..., None]
+    top = cv2.GaussianBlur(down(num * fw), (0, 0), sigma / q)
+    bottom = cv2.GaussianBlur(down(den * fw), (0, 0), sigma / q)
+    ratio = top.reshape(sw.shape[:2] + (-1,)) / np.maximum(bottom.reshape(sw.shape[:2] + (-1,)), sw + 1e-6)
+    return (cv2.resize(ratio, (W, H), interpolation=cv2.INTER_LINEAR) if q > 1 else ratio).reshape(H, W, -1)
+
+
 def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur):
     """The colour test of :func:`analyse` before highlights are told from ink: residuals, limits, ink gone.
 

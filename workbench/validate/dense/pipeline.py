@@ -20,6 +20,7 @@ from workbench.validate.dense.exposure import (
     film_colour,
     photo_gain,
     texture_lost,
+    window_ratio,
 )
 from workbench.validate.dense.flow import FlowStart, dis_flow, flow_start, median_flow, tensor_weighted_flow
 from workbench.validate.dense.light import (
@@ -503,11 +504,7 @@ def _photo_model(on: _Frame, start: _Start) -> _Model:
     g0 = photo_gain(gain, determined, seen & ~sat)
     # (the light that is there: the photo's local mean over the design's, in the fit's window; the
     # weights cancel in the ratio, and a design darker than a grey level there is taken as one)
-    fw = (seen & ~sat).astype(np.float32)[..., None]
-    sw = cv2.GaussianBlur(fw, (0, 0), EXPOSURE_SIGMA_PX)[..., None]
-    brightness = cv2.GaussianBlur(pho * fw, (0, 0), EXPOSURE_SIGMA_PX) / np.maximum(
-        cv2.GaussianBlur(moved * fw, (0, 0), EXPOSURE_SIGMA_PX), sw + 1e-6
-    )
+    brightness = window_ratio(pho, moved, seen & ~sat, EXPOSURE_SIGMA_PX)
     lost = texture_lost(gain, determined, seen & ~sat, g0, brightness)
     white = gain * np.float32(255.0) + offset  # the film's white as the exposure fit extrapolates it
     return _Model(back, detail, blur, local_blur, moved, weight, gain, offset, pred, res, g0, lost, white, shade, lit)

@@ -364,3 +364,63 @@ def test_a_cad_box_of_twelve_triangles_designs_on_its_faces_split(tmp_path):
     assert 380 * 3 - 2 * 9 <= s["margin_mm2"] <= 380 * (3 + edge) - 2 * (3 + edge) ** 2
     Vd, Fd = read_mesh(out / "decorated.obj")
     assert is_disc(Fd) and len(boundary_loops(Fd)) == 1
+
+
+def closed_loop(job, part, dpi):
+    """Per view of a closed part's job designed at ``dpi``: tiles, median, p95 (px), coverage, pixels hidden.
+
+    The design is rendered by the independent ray caster of ``closed_loop`` with the rest of the
+    part undecorated in front of it (a closed part's design is only the surface cut out of it).
+    """
+    import dataclasses
+
+    from closed_loop import hidden_by_part, view_check
+
+    from workbench.export import texture_uv
+
+    job = dataclasses.replace(job, print=dataclasses.replace(job.print, dpi=dpi))
+    r = design(job)
+    rows, cols = r.grid.shape
+    vt = texture_uv(r.flat.uv, cols / r.grid.px_per_mm, rows / r.grid.px_per_mm, r.flat.height_mm)
+    figures = {}
+    for v, view in enumerate(job.views):
+        mis, coverage = view_check(job, r, vt, v, part=part)
+        hidden = int(hidden_by_part(r, v, part).sum())
+        figures[view.name] = (len(mis), float(np.median(mis)), float(np.percentile(mis, 95)), coverage, hidden)
+    return figures
+
+
+def assert_exact(figures, min_tiles):
+    # the bars of the disc jobs (issue 36): median at most 0.05 px, p95 at most 0.3 px in every view
+    for name, (tiles, median, p95, coverage, hidden) in figures.items():
+        assert tiles >= min_tiles[name], (name, tiles)
+        assert median <= 0.05 and p95 <= 0.3, (name, median, p95)
+        assert coverage >= 0.99, (name, coverage)
+        # no view sees the cut surface through the rest of the part: what is decorated is in front
+        assert hidden == 0, (name, hidden)
+
+
+def test_closed_loop_holds_on_the_closed_box(tmp_path):
+    # the closed box as an STL, a top and a front view: rendered from each view (the rest of the
+    # box undecorated), the print shows that view's image within the disc jobs' figures
+    from fixtures.lid.make_views import VIEWS, view_image
+
+    V, F = box_mesh()
+    job_path = write_job(tmp_path, V, F, [("top", TOP), ("front", FRONT)], suffix=".stl")
+    # the bundled lid's view images: textured enough that most 64 px tiles register
+    for name in ("top", "front"):
+        cv2.imwrite(str(tmp_path / f"{name}.png"), cv2.cvtColor(view_image(*VIEWS[name]), cv2.COLOR_RGB2BGR))
+    job = load_job(job_path)
+    figures = closed_loop(job, read_mesh(tmp_path / "part.stl"), dpi=600)
+    assert_exact(figures, {"top": 60, "front": 20})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["lid", "lid-films"])
+def test_closed_loop_holds_on_the_bundled_lid(name):
+    # the bundled STEP lid (5 mm fillets), three views, on one film and on films = "auto"
+    from conftest import ROOT
+
+    job = load_job(ROOT / "fixtures" / name / "job.toml")
+    figures = closed_loop(job, read_mesh(job.object.mesh, job.object.units), dpi=600)
+    assert_exact(figures, {"top": 80, "front": 20, "right": 30})

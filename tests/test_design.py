@@ -8,11 +8,11 @@ import json
 import cv2
 import numpy as np
 import pytest
-from closed_loop import render_decorated, tile_misregistration
+from closed_loop import view_check
 from conftest import ROOT
 
 from workbench.cli import main
-from workbench.design import design, read_image
+from workbench.design import design
 from workbench.export import png_dpi, texture_uv
 from workbench.job import load_job
 from workbench.mesh.io import read_mesh
@@ -27,29 +27,6 @@ def designed(name: str, dpi: float = 600.0):
     rows, cols = r.grid.shape
     vt = texture_uv(r.flat.uv, cols / r.grid.px_per_mm, rows / r.grid.px_per_mm, r.flat.height_mm)
     return job, r, vt
-
-
-def view_check(job, r, vt, v, shift_vt=(0.0, 0.0)):
-    """Misregistration (px) of the rendered design against view v's image, and coverage."""
-    cam = r.cameras[v]
-    img, px = render_decorated(r.V, r.F, vt + np.asarray(shift_vt), r.rgb, cam)
-    ref = read_image(job.views[v].image, "view")
-    rows, cols = r.grid.shape
-    hit = np.isfinite(px[..., 0])
-    pi = np.clip(np.round(np.nan_to_num(px[..., 1])), 0, rows - 1).astype(int)
-    pj = np.clip(np.round(np.nan_to_num(px[..., 0])), 0, cols - 1).astype(int)
-    own = hit & (r.owner[pi, pj] == v)
-    # faces that are this view's alone (no earlier view claims any part of them),
-    # seen through the independent ray cast: the print must give them to this view
-    # (with several films the depth buffers are of the input mesh, the design's mesh is the atlas)
-    fb, status = r.visibilities[v].face_buffer, r.view_status
-    alone = np.zeros(hit.shape, bool)
-    earlier = (status[:, :v] != 0).any(axis=1)
-    alone[fb >= 0] = (status[fb[fb >= 0], v] != 0) & ~earlier[fb[fb >= 0]]
-    coverage = (own & alone).sum() / max(alone.sum(), 1)
-    mask = cv2.erode(own.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
-    shifts = tile_misregistration(ref, img, mask)
-    return np.linalg.norm(shifts, axis=1), coverage
 
 
 @pytest.mark.parametrize(

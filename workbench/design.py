@@ -24,6 +24,7 @@ from workbench.conformal.flatten import (
 )
 from workbench.conformal.layout import signed_areas
 from workbench.design_dir import read_image as read_image  # lives with the design folder's reading
+from workbench.design_dir import read_image_alpha, read_mask
 from workbench.environment import proc_bytes
 from workbench.errors import WorkbenchError
 from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, seams, split_films, submesh
@@ -37,7 +38,14 @@ from workbench.mesh.topology import boundary_loops, half_edges, unique_edges
 from workbench.mesh.validate import face_areas
 from workbench.texture.outline import film_mask
 from workbench.texture.synthesis import PrintGrid, synthesize_print
-from workbench.views.visibility import ViewVisibility, assign_views, face_adjacency, view_visibility
+from workbench.views.visibility import (
+    ViewVisibility,
+    assign_views,
+    face_adjacency,
+    region_drops,
+    restrict_to_decoration,
+    view_visibility,
+)
 
 # bytes per print pixel at the peak: RGB + owner map + film mask + the PNG encoder's copy and output
 BYTES_PER_PRINT_PIXEL = 12
@@ -270,17 +278,19 @@ def _read_faces(path, n_faces: int, where: str) -> np.ndarray:
     return read_face_list(path, n_faces, f"{where}: faces")
 
 
-def _design_films(job: Job, V, F, images, say, t, forming_profile: Path | None = None) -> DesignResult:
+def _design_films(
+    job: Job, V, F, images, say, t, forming_profile: Path | None = None, decorations: list | None = None
+) -> DesignResult:
     """The design with several films: views on the whole part, one map and print per film, their atlas.
 
     With a forming profile, each film's map is pre-compensated by that film's field (films are
     formed one by one, each on its own print) before its print is synthesised.
     """
     t0 = time.perf_counter()
-    cameras, visibilities, status = assign_job_views(job, V, F, images)
+    cameras, visibilities, status = assign_job_views(job, V, F, images, decorations)
     t["views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    warnings: list[str] = []
+    warnings: list[str] = region_warnings(job, visibilities, status, face_areas(V, F))
     regions = _film_regions(job, V, F, status, say, warnings)
     t["flatten"] = time.perf_counter() - t0
     comps: list = [None] * len(regions)
@@ -495,17 +505,17 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     t: dict[str, float] = {}
     t0 = time.perf_counter()
     V, F = read_mesh(job.object.mesh, job.object.units, log=say)
-    images = [
-        read_image(v.image, f"{job.path}: views[{i}].image", job.print.background) for i, v in enumerate(job.views)
-    ]
+    images, decorations = read_view_images(job)
     t["read"] = time.perf_counter() - t0
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")
     # said with the fit's warnings at the end (and refused by --strict there)
-    implausible = view_image_warnings(images, [f"{job.path}: views[{i}].image" for i in range(len(images))])
+    implausible = view_image_warnings(
+        images, [f"{job.path}: views[{i}].image" for i in range(len(images))], decorations
+    )
     surface = None
     if surface_mode(job, F) != "whole":
         t0 = time.perf_counter()
-        V, F, surface = decorated_surface(job, V, F, images, say)
+        V, F, surface = decorated_surface(job, V, F, images, say, decorations)
         t["surface"] = time.perf_counter() - t0
         implausible += surface.pop("warnings")
 
@@ -513,7 +523,7 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
         # before the minutes of work: a profile of another part, dpi or material
         read_checked_profile(job, forming_profile)
     if job.films is not None:
-        result = _design_films(job, V, F, images, say, t, forming_profile)
+        result = _design_films(job, V, F, images, say, t, forming_profile, decorations)
         result.warnings[:0] = implausible
         result.surface = surface
         return result
@@ -552,7 +562,8 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     check_print_fits(grid, f"{job.path}: [print].dpi")
 
     t0 = time.perf_counter()
-    cameras, visibilities, status = assign_job_views(job, V, F, images)
+    cameras, visibilities, status = assign_job_views(job, V, F, images, decorations)
+    implausible += region_warnings(job, visibilities, status, face_areas(V, F))
     t["views"] = time.perf_counter() - t0
     say("views: " + ", ".join(f"{s.name} {int((status[:, i] != 0).sum())} faces" for i, s in enumerate(job.views)))
 
@@ -624,7 +635,9 @@ def face_seen(V: np.ndarray, F: np.ndarray, cameras: list[Camera], visibilities:
     return out
 
 
-def decorated_surface(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.ndarray], say) -> tuple:
+def decorated_surface(
+    job: Job, V: np.ndarray, F: np.ndarray, images: list[np.ndarray], say, decorations: list | None = None
+) -> tuple:
     """The surface to print, cut out of the mesh into a disc: what the views see, or the job's faces.
 
     "seen": every face a view sees (in whole or in part), grown by the margin
@@ -651,6 +664,8 @@ def decorated_surface(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nd
         The view images.
     say : callable(str)
         Progress lines.
+    decorations : list of (H, W) bool or None, optional
+        Per view, its decoration pixels (:func:`read_view_images`): a view sees only through them.
 
     Returns
     -------
@@ -720,7 +735,7 @@ def decorated_surface(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nd
         raise WorkbenchError(
             f"{name}: faces are inconsistently oriented (both faces of edge ({e[0]}, {e[1]}) run it the same way)"
         )
-    cameras, visibilities, _ = assign_job_views(job, V, F, images)
+    cameras, visibilities, _ = assign_job_views(job, V, F, images, decorations)
     seen_cos = face_seen(V, F, cameras, visibilities)
     seen = np.zeros(len(F), bool)
     for vis in visibilities:
@@ -785,8 +800,20 @@ def surface_line(report: dict) -> str:
     )
 
 
-def assign_job_views(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.ndarray]):
+def assign_job_views(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.ndarray], decorations: list | None = None):
     """Cameras, depth buffers and face ownership of the job's views on a mesh.
+
+    Parameters
+    ----------
+    job : Job
+    V : (#V, 3) float
+        Vertices, mm.
+    F : (#F, 3) int
+        Triangles.
+    images : list of (H, W, 3) uint8
+        The view images (their sizes are the cameras' sensors).
+    decorations : list of (H, W) bool or None, optional
+        Per view, its decoration pixels (:func:`read_view_images`); None: every pixel.
 
     Returns
     -------
@@ -819,6 +846,8 @@ def assign_job_views(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nda
             )
         cameras.append(cam)
         visibilities.append(view_visibility(V, F, cam))
+        if decorations is not None and decorations[i] is not None:
+            restrict_to_decoration(visibilities[-1], V, F, decorations[i])
     E, FE, _ = unique_edges(F)
     area = face_areas(V, F)
     status = assign_views(visibilities, [v.region for v in job.views], face_adjacency(FE), area)
@@ -830,6 +859,89 @@ def assign_job_views(job: Job, V: np.ndarray, F: np.ndarray, images: list[np.nda
                 f"{job.path}: views[{i}] ({spec.name!r}) sees nothing of the object to decorate: {why}"
             )
     return cameras, visibilities, status
+
+
+def read_view_images(job: Job) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
+    """The job's view images and, per view, the pixels that are decoration.
+
+    A view decorates with the pixels its ``mask`` marks (nonzero), else with those its image's
+    alpha channel leaves visible (alpha above 0), else with all of them. An image with
+    transparent pixels and a mask as well is refused: two answers to one question.
+
+    Parameters
+    ----------
+    job : Job
+
+    Returns
+    -------
+    images : list of (H, W, 3) uint8
+        RGB, an alpha channel laid over the print's background (:func:`read_image`).
+    decorations : list of (H, W) bool or None
+        Per view, its decoration pixels; None where every pixel is (the view as without a mask).
+
+    Raises
+    ------
+    WorkbenchError
+        One line naming the key: an unreadable image or mask, a mask of another size than its
+        image, a mask with an image that has transparent pixels, a view with no decoration pixel.
+    """
+    images, decorations = [], []
+    for i, v in enumerate(job.views):
+        where = f"{job.path}: views[{i}]"
+        rgb, opaque = read_image_alpha(v.image, f"{where}.image", job.print.background)
+        h, w = rgb.shape[:2]
+        if v.mask is not None:
+            if opaque is not None and not opaque.all():
+                raise WorkbenchError(
+                    f"{where}.mask: the image {v.image.name} has transparent pixels of its own "
+                    f"({int((~opaque).sum())}): its alpha channel or the mask says what is decoration, not both"
+                )
+            decoration, key, source = read_mask(v.mask, f"{where}.mask", (w, h), v.image.name), "mask", v.mask.name
+        else:
+            decoration, key, source = opaque, "image", f"{v.image.name}'s alpha channel"
+        if decoration is not None and not decoration.any():
+            raise WorkbenchError(f"{where}.{key}: {source} marks no pixel as decoration: the view would print nothing")
+        images.append(rgb)
+        # every pixel decoration: the view exactly as without a mask (same faces, same print)
+        decorations.append(None if decoration is None or decoration.all() else decoration)
+    return images, decorations
+
+
+# a region rule that drops more than this share of what the view could claim is said
+MAX_REGION_DROP = 0.05
+
+
+def region_warnings(
+    job: Job, visibilities: list[ViewVisibility], status: np.ndarray, face_area: np.ndarray
+) -> list[str]:
+    """A warning per view whose ``region = "largest"`` dropped more than MAX_REGION_DROP of what it could claim.
+
+    Parameters
+    ----------
+    job : Job
+    visibilities : list of ViewVisibility
+        The views' (:func:`assign_job_views`).
+    status : (#F, #views) int8
+        Their ownership.
+    face_area : (#F,) float
+        Surface area per face, mm².
+
+    Returns
+    -------
+    list of str
+        One sentence each, naming the view, the share and area dropped, and ``region = "all"``.
+    """
+    out = []
+    for i, (spec, (could, dropped)) in enumerate(
+        zip(job.views, region_drops(visibilities, status, face_area), strict=True)
+    ):
+        if spec.region == "largest" and could > 0 and dropped > MAX_REGION_DROP * could:
+            out.append(
+                f"view {spec.name!r} (views[{i}]) keeps its largest connected region and drops "
+                f"{100 * dropped / could:.1f} % of the surface it could claim"
+                f' ({dropped:.0f} of {could:.0f} mm²): region = "all" keeps every region'
+            )
+    return out
 
 
 def view_statistics(result: DesignResult, names: list[str]) -> list[dict]:
@@ -909,7 +1021,9 @@ MAX_VIEW_ASPECT = 20.0
 FLAT_IMAGE_LEVELS = 2
 
 
-def view_image_warnings(images: list[np.ndarray], names: list[str]) -> list[str]:
+def view_image_warnings(
+    images: list[np.ndarray], names: list[str], decorations: list[np.ndarray | None] | None = None
+) -> list[str]:
     """Why a view image looks like a mistake, one sentence each; empty when none does.
 
     Parameters
@@ -918,14 +1032,19 @@ def view_image_warnings(images: list[np.ndarray], names: list[str]) -> list[str]
         The view images, RGB.
     names : list of str
         What to call each (the job key).
+    decorations : list of (H, W) bool or None, optional
+        Per view, its decoration pixels (:func:`read_view_images`).
 
     Returns
     -------
     list of str
-        An image of one flat colour (no picture to print), an aspect beyond MAX_VIEW_ASPECT.
+        An image of one flat colour (no picture to print; not said of a view whose alpha or
+        mask marks its decoration: a one-colour logo's picture is its shape), an aspect beyond
+        MAX_VIEW_ASPECT.
     """
     out = []
-    for img, name in zip(images, names, strict=True):
+    decorations = decorations or [None] * len(images)
+    for img, name, decoration in zip(images, names, decorations, strict=True):
         h, w = img.shape[:2]
         if max(h, w) > MAX_VIEW_ASPECT * min(h, w):
             out.append(
@@ -934,7 +1053,7 @@ def view_image_warnings(images: list[np.ndarray], names: list[str]) -> list[str]
             )
         span = img.reshape(-1, img.shape[-1])
         spread = int((span.max(axis=0).astype(int) - span.min(axis=0)).max())
-        if spread <= FLAT_IMAGE_LEVELS:
+        if spread <= FLAT_IMAGE_LEVELS and decoration is None:
             rgb = tuple(int(c) for c in span[0])
             out.append(
                 f"{name} is one flat colour (every pixel within {FLAT_IMAGE_LEVELS} grey levels of RGB {rgb}): "

@@ -331,6 +331,33 @@ def read_image(
     -------
     (H, W, 3) uint8
     """
+    return read_image_alpha(path, what, background, data)[0]
+
+
+def read_image_alpha(
+    path, what: str, background: tuple[int, int, int] = (255, 255, 255), data: bytes | None = None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """An image file as RGB uint8 and which of its pixels are not transparent, or a WorkbenchError naming it.
+
+    Parameters
+    ----------
+    path : Path
+        The image (PNG, JPEG, ... any bit depth, grey, RGB or RGBA).
+    what : str
+        The file's role, for errors (``JOB.toml: views[0].image``).
+    background : (3,) int
+        RGB under the transparent pixels (see :func:`read_image`).
+    data : bytes, optional
+        The file's contents, when the caller has read them already.
+
+    Returns
+    -------
+    rgb : (H, W, 3) uint8
+        As :func:`read_image` returns it.
+    opaque : (H, W) bool or None
+        Alpha above 0, at the file's own bit depth (a 16-bit alpha of 1 is not transparent);
+        None for an image without an alpha channel.
+    """
     if Path(path).is_dir():
         raise WorkbenchError(f"{what}: {path} is a directory, not an image")
     check_image_size(path, what)
@@ -342,6 +369,7 @@ def read_image(
     img = decode_upright(data)  # upright as its EXIF orientation says, as every viewer shows it
     if img is None:
         raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")
+    opaque = img[..., 3] > 0 if img.ndim == 3 and img.shape[2] == 4 else None
     if img.dtype != np.uint8:  # 16-bit or float: as IMREAD_COLOR would, 8 bits
         img = np.clip(img.astype(np.float64) / (257.0 if img.dtype == np.uint16 else 1.0 / 255.0), 0, 255)
         img = np.round(img).astype(np.uint8)
@@ -353,7 +381,48 @@ def read_image(
         img = np.round(img[..., :3] * alpha + under * (1.0 - alpha)).astype(np.uint8)
     elif img.shape[2] != 3:
         img = cv2.cvtColor(img[..., :1], cv2.COLOR_GRAY2BGR)
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB), opaque
+
+
+def read_mask(path, what: str, size: tuple[int, int], image_name: str) -> np.ndarray:
+    """A view's decoration mask (``[[views]] mask``): which pixels of its image are decoration.
+
+    Parameters
+    ----------
+    path : Path
+        A grey, binary, RGB or RGBA image (any bit depth) the size of the view image.
+    what : str
+        The key, for errors (``JOB.toml: views[0].mask``).
+    size : (width, height)
+        The view image's size, px (upright).
+    image_name : str
+        The view image's file name, for errors.
+
+    Returns
+    -------
+    (height, width) bool
+        True where the mask is nonzero: its alpha above 0 when it has an alpha channel (a logo
+        given as its own mask), else any channel above 0.
+    """
+    if Path(path).is_dir():
+        raise WorkbenchError(f"{what}: {path} is a directory, not an image")
+    check_image_size(path, what)
+    try:
+        data = read_file_bytes(path)
+    except OSError:
+        data = b""
+    img = decode_upright(data)
+    if img is None:
+        raise WorkbenchError(f"{what}: cannot read image {path} (missing, empty or not an image)")
+    h, w = img.shape[:2]
+    if (w, h) != tuple(size):
+        raise WorkbenchError(
+            f"{what}: {Path(path).name} is {w} x {h} px, but the image {image_name} is {size[0]} x {size[1]} px: "
+            "a mask marks the image's pixels one for one"
+        )
+    if img.ndim == 2:
+        return img > 0
+    return img[..., 3] > 0 if img.shape[2] == 4 else (img > 0).any(axis=2)
 
 
 def check_image_size(path, what: str) -> None:

@@ -61,6 +61,9 @@ class ViewSpec:
     image: Path
     camera: dict
     region: str = "largest"
+    # which of the image's pixels are decoration (nonzero), one for one; None: the image's own
+    # alpha says (alpha above 0), and an image without alpha decorates with every pixel
+    mask: Path | None = None
     # the image size the view was planned for (suggest-views writes it): checked against the image
     size_px: tuple[int, int] | None = None
 
@@ -262,7 +265,9 @@ VIEW_PLAN_KEYS = {"width_px", "height_px", "covers_share", "covers_mm2"}
 
 
 def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
-    r = _Reader(path, f"views[{i}]", table, {"name", "image", "region"} | VIEW_POSE_KEYS | VIEW_K_KEYS | VIEW_PLAN_KEYS)
+    r = _Reader(
+        path, f"views[{i}]", table, {"name", "image", "region", "mask"} | VIEW_POSE_KEYS | VIEW_K_KEYS | VIEW_PLAN_KEYS
+    )
     name = r.string("name", required=True)
     if not VIEW_NAME.fullmatch(name):
         # the name becomes file names (view-NAME.png): nothing that leaves the output folder or hides a file
@@ -274,6 +279,7 @@ def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
         r.fail(f"view name {name!r} is used twice", "name")
     image = r.file("image")
     region = r.string("region", "largest", choices=("largest", "all"))
+    mask = r.file("mask", required=False)
     pose, intr = VIEW_POSE_KEYS & set(r.table), VIEW_K_KEYS & set(r.table)
     if pose and intr:
         r.fail(
@@ -315,7 +321,7 @@ def _view(path: Path, i: int, table: object, names: set[str]) -> ViewSpec:
     r.number("covers_share", lo=-1e-300, hi=1 + 1e-12)
     r.number("covers_mm2", lo=-1e-300)
     size = None if width is None else (int(width), int(height))
-    return ViewSpec(name=name, image=image, camera=camera, region=region, size_px=size)
+    return ViewSpec(name=name, image=image, camera=camera, region=region, mask=mask, size_px=size)
 
 
 def load_job(path: str | Path) -> Job:

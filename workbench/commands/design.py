@@ -119,7 +119,8 @@ def run(args) -> int:
     job = load_job(args.job)
     out = Path(args.out) if args.out else Path(f"design-{safe_name(job.name)}")
     profile = Path(args.forming_profile) if args.forming_profile else job.object.forming_profile
-    inputs = [job.path, job.object.mesh, *(v.image for v in job.views), *([profile] if profile else [])]
+    inputs = [job.path, job.object.mesh, *(v.image for v in job.views), *(v.mask for v in job.views if v.mask)]
+    inputs += [profile] if profile else []
     check_output_dir(out, inputs)  # before the minutes of work, not after them
     result = design(job, log, profile)
     warnings = fit_warnings(result, job.object.material.max_stretch, [v.name for v in job.views])

@@ -11,7 +11,7 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import check_outputs, write_files
-from workbench.design import _read_faces, assign_job_views, read_image
+from workbench.design import _read_faces, assign_job_views, read_view_images
 from workbench.errors import UsageError, WorkbenchError
 from workbench.job import load_job
 from workbench.mesh.io import read_mesh
@@ -250,12 +250,12 @@ def run(args) -> int:
     options = options_from_args(args)
     job = load_job(args.job)
     out = Path(args.output) if args.output else None
-    inputs = [job.path, job.object.mesh, *(v.image for v in job.views)]
+    inputs = [job.path, job.object.mesh, *(v.image for v in job.views), *(v.mask for v in job.views if v.mask)]
     inputs += [Path(p) for p in (args.favour, args.avoid) if p]
     if out is not None:
         check_outputs(out, out.with_name(f"{out.stem}-views.png"), inputs=inputs)
     V, F = read_mesh(job.object.mesh, job.object.units, log=log)
-    images = [read_image(v.image, f"{job.path}: views[{i}].image") for i, v in enumerate(job.views)]
+    images, decorations = read_view_images(job)
     favour = avoid = None
     for flag, value in (("--favour", args.favour), ("--avoid", args.avoid)):
         if value is not None:
@@ -265,7 +265,7 @@ def run(args) -> int:
             mask = np.zeros(len(F), bool)
             mask[_read_faces(path, len(F), flag)] = True
             favour, avoid = (mask, avoid) if flag == "--favour" else (favour, mask)
-    cameras, _, status = assign_job_views(job, V, F, images)
+    cameras, _, status = assign_job_views(job, V, F, images, decorations)
     rem = remaining_surface(V, F, status, cameras, job.print.dpi, options, favour, avoid)
     share = rem.undecorated_mm2 / float(rem.area.sum())
     left = f"{100 * share:.1f} % of the surface ({rem.undecorated_mm2:.0f} mm²)"

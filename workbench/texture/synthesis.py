@@ -89,10 +89,12 @@ def _inside(e0, e1, e2, x, y):
 
 
 @numba.njit(parallel=True, **_JIT)
-def _maps(P, F, V, orient, status, cams, offsets, isize, dcams, depth, dsize, faces, row0, mapx, mapy, owner):
+def _maps(P, F, V, orient, status, cams, offsets, isize, dcams, depth, dsize, decor, faces, row0, mapx, mapy, owner):
     """For the print rows [row0, row0 + band height): owning view and atlas position of every pixel.
 
-    Pixels no view owns keep the caller's values (a position outside the atlas).
+    Pixels no view owns keep the caller's values (a position outside the atlas). ``decor``
+    (#views, H, W) is nonzero at each view's decoration pixels: a view claiming a face in
+    part paints a pixel only where the surface point lands nearest one of them.
     """
     n_views = status.shape[1]
     Hb, W = mapx.shape[0], mapx.shape[1]
@@ -190,6 +192,11 @@ def _maps(P, F, V, orient, status, cams, offsets, isize, dcams, depth, dsize, fa
                         xd, yd, zd = project_point(dcams[v], X0, X1, X2)
                         if not unoccluded(depth[v], dsize[v, 0], dsize[v, 1], dcams[v, 0], xd, yd, zd):
                             continue
+                        # the pixel nearest the point (inside the image: unoccluded says so)
+                        jd = min(max(int(np.floor(xd + 0.5)), 0), dsize[v, 0] - 1)
+                        id_ = min(max(int(np.floor(yd + 0.5)), 0), dsize[v, 1] - 1)
+                        if decor[v, id_, jd] == 0:
+                            continue  # transparent there: the next view that sees it, else background
                     chosen = v
                     break
                 if chosen >= 0:
@@ -224,7 +231,8 @@ def synthesize_print(
     status : (#F, #views) int8
         Ownership from :func:`workbench.views.visibility.assign_views`.
     visibilities : list of ViewVisibility
-        Per view, in priority order (cameras and depth buffers).
+        Per view, in priority order (cameras, depth buffers and decoration pixels: a view
+        paints only where the surface point lands on one of them).
     images : list of (H, W, 3) uint8
         View images, RGB.
     background : (3,) int
@@ -269,8 +277,11 @@ def synthesize_print(
     dh = max(vis.depth.shape[0] for vis in visibilities)
     dw = max(vis.depth.shape[1] for vis in visibilities)
     depth = np.full((len(visibilities), dh, dw), np.inf)
+    decor = np.ones((len(visibilities), dh, dw), np.uint8)
     for v, vis in enumerate(visibilities):
         depth[v, : vis.depth.shape[0], : vis.depth.shape[1]] = vis.depth
+        if vis.decoration is not None:
+            decor[v, : vis.depth.shape[0], : vis.depth.shape[1]] = vis.decoration
     # bands of rows: the maps of a band stay in cache, and memory stays small at any size
     y_lo = np.ceil(np.min(P[F, 1], axis=1)).astype(np.int64)
     y_hi = np.floor(np.max(P[F, 1], axis=1)).astype(np.int64)
@@ -293,6 +304,7 @@ def synthesize_print(
         np.stack([vis.camera.packed() for vis in visibilities]),
         depth,
         np.array([[vis.camera.width, vis.camera.height] for vis in visibilities], dtype=np.int64),
+        decor,
     )
     bg = tuple(int(c) for c in background)
     for row0 in range(0, rows, BAND_ROWS):

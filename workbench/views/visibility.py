@@ -78,6 +78,10 @@ class ViewVisibility:
     partial : (#F,) bool
         Front-facing faces seen in part: some samples unoccluded, or the face is
         nearest somewhere in the image. Their pixels are tested one by one.
+    decoration : (H, W) bool or None
+        The image's pixels that are decoration (its alpha or its mask); None: all of them.
+        With it, ``full`` and ``partial`` count only what the view sees through them
+        (:func:`restrict_to_decoration`).
     """
 
     camera: Camera
@@ -85,6 +89,7 @@ class ViewVisibility:
     face_buffer: np.ndarray
     full: np.ndarray
     partial: np.ndarray
+    decoration: np.ndarray | None = None
 
 
 def points_unoccluded(vis: ViewVisibility, X: np.ndarray) -> np.ndarray:
@@ -220,6 +225,74 @@ def view_visibility(V: np.ndarray, F: np.ndarray, camera: Camera, faces: np.ndar
     else:
         vis.full[faces], vis.partial[faces] = full, partial
     return vis
+
+
+def restrict_to_decoration(vis: ViewVisibility, V: np.ndarray, F: np.ndarray, decoration: np.ndarray) -> None:
+    """Make a view see only through its decoration pixels (in place).
+
+    A face whose projection's pixels are all decoration stays as it was; one whose pixels
+    are all transparent is no longer seen; one with both is seen in part, so that the print
+    tests its pixels one by one (:func:`workbench.texture.synthesis.synthesize_print` looks up
+    the pixel nearest each surface point). A face's pixels are taken over its projected
+    bounding box grown by one pixel: a face decided whole is decoration wherever its points
+    land, and a face in doubt is only tested finer.
+
+    Parameters
+    ----------
+    vis : ViewVisibility
+        The view (``full``, ``partial`` and ``decoration`` are replaced).
+    V : (#V, 3) float
+        Vertex positions, mm.
+    F : (#F, 3) int
+        Triangles.
+    decoration : (H, W) bool
+        The view image's decoration pixels (the camera's image size).
+    """
+    cam = vis.camera
+    h, w = decoration.shape
+    xy, _ = cam.project(V)
+    xs, ys = xy[F, 0], xy[F, 1]  # (#F, 3) px, pixel centres at whole numbers
+    # the nearest pixel of a point at x is floor(x + 0.5): the box of those, one pixel wider
+    x0 = np.clip(np.floor(xs.min(axis=1) + 0.5) - 1, 0, w - 1).astype(np.int64)
+    x1 = np.clip(np.floor(xs.max(axis=1) + 0.5) + 1, 0, w - 1).astype(np.int64)
+    y0 = np.clip(np.floor(ys.min(axis=1) + 0.5) - 1, 0, h - 1).astype(np.int64)
+    y1 = np.clip(np.floor(ys.max(axis=1) + 0.5) + 1, 0, h - 1).astype(np.int64)
+    # decoration pixels in each box from the summed-area table: O(1) per face at any size
+    S = np.zeros((h + 1, w + 1), np.int64)
+    S[1:, 1:] = decoration.astype(np.int64).cumsum(axis=0).cumsum(axis=1)
+    inside = S[y1 + 1, x1 + 1] - S[y0, x1 + 1] - S[y1 + 1, x0] + S[y0, x0]
+    every = inside == (y1 - y0 + 1) * (x1 - x0 + 1)
+    seen = vis.full | vis.partial
+    vis.partial = seen & (inside > 0) & ~(vis.full & every)
+    vis.full = vis.full & every
+    vis.decoration = decoration
+
+
+def region_drops(visibilities: list[ViewVisibility], status: np.ndarray, face_area: np.ndarray) -> np.ndarray:
+    """What each view could claim and what its region rule left of it (:func:`assign_views`).
+
+    Parameters
+    ----------
+    visibilities : list of ViewVisibility
+        In priority order.
+    status : (#F, #views) int8
+        Their ownership (:func:`assign_views`).
+    face_area : (#F,) float
+        Surface area per face, mm².
+
+    Returns
+    -------
+    (#views, 2) float
+        Per view, mm²: the faces it could claim (it sees them, in part or whole, and no
+        earlier view claims them whole), and those of them its region rule dropped.
+    """
+    out = np.zeros((len(visibilities), 2))
+    taken = np.zeros(len(face_area), dtype=bool)
+    for v, vis in enumerate(visibilities):
+        could = (vis.full | vis.partial) & ~taken
+        out[v] = face_area[could].sum(), face_area[could & (status[:, v] == 0)].sum()
+        taken |= status[:, v] == 1
+    return out
 
 
 def face_adjacency(FE: np.ndarray) -> sp.csr_matrix:

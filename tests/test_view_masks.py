@@ -206,7 +206,7 @@ def strip_job(folder, strip_mm: tuple[float, float]) -> list[str]:
     return design(load_job(folder / "job.toml"))
 
 
-def test_a_region_that_drops_more_than_5_percent_is_said(tmp_path):
+def test_a_region_that_drops_more_than_5_percent_is_said(tmp_path, capsys):
     # the strip covers x from 10 to 16 mm (on grid lines; its image one flat colour: the mask
     # makes the picture, no warning). Its edge columns of squares are the strip's only where the
     # mask says, so the base view could claim the plate but the inner squares (x 12 to 14):
@@ -218,6 +218,12 @@ def test_a_region_that_drops_more_than_5_percent_is_said(tmp_path):
         "view 'base' (views[1]) keeps its largest connected region and drops 27.6 % of the surface it could "
         'claim (640 of 2320 mm²): region = "all" keeps every region'
     ], r.warnings
+    # said on the terminal and in design.json (and --strict refuses it)
+    assert main(["design", str(tmp_path / "job.toml"), "--out", str(tmp_path / "out")]) == 0
+    assert f"warning: {r.warnings[0]}" in capsys.readouterr().err.splitlines()
+    assert json.loads((tmp_path / "out" / "design.json").read_text())["warnings"] == r.warnings
+    assert main(["design", str(tmp_path / "job.toml"), "--out", str(tmp_path / "strict"), "--strict", "-q"]) == 1
+    assert 'region = "all"' in one_line(capsys) and not (tmp_path / "strict").exists()
 
 
 def test_a_region_that_drops_little_is_not_said(tmp_path):

@@ -129,6 +129,8 @@ def test_a_logo_with_a_transparent_background_owns_only_the_logo(alpha_job):
     assert info["warnings"] == []
     share = info["views"][0]["print_share"]
     assert share == pytest.approx(footprint.sum() / footprint.size, abs=1e-9)
+    # of its image, the logo view uses the disc (which lies on the lid), not its transparent rest
+    assert info["views"][0]["image_share_used"] == pytest.approx((logo_alpha() > 0).mean(), abs=1e-9)
 
 
 def test_a_mask_file_gives_the_same_print_as_the_alpha(alpha_job, tmp_path):

@@ -970,6 +970,8 @@ def view_statistics(result: DesignResult, names: list[str]) -> list[dict]:
         used = np.zeros_like(seen)
         vs = result.status if result.view_status is None else result.view_status
         used[seen] = vs[fb[seen], v] != 0
+        if result.visibilities[v].decoration is not None:
+            used &= result.visibilities[v].decoration  # its transparent pixels are not used
         stats.append(
             {
                 "name": name,

@@ -100,15 +100,21 @@ def face_mask_job(tmp_path, outline="rectangle", views=("front",), dpi=20):
 
 def test_a_print_that_does_not_fit_warns_and_strict_refuses(tmp_path, capsys):
     # the scanned face with its front view on a rectangle: a print ten times its
-    # developed area, almost all background, and a film stretch far outside [0.8, 1.3]
+    # developed area, almost all background, and a film stretch far outside [0.8, 1.3];
+    # and the front view's largest region leaves a third of what it sees (issue 36)
     import json
 
     job = face_mask_job(tmp_path)
     assert main(["design", str(job), "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err
     info = json.loads((tmp_path / "o" / "design.json").read_text())
-    assert len(info["warnings"]) == 3
-    for fragment in ("the film stretch leaves [0.8, 1.3]", "background is 99", "times the part's developed area"):
+    assert len(info["warnings"]) == 4
+    for fragment in (
+        "the film stretch leaves [0.8, 1.3]",
+        "background is 99",
+        "times the part's developed area",
+        "view 'front' (views[0]) keeps its largest connected region and drops 33.7 %",
+    ):
         assert sum(fragment in w for w in info["warnings"]) == 1, fragment
         assert sum(line.startswith("warning: ") and fragment in line for line in err.splitlines()) == 1
     # --strict: the same warnings are one error line, exit 1, nothing written

@@ -145,8 +145,57 @@ def add_parser(sub) -> None:
         help="photos scored in parallel, one process each (default: every core; 1: in this process)",
     )
     p.add_argument("--out", metavar="DIR", help="output directory (default: DESIGN_DIR/validation)")
+    s = p.add_argument_group(
+        "results store",
+        "record the validation in a store once its outputs are written (nothing is recorded without one)",
+    )
+    s.add_argument(
+        "--store",
+        metavar="URL",
+        help="the store: a SQLite file's path, or a SQLAlchemy URL (sqlite:///FILE, postgresql://...); "
+        "default: $WORKBENCH_STORE, else no store",
+    )
+    s.add_argument("--part-id", metavar="ID", help="the part's id (required with a store)")
+    s.add_argument("--lot", metavar="LOT", help="the lot the part belongs to (workbench lot decides on it)")
+    s.add_argument("--station", metavar="NAME", help="the station recording (default: this machine's host name)")
+    s.add_argument("--operator", metavar="NAME", help="who validates (default: the login name)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
+
+
+def store_recorder(args):
+    """The store's :class:`~workbench.store.record.Recorder` (its URL checked), or None: no store.
+
+    ``--part-id`` is required with a store (a record no part names counts in no lot); ``--part-id``,
+    ``--lot``, ``--station`` and ``--operator`` without a store are refused rather than ignored.
+    """
+    from workbench.store.database import check_store, store_text, store_url
+
+    text = store_text(args.store)
+    if text is None:
+        given = [o for o in ("part_id", "lot", "station", "operator") if getattr(args, o) is not None]
+        if given:
+            name = "--" + given[0].replace("_", "-")
+            raise UsageError(f"{name}: records in a store; give --store URL (or set WORKBENCH_STORE)")
+        return None
+    from workbench.store.record import Recorder, default_operator, default_station
+
+    option = "--store" if args.store is not None else "WORKBENCH_STORE"
+    for name in ("part_id", "lot", "station", "operator"):
+        value = getattr(args, name)
+        if value is not None and not value.strip():
+            raise UsageError(f"--{name.replace('_', '-')}: an empty name")
+    if args.part_id is None:
+        raise UsageError(f"--part-id: required to record in a store ({option} {text})")
+    url = store_url(text, option)
+    check_store(url, option)
+    return Recorder(
+        url=url,
+        part_id=args.part_id,
+        lot=args.lot,
+        station=args.station or default_station(),
+        operator=args.operator or default_operator(),
+    )
 
 
 def output_stems(photos: list[Path]) -> list[str]:
@@ -355,6 +404,21 @@ def keep_freed_memory() -> None:
     mallopt(m_trim_threshold, 1 << 30)
 
 
+def record(recorder, report_text: str, out: Path, written: list[Path]) -> None:
+    """The validation recorded in the store, in one transaction, once its outputs are written.
+
+    ``report_text``: validation.json as written (the store keeps it as it is, and its figures as columns).
+    """
+    from workbench.environment import source_date_epoch
+    from workbench.store.record import record_validation, recorded_at, validation_rows
+
+    rows = validation_rows(report_text, out, written, recorder, recorded_at(source_date_epoch(os.environ)))
+    try:
+        record_validation(rows, recorder.url)
+    except WorkbenchError as exc:
+        raise WorkbenchError(f"{exc}; {out} was written but the validation is not recorded") from None
+
+
 def run(args) -> int:
     keep_freed_memory()
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
@@ -366,6 +430,7 @@ def run(args) -> int:
         raise UsageError(f"--max-delta-e {args.max_delta_e:g}: must be a positive ΔE00")
     if args.jobs < 0:
         raise UsageError(f"--jobs {args.jobs}: must be 0 (every core) or more")
+    recorder = store_recorder(args)
     profile_path = Path(args.camera)
     if not profile_path.is_file():
         load_camera_profile(profile_path)  # raises: missing, or a directory, in one line
@@ -507,6 +572,9 @@ def run(args) -> int:
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
     files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"}, pages)
     write_folder(out, files, inputs)
+    if recorder is not None:
+        record(recorder, files[out / "validation.json"].decode(), out, list(files))
+        log(f"recorded part {recorder.part_id}" + (f" of lot {recorder.lot}" if recorder.lot else ""))
     why = f" ({part['reason']})" if part.get("reason") else ""
     log(
         f"{len(entries)} photo(s), part: {part['verdict']}{why}; wrote {out / 'validation.json'} and "

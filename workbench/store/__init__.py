@@ -1,0 +1,1 @@
+"""The results store: validations recorded in a database (SQLite by default, any SQLAlchemy URL)."""

@@ -1,0 +1,52 @@
+"""The store's records read back: for ``workbench lot`` and as CSV or JSON."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+from sqlalchemy import select
+
+from workbench.store.schema import defects, files, photos, validations
+
+# the CSV's columns: every column of a validation but its validation.json
+CSV_COLUMNS = [c.name for c in validations.columns if c.name != "validation_json"]
+
+
+def validation_records(conn, lot: str | None = None) -> list[dict]:
+    """The validations (all, or a lot's), in recording order, as dicts of their columns."""
+    query = select(validations).order_by(validations.c.id)
+    if lot is not None:
+        query = query.where(validations.c.lot == lot)
+    return [dict(r._mapping) for r in conn.execute(query)]
+
+
+def full_records(conn, lot: str | None = None) -> list[dict]:
+    """Validations with their photos, defects and files, and ``validation`` the parsed validation.json."""
+    out = []
+    for v in validation_records(conn, lot):
+        rec = {k: v[k] for k in CSV_COLUMNS}
+        for table, key in ((photos, "photos"), (defects, "defects"), (files, "files")):
+            rows = conn.execute(select(table).where(table.c.validation_id == v["id"]).order_by(table.c.id))
+            rec[key] = [{k: x for k, x in r._mapping.items() if k not in ("id", "validation_id")} for r in rows]
+        for d in rec["defects"]:
+            d["photos"] = json.loads(d["photos"])
+        rec["validation"] = json.loads(v["validation_json"])
+        out.append(rec)
+    return out
+
+
+def as_json(records: list[dict]) -> str:
+    """The records as a JSON array (keys sorted: the same records give the same bytes)."""
+    return json.dumps(records, indent=1, sort_keys=True) + "\n"
+
+
+def as_csv(records: list[dict]) -> str:
+    """One CSV row per validation, the columns of :data:`CSV_COLUMNS`."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, CSV_COLUMNS, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for r in records:
+        w.writerow({k: "" if r[k] is None else r[k] for k in CSV_COLUMNS})
+    return buf.getvalue()

@@ -56,7 +56,7 @@ from workbench.text import one_line  # noqa: E402
 INTERNAL_ERROR = 70
 
 # in the order of `workbench --help`
-COMMANDS = ("flatten", "design", "suggest-views", "pdf", "board", "render", "validate", "store", "calibrate")
+COMMANDS = ("flatten", "design", "suggest-views", "pdf", "board", "render", "validate", "lot", "store", "calibrate")
 
 
 class _Parser(argparse.ArgumentParser):

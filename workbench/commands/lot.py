@@ -1,0 +1,91 @@
+"""``workbench lot``: accept or reject a lot by ISO 2859-1 from the parts recorded in the store."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from workbench.errors import UsageError, WorkbenchError
+from workbench.lots.tables import LEVELS
+from workbench.options import Number
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "lot",
+        help="accept or reject a lot by ISO 2859-1 (AQL sampling) from the parts validated into the store",
+        description=(
+            "The single sampling plan of ISO 2859-1 (normal inspection) for the lot's size, the inspection "
+            "level and the AQL: its sample size code letter, sample size, acceptance and rejection numbers; "
+            "the parts the store has for the lot against it (a FAIL is nonconforming; INVALID and "
+            "INCOMPLETE parts are not inspected, never conforming); and the decision: accept, reject, or "
+            "how many more parts to inspect."
+        ),
+    )
+    p.add_argument("lot", metavar="LOT")
+    p.add_argument("--aql", metavar="AQL", required=True, help="acceptance quality limit: 0.010 ... 1000 (Table 2-A)")
+    p.add_argument("--level", default="II", choices=LEVELS, help="inspection level (default II)")
+    p.add_argument(
+        "--lot-size",
+        action=Number,
+        lo=2,
+        hi=10**12,
+        integer=True,
+        help="items in the lot (default: the parts the store has for it)",
+    )
+    p.add_argument("--store", metavar="URL", help="the store (default: $WORKBENCH_STORE)")
+    p.add_argument("--json", action="store_true", help="print the plan and the decision as JSON")
+    p.add_argument("--report", metavar="FILE.html", help="write the lot report: every part, its verdict and evidence")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from workbench.atomic import check_outputs, write_files
+    from workbench.lots.decision import decision_dict, lot_decision, lot_parts
+    from workbench.lots.plan import aql_text, code_letter, sampling_plan
+    from workbench.lots.report import lot_report_html
+    from workbench.store.database import engine_for, shown, store_text, store_url, transaction
+    from workbench.store.export import validation_records
+
+    aql = aql_text(args.aql)  # (before the store: a bad option is the command line's fault)
+    if args.lot_size is not None:
+        code_letter(args.lot_size, args.level)
+    text = store_text(args.store)
+    if text is None:
+        raise UsageError("--store: no store given (nor WORKBENCH_STORE)")
+    option = "--store" if args.store is not None else "WORKBENCH_STORE"
+    url = store_url(text, option)
+    report = Path(args.report) if args.report else None
+    if report is not None:
+        check_outputs(report)
+    engine = engine_for(url, create=False, option=option)
+    try:
+        with transaction(engine, url, migrate=False, option=option) as conn:
+            records = validation_records(conn, args.lot)
+    finally:
+        engine.dispose()
+    if not records:
+        raise WorkbenchError(f"lot {args.lot}: no part of it is recorded in {shown(url)}")
+    parts = lot_parts(records)
+    lot_size = args.lot_size if args.lot_size is not None else max(len(parts), 2)
+    if lot_size < len(parts):
+        raise WorkbenchError(f"--lot-size {lot_size}: the store has {len(parts)} parts of lot {args.lot}")
+    decision = lot_decision(sampling_plan(lot_size, args.level, aql), parts)
+    if report is not None:
+        write_files({report: lot_report_html(args.lot, decision, parts, shown(url))})
+    d = decision_dict(args.lot, decision)
+    if args.json:
+        print(json.dumps(d, indent=1))
+    else:
+        size = "" if args.lot_size is not None else f" (the {len(parts)} part(s) recorded, at least 2; give --lot-size)"
+        print(
+            f"lot {args.lot}: {d['decision']}: {lot_size} items{size}, level {d['level']}, AQL {d['aql']}: "
+            f"code letter {d['code_letter']}, sample {d['sample_size']}"
+            + (" (100 %)" if d["hundred_percent"] else "")
+            + f", accept {d['accept']}, reject {d['reject']}; inspected {d['inspected']}, nonconforming "
+            f"{d['nonconforming']}, not inspected (INVALID, INCOMPLETE) {d['not_inspected']}"
+        )
+    if report is not None:
+        print(f"wrote {report}", file=sys.stderr)
+    return 0

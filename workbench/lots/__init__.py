@@ -1,0 +1,1 @@
+"""Lot acceptance: ISO 2859-1 single sampling plans and the decision on a lot from its recorded parts."""

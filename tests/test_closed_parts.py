@@ -307,6 +307,9 @@ def test_a_hole_through_the_box_prints_on_films(tmp_path):
     seams, edge = info["surface"]["seams"], info["surface"]["refined"]["max_edge_mm"]
     assert seams["count"] == 1 and 56.0 - 1e-9 <= seams["length_mm"] <= 50.0 + 2 * (3.0 + edge) + 1e-9
     assert len(info["films"]) >= 1 and all(f["within_material_share"] >= 0.99 for f in info["films"])
+    # every face of the cut surface is on a film: the margin no view owns too
+    films_mm2 = sum(f["surface_mm2"] for f in info["films"])
+    assert films_mm2 == pytest.approx(info["surface"]["selected_mm2"], rel=1e-9)
     assert main(["pdf", str(out), "-o", str(tmp_path / "p.pdf"), "--paper", "auto", "-q"]) == 0
 
 
@@ -424,3 +427,22 @@ def test_closed_loop_holds_on_the_bundled_lid(name):
     job = load_job(ROOT / "fixtures" / name / "job.toml")
     figures = closed_loop(job, read_mesh(job.object.mesh, job.object.units), dpi=600)
     assert_exact(figures, {"top": 80, "front": 20, "right": 30})
+
+
+def test_long_edges_are_split_at_midpoints_keeping_the_solid():
+    import trimesh
+
+    from workbench.mesh.refine import subdivide_to_edge
+
+    m = trimesh.creation.box(extents=(100, 60, 30))
+    V, F = subdivide_to_edge(m.vertices, m.faces, 2.4)
+    E, _, count = unique_edges(F)
+    assert np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).max() <= 2.4 and (count == 2).all()
+    s = trimesh.Trimesh(V, F, process=False)
+    assert s.is_winding_consistent and s.volume == pytest.approx(180000.0, rel=1e-12)
+    assert s.area == pytest.approx(21600.0, rel=1e-12)
+    # (only the long edges split: a 100 mm edge in 64, not every face in four each round)
+    assert len(F) == 24576 and np.array_equal(V[:8], m.vertices)
+    # nothing longer than the limit: the same arrays back
+    V2, F2 = subdivide_to_edge(V, F, 2.4)
+    assert V2 is V and F2 is F

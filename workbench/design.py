@@ -199,7 +199,7 @@ ATLAS_GAP_MM = 5.0
 
 
 def _film_regions(
-    job: Job, V, F, status, say, warnings: list[str]
+    job: Job, V, F, status, say, warnings: list[str], cover_all: bool = False
 ) -> list[tuple[str, np.ndarray, FlattenResult, Material, str]]:
     """Faces and map of each film: split automatically, or as the job gives them.
 
@@ -213,7 +213,10 @@ def _film_regions(
     min_print = 0.5 * 25.4 / job.print.dpi
     if job.films == "auto":
         limit = job.object.material.max_stretch
-        fits = split_films(V, F, owner_view >= 0, owner_view, limit, FlattenOptions(min_print_mm=min_print), log=say)
+        # (a surface cut out of a closed part is printed whole: its margin reaches past what the
+        # views own so that the film's rim lies beyond what they see)
+        covered = np.ones(len(F), bool) if cover_all else owner_view >= 0
+        fits = split_films(V, F, covered, owner_view, limit, FlattenOptions(min_print_mm=min_print), log=say)
         return [(f"film-{k + 1}", f.faces, f.flat, job.object.material, "free") for k, f in enumerate(fits)]
     graph = face_graph(F)
     claimed = np.zeros(len(F), bool)
@@ -279,19 +282,29 @@ def _read_faces(path, n_faces: int, where: str) -> np.ndarray:
 
 
 def _design_films(
-    job: Job, V, F, images, say, t, forming_profile: Path | None = None, decorations: list | None = None
+    job: Job,
+    V,
+    F,
+    images,
+    say,
+    t,
+    forming_profile: Path | None = None,
+    decorations: list | None = None,
+    cover_all: bool = False,
 ) -> DesignResult:
     """The design with several films: views on the whole part, one map and print per film, their atlas.
 
     With a forming profile, each film's map is pre-compensated by that film's field (films are
-    formed one by one, each on its own print) before its print is synthesised.
+    formed one by one, each on its own print) before its print is synthesised. With
+    ``cover_all`` (a surface cut out of a closed part: what the views see and its margin)
+    ``films = "auto"`` covers every face, the margin no view owns included.
     """
     t0 = time.perf_counter()
     cameras, visibilities, status = assign_job_views(job, V, F, images, decorations)
     t["views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     warnings: list[str] = region_warnings(job, visibilities, status, face_areas(V, F))
-    regions = _film_regions(job, V, F, status, say, warnings)
+    regions = _film_regions(job, V, F, status, say, warnings, cover_all)
     t["flatten"] = time.perf_counter() - t0
     comps: list = [None] * len(regions)
     if forming_profile is not None:
@@ -523,7 +536,7 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
         # before the minutes of work: a profile of another part, dpi or material
         read_checked_profile(job, forming_profile)
     if job.films is not None:
-        result = _design_films(job, V, F, images, say, t, forming_profile, decorations)
+        result = _design_films(job, V, F, images, say, t, forming_profile, decorations, surface is not None)
         result.warnings[:0] = implausible
         result.surface = surface
         return result
@@ -713,7 +726,7 @@ def decorated_surface(
         # vertices): its faces are split until no edge exceeds the margin (the film's rim then
         # lies from the margin to twice it beyond what the views see) nor 1 / REFINE_DIAGONAL of
         # the part's diagonal (the map's sampling of a flat side: a box of 100 x 60 x 30 mm in
-        # 12 triangles becomes 49k, its 5 mm grid of 2,496 triangles 40k); a scan's fine faces
+        # 12 triangles becomes 25k, its 5 mm grid of 2,496 triangles 34k); a scan's fine faces
         # stay as they are
         diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
         max_edge = min(margin if margin > 0 else np.inf, diagonal / REFINE_DIAGONAL)

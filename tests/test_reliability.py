@@ -226,12 +226,16 @@ def test_a_mesh_path_that_is_a_directory_says_so(tmp_path, capsys):
     assert f"{folder}: is a directory, not a mesh file" in one_line(capsys)
 
 
-@pytest.mark.parametrize("content", [b"", b"solid empty\nendsolid empty\n"], ids=["zero-bytes", "no-facets"])
-def test_an_empty_stl_is_one_clear_line(tmp_path, capsys, content):
+@pytest.mark.parametrize(
+    ("content", "said"),
+    [(b"", "the file is empty"), (b"solid empty\nendsolid empty\n", "the file holds no triangles")],
+    ids=["zero-bytes", "no-facets"],
+)
+def test_an_empty_stl_is_one_clear_line(tmp_path, capsys, content, said):
     stl = tmp_path / "empty.stl"
     stl.write_bytes(content)
     assert main(["flatten", str(stl), "--out", str(tmp_path / "o")]) == 1
-    assert f"{stl}: the file holds no triangles" in one_line(capsys)
+    assert f"{stl}: {said}" in one_line(capsys)
     assert not (tmp_path / "o").exists()
 
 

@@ -21,7 +21,7 @@ Each split checks the true profile, and the same profile with its focal lengths 
 - the drift the check catches at its tolerance: tolerance-sigma x the median combined
   standard deviation;
 - how often the drift each check states it catches (``calibrate check``'s power,
-  :func:`workbench.calibration.check_power`), put in one intrinsic at a time, is caught.
+  :func:`workbench.calibration_power.check_power`), put in one intrinsic at a time, is caught.
 
 Corners are detected once; photos of another size than most are left out, by name.
 """
@@ -40,14 +40,13 @@ import numpy as np
 from workbench.calibration import (
     HOLD_DISTORTION,
     INTRINSICS,
-    POWER_PROBABILITY,
     TOLERANCE_SIGMA,
     board_views,
     calibrate_views,
-    check_power,
     check_views,
     fit_intrinsics,
 )
+from workbench.calibration_power import POWER_PROBABILITY, check_power
 from workbench.errors import WorkbenchError
 from workbench.printing.boards import load_board
 

@@ -36,8 +36,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from workbench.design import assign_job_views, read_image  # noqa: E402
+from workbench.design import read_image  # noqa: E402
 from workbench.job import load_job  # noqa: E402
+from workbench.job_views import assign_job_views  # noqa: E402
 from workbench.mesh.io import read_mesh  # noqa: E402
 from workbench.views.suggest import SuggestOptions, remaining_surface, sphere_search, suggest_views  # noqa: E402
 

@@ -11,7 +11,9 @@ import cv2
 import numpy as np
 import pytest
 
-from workbench.calibration import board_views, check_power, grid_rms
+from workbench.calibration import board_views
+from workbench.calibration_coverage import grid_rms
+from workbench.calibration_power import check_power
 from workbench.printing.boards import load_board
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -126,7 +128,7 @@ def _views_of(K, W, H, poses):
 
 
 def test_coverage_names_the_frame_corners_and_borders_no_corner_reaches_and_the_tilt_to_add():
-    from workbench.calibration import photo_coverage
+    from workbench.calibration_coverage import photo_coverage
 
     W, H = 640, 480
     K = np.array([[640.0, 0, 319.5], [0, 640.0, 239.5], [0, 0, 1]])  # the nominal camera the tilts are read with

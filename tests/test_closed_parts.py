@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from workbench.cli import main
-from workbench.design import decorated_surface, design, read_image, surface_mode
+from workbench.closed_surface import decorated_surface, surface_mode
+from workbench.design import design, read_image
 from workbench.job import load_job
 from workbench.mesh.cut import CutOptions, cut_to_disc, is_disc, path_length
 from workbench.mesh.io import format_obj, read_mesh

@@ -14,8 +14,9 @@ import pytest
 from conftest import ROOT
 
 from workbench.cli import main
-from workbench.design import assign_job_views, read_image
+from workbench.design import read_image
 from workbench.job import load_job
+from workbench.job_views import assign_job_views
 from workbench.mesh.io import format_obj, read_mesh
 from workbench.mesh.topology import unique_edges
 from workbench.mesh.validate import face_areas

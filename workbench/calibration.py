@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
+from workbench.calibration_coverage import board_normals, grid_rms, photo_coverage
 from workbench.errors import WorkbenchError
 from workbench.printing.boards import CharucoSpec, ChessboardSpec, board_points_mm, is_chessboard
 
@@ -248,42 +249,6 @@ def check_sizes(images: list[tuple[str, np.ndarray]], expected: tuple[int, int] 
     return int(W), int(H)
 
 
-def grid_rms(board_mm: np.ndarray, px: np.ndarray, camera: tuple | None = None) -> float:
-    """How far a view's corners lie from the flat grid they were matched to, px.
-
-    A flat board's corners in a photo (its distortion taken out) are the board's points
-    through a homography, whatever the camera's intrinsics and pose; a detection that matched
-    corners to the wrong squares (a steeply tilted chessboard read one square off along a
-    row) fits none. The RMS of the best homography's residual, in the photo's pixels.
-
-    Parameters
-    ----------
-    board_mm : (n, 2) float
-        The corners' points on the board, mm.
-    px : (n, 2) float
-        The corners in the photo, px.
-    camera : (K, dist), optional
-        (3, 3) and (5,) float: the distortion to take out first (pixels kept in K's units).
-
-    Returns
-    -------
-    float
-        px; 0 for four corners or fewer (any four fit a homography).
-    """
-    px = np.asarray(px, np.float64).reshape(-1, 2)
-    if len(px) <= 4:
-        return 0.0
-    if camera is not None:
-        K, dist = camera
-        px = cv2.undistortPoints(px.reshape(-1, 1, 2), K, dist, P=K).reshape(-1, 2)
-    src = np.asarray(board_mm, np.float64).reshape(-1, 2)
-    Hm, _ = cv2.findHomography(src, px, 0)
-    if Hm is None:
-        return float("inf")
-    fit = cv2.perspectiveTransform(src.reshape(-1, 1, 2), Hm).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum((fit - px) ** 2, axis=1))))
-
-
 def board_views(
     images: list[tuple[str, np.ndarray]],
     definition: dict,
@@ -357,114 +322,6 @@ def corner_coverage(views: list, width: int, height: int) -> float:
         cols = np.clip((px[:, 0] / width * 8).astype(int), 0, 7)
         cells[rows, cols] = True
     return float(cells.mean())
-
-
-# the frame's grid of corner_coverage, rows x columns
-COVERAGE_GRID = (6, 8)
-# a board tilted this much about each axis of the image (its normal's turn from the optical
-# axis) fixes the focal length well: Zhang's constraints vanish for a fronto-parallel board and
-# OpenCV's and Bouguet's guides take boards tilted up to about 45 degrees; beyond 60 the corners
-# foreshorten and blur (the webcam video's frames at 62 degrees were misread)
-TILT_ADVISED_DEG = 30.0
-
-
-def board_normals(views: list, width: int, height: int) -> np.ndarray:
-    """Each view's board normal in the camera frame, posed with a nominal camera (:func:`tilt_spread_deg`).
-
-    Returns
-    -------
-    (n, 3) float
-        Unit normals, turned to face the camera (z < 0); views without a pose left out.
-    """
-    K0 = np.array([[width, 0.0, 0.5 * (width - 1)], [0.0, width, 0.5 * (height - 1)], [0.0, 0.0, 1.0]])
-    normals = []
-    for _name, obj, px in views:
-        try:
-            ok, rvec, _ = cv2.solvePnP(obj.astype(np.float64), px.astype(np.float64), K0, None)
-        except cv2.error:
-            ok = False
-        if ok:
-            n = cv2.Rodrigues(rvec)[0][:, 2]
-            normals.append(-n if n[2] > 0 else n)
-    return np.array(normals).reshape(-1, 3)
-
-
-def _words(names: list[str], all_of: str) -> str:
-    """``a``, ``a and b``, ``a, b and c``; ``all_of`` ("four") for all four."""
-    if len(names) == 4:
-        return all_of
-    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
-
-
-def photo_coverage(views: list, width: int, height: int) -> dict:
-    """Which parts of the frame and which tilts a set of photos covers, and what the next photos should add.
-
-    The distortion is fixed by corners near the frame's borders and corners (where it is
-    largest), the focal length by boards tilted about both of the image's axes. The frame is
-    cut into COVERAGE_GRID cells; a frame corner (its 2 x 2 cells) or border (the middle cells
-    along it) without any corner is named, and so is an axis about which no board tilts
-    TILT_ADVISED_DEG.
-
-    Parameters
-    ----------
-    views : list of (name, (n, 3) float board points mm, (n, 2) float px)
-    width, height : int
-        The photos' size, px.
-
-    Returns
-    -------
-    dict
-        ``cells``: (rows, cols) list of int, corners per cell (row 0 at the top);
-        ``share``: the share of cells with a corner; ``tilt_x_deg``, ``tilt_y_deg``: each
-        view's tilt about the image's horizontal (x) and vertical (y) axis, degrees (signed);
-        ``missing``: the frame's corners and borders without a corner ("top-left", ...);
-        ``next``: sentences saying what the next photos should add (empty: nothing).
-    """
-    rows, cols = COVERAGE_GRID
-    cells = np.zeros((rows, cols), np.int64)
-    for _, _, px in views:
-        r = np.clip((np.asarray(px)[:, 1] / height * rows).astype(int), 0, rows - 1)
-        c = np.clip((np.asarray(px)[:, 0] / width * cols).astype(int), 0, cols - 1)
-        np.add.at(cells, (r, c), 1)
-    hit = cells > 0
-    places = {
-        "top-left": hit[:2, :2],
-        "top-right": hit[:2, -2:],
-        "bottom-left": hit[-2:, :2],
-        "bottom-right": hit[-2:, -2:],
-        "top": hit[0, 2:-2],
-        "bottom": hit[-1, 2:-2],
-        "left": hit[2:-2, 0],
-        "right": hit[2:-2, -1],
-    }
-    missing = [name for name, cells_there in places.items() if not cells_there.any()]
-    n = board_normals(views, width, height)
-    # a normal (nx, ny, nz) facing the camera (nz < 0): the board turned about the image's
-    # vertical axis by atan2(nx, -nz), about its horizontal axis by atan2(ny, -nz)
-    tilt_y = np.degrees(np.arctan2(n[:, 0], -n[:, 2])) if len(n) else np.zeros(0)
-    tilt_x = np.degrees(np.arctan2(n[:, 1], -n[:, 2])) if len(n) else np.zeros(0)
-    advice = []
-    corners = [m for m in missing if "-" in m]
-    borders = [m for m in missing if "-" not in m]
-    if corners:
-        advice.append(f"the board in the frame's {_words(corners, 'four')} corner{'s' if len(corners) > 1 else ''}")
-    if borders:
-        advice.append(f"the board along the frame's {_words(borders, 'four')} border{'s' if len(borders) > 1 else ''}")
-    for axis, tilts in (("vertical", tilt_y), ("horizontal", tilt_x)):
-        most = float(np.abs(tilts).max()) if len(tilts) else 0.0
-        if most < TILT_ADVISED_DEG:
-            advice.append(
-                f"the board turned {TILT_ADVISED_DEG:g} to 45 degrees about the image's {axis} axis "
-                f"(the most now: {most:.0f})"
-            )
-    return {
-        "cells": cells.tolist(),
-        "share": float(hit.mean()),
-        "tilt_x_deg": [round(float(t), 2) for t in tilt_x],
-        "tilt_y_deg": [round(float(t), 2) for t in tilt_y],
-        "missing": missing,
-        "next": advice,
-    }
 
 
 CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
@@ -928,89 +785,6 @@ def z_limits(
     tail = norm.sf(tolerance_sigma)
     limit = np.where(np.isfinite(nu), t.isf(tail, np.where(np.isfinite(nu), nu, 1.0)), tolerance_sigma)
     return limit, nu
-
-
-# the drift a check states it catches is caught with this probability (one-sided normal quantile
-# beyond its limit: a drift exactly at the limit is caught half the time)
-POWER_PROBABILITY = 0.95
-
-
-def check_power(remeasured: dict | None, K0: np.ndarray, focal_tolerance_pct: float, pp_tolerance_px: float) -> dict:
-    """The smallest drift a camera check catches, from its own photos and the profile's uncertainty.
-
-    A drift d of an intrinsic moves its z by d / σ (σ the combined standard deviation of the
-    profile and the re-measurement); the check fails it when |z| exceeds its limit, so it is
-    caught with probability POWER_PROBABILITY when d = (limit + q) σ, q the quantile of the
-    same t distribution (the combined deviation's degrees of freedom) that leaves 1 -
-    POWER_PROBABILITY below. The re-measurement's variance falls as 1 / photos, the
-    profile's does not: a check of n photos reaches a tolerance T with
-    n σ_photos² / ((T / (limit + q))² - σ_profile²) photos, when the profile's own
-    uncertainty leaves room for it.
-
-    Parameters
-    ----------
-    remeasured : dict or None
-        :class:`CameraCheck`'s ``remeasured``.
-    K0 : (3, 3) float
-        The profile's camera matrix, px.
-    focal_tolerance_pct, pp_tolerance_px : float
-        The lab's tolerances: a focal length drift, %; a principal point move, px.
-
-    Returns
-    -------
-    dict
-        ``probability``; ``focal_pct`` (the larger of fx, fy, % of the profile's) and
-        ``pp_px`` (the larger of cx, cy), None where not re-measured; ``caught_px``: each
-        re-measured intrinsic's, px; ``short``: a sentence for
-        each tolerance the check cannot see; ``photos_needed`` (None: no count of photos
-        reaches it, the profile's own uncertainty is too large).
-    """
-    from scipy.stats import t
-
-    out = {
-        "probability": POWER_PROBABILITY,
-        "focal_pct": None,
-        "pp_px": None,
-        "caught_px": {},
-        "short": [],
-        "photos_needed": None,
-    }
-    if remeasured is None:
-        out["short"].append("no intrinsic was re-measured: the check sees no drift of them")
-        return out
-    n = int(remeasured["views"])
-    focal = {"fx": float(K0[0, 0]), "fy": float(K0[1, 1])}
-    caught, needed = {}, []
-    for k in remeasured["measured"]:
-        r = remeasured[k]
-        reach = r["limit"] + float(t.isf(1 - POWER_PROBABILITY, r["dof"]))
-        caught[k] = reach * r["sigma"]
-        tol = focal_tolerance_pct / 100 * focal[k] if k in focal else pp_tolerance_px
-        if caught[k] > tol:
-            room = (tol / reach) ** 2 - r["sigma_profile"] ** 2
-            needed.append(int(np.ceil(n * r["sigma_photos"] ** 2 / room)) if room > 0 else None)
-    out["caught_px"] = caught
-    focal_pct = [100 * caught[k] / focal[k] for k in focal if k in caught]
-    pp = [caught[k] for k in ("cx", "cy") if k in caught]
-    out["focal_pct"] = max(focal_pct) if focal_pct else None
-    out["pp_px"] = max(pp) if pp else None
-    if out["focal_pct"] is not None and out["focal_pct"] > focal_tolerance_pct:
-        out["short"].append(
-            f"this check cannot see a {focal_tolerance_pct:g} % focal drift with {n} photos "
-            f"(it sees {out['focal_pct']:.2f} %)"
-        )
-    if out["pp_px"] is None:
-        out["short"].append(f"the principal point is not re-measured with {n} photos (it needs {MIN_VIEWS}, tilted)")
-    elif out["pp_px"] > pp_tolerance_px:
-        out["short"].append(
-            f"this check cannot see the principal point move by {pp_tolerance_px:g} px with {n} photos "
-            f"(it sees {out['pp_px']:.1f} px)"
-        )
-    if needed:
-        out["photos_needed"] = None if None in needed else max(needed)
-    elif out["pp_px"] is None:
-        out["photos_needed"] = MIN_VIEWS
-    return out
 
 
 def check_views_vary(views: list, width: int, height: int) -> float:

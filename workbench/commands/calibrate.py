@@ -17,12 +17,12 @@ from workbench.calibration import (
     TOLERANCE_SIGMA,
     calibrate_camera,
     check_camera,
-    check_power,
     check_printer_scale,
     measure_printer,
     name_list,
     printer_scale_warnings,
 )
+from workbench.calibration_power import check_power
 from workbench.camera import intrinsics_problem
 from workbench.errors import UsageError, WorkbenchError
 from workbench.export import png_dpi
@@ -220,7 +220,7 @@ def coverage_picture(views: list, coverage: dict, width: int, height: int, title
     """
     from matplotlib.patches import Rectangle
 
-    from workbench.calibration import TILT_ADVISED_DEG
+    from workbench.calibration_coverage import TILT_ADVISED_DEG
     from workbench.figures import _figure, figure_png
 
     plt = _figure()

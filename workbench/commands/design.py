@@ -13,6 +13,7 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import check_output_dir, safe_name, write_folder
+from workbench.closed_surface import surface_line
 from workbench.commands.flatten import summary
 from workbench.conformal.distortion import weighted_quantiles
 from workbench.design import (
@@ -21,7 +22,6 @@ from workbench.design import (
     film_area_mm2,
     fit_warnings,
     read_image,
-    surface_line,
     view_statistics,
 )
 from workbench.errors import WorkbenchError

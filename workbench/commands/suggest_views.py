@@ -11,9 +11,10 @@ import numpy as np
 
 from workbench import __version__
 from workbench.atomic import check_outputs, write_files
-from workbench.design import _read_faces, assign_job_views, read_view_images
+from workbench.design import _read_faces
 from workbench.errors import UsageError, WorkbenchError
 from workbench.job import load_job
+from workbench.job_views import assign_job_views, read_view_images
 from workbench.mesh.io import read_mesh
 from workbench.options import Number, parse_numbers
 from workbench.text import ascii_text

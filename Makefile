@@ -12,6 +12,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test,bench]'
+	@# the command's script starts Python with Ctrl-C and SIGTERM held (workbench/launcher.py)
+	$(PY) -m workbench.launcher $(VENV)/bin/workbench
 	touch $(STAMP)
 
 test: install

@@ -159,7 +159,7 @@ def test_standard_output_on_a_full_disk_is_one_line(tmp_path):
 def test_ctrl_c_while_the_command_loads_is_one_line_and_130(tmp_path, delay_s):
     """Before, handlers were installed after the command's modules loaded (about a second): a
     Ctrl-C then was a KeyboardInterrupt traceback, a SIGTERM a silent death. (Python's own start,
-    about 40 ms before any of the workbench's code runs, is not covered: see the README.)"""
+    about 40 ms before any of the workbench's code runs: the launcher's test below.)"""
     import signal
     import subprocess
     import sys
@@ -179,6 +179,70 @@ def test_ctrl_c_while_the_command_loads_is_one_line_and_130(tmp_path, delay_s):
         err = p.communicate()[1].strip().splitlines()
         assert p.returncode == 130 and err[-1] == "workbench design: interrupted; nothing written", err
         assert "Traceback" not in "\n".join(err) and not (tmp_path / "o").exists()
+
+
+def _blocked_or_started(pid: int) -> None:
+    """Wait until the launcher's ``env`` has blocked SIGINT and SIGTERM, or has already started Python."""
+    import time
+
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            status = Path(f"/proc/{pid}/status").read_text()
+        except OSError:
+            return
+        fields = dict(line.split(":\t", 1) for line in status.splitlines() if ":\t" in line)
+        blocked = int(fields.get("SigBlk", "0"), 16)
+        both = (1 << (2 - 1)) | (1 << (15 - 1))  # (bit N-1 is signal N)
+        # (the kernel names a script's process after the script, "workbench", until env starts Python)
+        if blocked & both == both or fields.get("Name", "").strip().startswith("python"):
+            return
+
+
+@pytest.mark.parametrize("after_s", [0.0, 0.005, 0.02])
+def test_a_signal_in_pythons_own_start_waits_for_the_workbench(tmp_path, after_s):
+    """The launcher ``make install`` writes starts Python with Ctrl-C and SIGTERM blocked: one
+    sent while Python itself starts (before any workbench code: killed, or a KeyboardInterrupt
+    traceback, with pip's script up to 40 to 80 ms) waits, and is reported as any interrupt is.
+    Sent as soon as ``env`` has blocked them (read from /proc), or a little later."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from conftest import ROOT
+
+    from workbench import launcher
+
+    if not launcher.env_blocks_signals():
+        pytest.skip("this machine's env cannot block signals (GNU coreutils 8.31 or newer can)")
+    script = tmp_path / "bin" / "workbench"
+    script.parent.mkdir()
+    text = launcher.launcher_text(sys.executable, "import sys\nfrom workbench.cli import main\nsys.exit(main())\n")
+    script.write_text(text)
+    script.chmod(0o755)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        out = tmp_path / f"s{int(sig)}" / "x.toml"
+        p = subprocess.Popen(
+            [str(script), "suggest-views", str(ROOT / "fixtures" / "default" / "job.toml"), "-o", str(out), "-q"],
+            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)},
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )  # fmt: skip
+        _blocked_or_started(p.pid)
+        time.sleep(after_s)
+        p.send_signal(sig)
+        err = p.communicate()[1].strip().splitlines()
+        said = (p.returncode, err)
+        assert said == (130, ["workbench suggest-views: interrupted; nothing written"]), said
+        assert not out.parent.exists()
+
+
+def test_the_launcher_is_not_written_where_env_could_not_read_its_line():
+    from workbench import launcher
+
+    assert launcher.launcher_text("/opt/my venv/bin/python", "") is not None  # (quoted: a space is fine)
+    for bad in ('/opt/a"b/python', "/opt/$HOME/python", "relative/python", "/" + "x" * 200):
+        assert launcher.launcher_text(bad, "") is None, bad
 
 
 # --- item 8: plausibility; item 9: the error names what is at fault ---------------------------------

@@ -1,8 +1,9 @@
 """Ctrl-C and SIGTERM: taken from the command's first moment, raised where the command is, held during renames.
 
 Its own module, with nothing heavier than :mod:`signal` and :mod:`threading` to import: the
-``workbench`` process takes the signals before the rest of the command line loads (the time a
-signal can still end it in Python's own way is Python's own start, and this module's load).
+``workbench`` process takes the signals before the rest of the command line loads. Python's own
+start comes before any of this: the launcher (:mod:`workbench.launcher`) starts Python with both
+signals blocked, so that one sent then waits for the handler here.
 """
 
 from __future__ import annotations
@@ -116,6 +117,11 @@ def take_signals_early() -> None:
     _SIGNALS.held += 1
     for s in _SIGNALS.original:
         signal.signal(s, _handler)
+    # the launcher (:mod:`workbench.launcher`) started Python with both blocked, so that one sent
+    # during Python's own start waited: let them through now that the handler holds them (a
+    # waiting one is delivered here, and raised by :func:`release_early_signals`); unblocked,
+    # the children the command starts get the mask a shell would have given them
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM))
 
 
 def release_early_signals() -> None:

@@ -29,6 +29,9 @@ LIGHT_RULES = {
     "thin_told": "a thin line that keeps the ink's variation along it: a glint, not a scratch",
     "mirrors_highlights": "ink gone and light look alike here (the photometric model tells neither) and the surface "
     "mirrors the photo's lamp there as at its sure light: not counted, and not measured",
+    "mirrors_room": "ink gone and light look alike here: the region is no brighter than a glossy film's reflection of "
+    "the room (Fresnel's share at the angle the photo sees it, of the brightest white the photo shows) could make "
+    "it: not counted, and not measured",
     "along_fold": "light along a fold of the surface (its two sides face the lamp differently)",
     "shift_not_explained": "the flow follows light, shading or blur here, not the film: moving the print takes away "
     "less than two thirds of what the print where it is leaves",

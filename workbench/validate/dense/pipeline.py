@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from workbench.validate import detection, photometric
+from workbench.validate.dense import reflection
 from workbench.validate.dense._channels import _cmax, _cmin
 from workbench.validate.dense.blur import blur_locally, estimate_blur, unresolved_detail
 from workbench.validate.dense.defects import find_defects, shift_explained
@@ -344,6 +345,9 @@ class _Colour:
         Where the surface folds (:func:`grid_folds`).
     not_counted : list of dict
         The regions taken for light (:func:`not_counted_regions`).
+    room : (H, W) bool or None
+        Where ink that is gone would brighten the ink by no more than a glossy film's reflection
+        of the room may (:func:`reflection.within_room_reflection`): ink gone is not found there.
     """
 
     alpha: np.ndarray
@@ -363,6 +367,7 @@ class _Colour:
     cone: object
     fold: np.ndarray
     not_counted: list
+    room: np.ndarray | None = None
 
 
 @dataclass
@@ -680,7 +685,7 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
         colour_bad |= lost
         res = np.where(lost, res_lost, res)
         colour = np.where(colour_scored, res, np.nan).astype(np.float32)
-    cone = None
+    cone = room = None
     if camera_center is not None:
         # thin lines of ink gone are told by the ink along them: a glint keeps the ink's
         # variation, a scratch shows the film; one over uniform ink is not told, and like a
@@ -714,6 +719,18 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
         glossed |= mirrored
         colour_bad &= ~glossed
         gone &= ~glossed
+        if grid.normal is not None:
+            # ink gone, or the room mirrored: a region no brighter than a glossy film's reflection of
+            # the room could make it there (the fixture's white squares near the silhouette of
+            # Mitsuba's glossy face, 1 to 10 mm² of "missing" in every photo) is explained by either
+            room_ok, room = reflection.within_room_reflection(
+                pho, pred, film_lit.film, seen, grid.X, grid.normal, camera_center, colour_noise, SIGNIFICANCE_Z
+            )
+            by_room = regions_mostly_in(gone & colour_bad & ~glossed, room_ok)
+            why_light["mirrors_room"] = by_room
+            glossed |= by_room
+            colour_bad &= ~glossed
+            gone &= ~glossed
     # light along a fold: where the surface folds, its two sides face the light differently and a
     # ridge catches it in a line, sharper than the exposure fit follows and, over uniform ink, as
     # bright as film (perfect photos of the scanned lion: lines of 5 to 14 mm² along folds whose
@@ -741,7 +758,7 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     missing = gone
     return _Colour(
         alpha, colour_limit, colour_noise, res_raw, res, colour, colour_bad, missing, inked, dropout_found, thin,
-        thin_found, verdicts, scored, cone, fold, not_counted,
+        thin_found, verdicts, scored, cone, fold, not_counted, room,
     )  # fmt: skip
 
 
@@ -935,6 +952,10 @@ def _result(
         in_cone, flat_in_cone = colour.cone.result()
         dropout_found &= ~in_cone
         thin_found &= ~flat_in_cone
+    if colour.room is not None:
+        # (ink gone that a glossy film's reflection of the room could look like: not found there)
+        dropout_found &= ~colour.room
+        thin_found &= ~colour.room
     dropout_found &= ~fold
     thin_found &= ~fold
     ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL

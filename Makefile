@@ -4,14 +4,14 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install test demo bench lint clean
+.PHONY: install test demo bench lint docs tutorial clean
 
 install: $(STAMP)
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,bench]'
+	$(PY) -m pip install --quiet -e '.[test,bench,docs]'
 	@# the command's script starts Python with Ctrl-C and SIGTERM held (workbench/launcher.py)
 	$(PY) -m workbench.launcher $(VENV)/bin/workbench
 	touch $(STAMP)
@@ -57,6 +57,14 @@ bench: install
 
 lint: install
 	$(VENV)/bin/ruff check workbench tests benchmarks fixtures docs calib
+
+# the documentation site (mkdocs.yml, docs/) into out/site; a broken link or page fails it
+docs: install
+	$(VENV)/bin/mkdocs build --strict --site-dir out/site
+
+# every ```sh block of docs/tutorial.md, in order, in a fresh temporary folder (about a minute)
+tutorial: install
+	$(PY) docs/run_tutorial.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

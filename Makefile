@@ -61,7 +61,7 @@ lint: install
 # the documentation site (mkdocs.yml, docs/) into out/site; a broken link or anchor fails it, and
 # so does a command or option the docs name that the commands do not have
 docs: install
-	$(VENV)/bin/mkdocs build --strict --site-dir out/site
+	$(PY) -m mkdocs build --strict --site-dir out/site
 	$(PY) docs/check_options.py
 
 # every ```sh block of docs/tutorial.md, in order, in a fresh temporary folder (about a minute)

@@ -1,4 +1,4 @@
-"""Regenerate the README's pictures from the bundled default job (run after `make demo`).
+"""Regenerate the pictures of the README and the docs (docs/img/) from the bundled default job (run after `make demo`).
 
 .venv/bin/python docs/make_pictures.py
 """

@@ -861,7 +861,15 @@ def calibrate_forming(sheets: list[Sheet], placement: str = "auto", designs: dic
 def profile_picture(result: dict, title: str) -> bytes:
     """Each film's deformation over its print: |d| in colour, arrows (magnified), the film not measured
     (shaded) and where the profile extrapolates (dark), the part's outline; one panel per film."""
-    from workbench.figures import _figure, figure_png
+    from workbench.figures import figure_png
+
+    return figure_png(profile_plot(result, title))
+
+
+def profile_plot(result: dict, title: str):
+    """:func:`profile_picture`'s figure: one panel per film, each in mm from that film's top-left corner,
+    y down (:func:`workbench.figures.print_axes`)."""
+    from workbench.figures import _figure, print_axes, print_extent
 
     plt = _figure()
     films = result["films"]
@@ -884,7 +892,7 @@ def profile_picture(result: dict, title: str) -> bytes:
         # (the colours and arrows of the film on the part: beyond it the field only extrapolates)
         part = res["on_part"](g).reshape(len(ys), len(xs)) if "on_part" in res else np.ones(mag.shape, bool)
         top = float(mag[part].max()) if part.any() else float(mag.max())
-        im = ax.imshow(mag, extent=(0, W, H, 0), cmap="viridis", origin="upper", vmin=0.0, vmax=top or None)
+        im = ax.imshow(mag, extent=print_extent(W, H), cmap="viridis", origin="upper", vmin=0.0, vmax=top or None)
         fig.colorbar(im, ax=ax, label="|d| (mm)", shrink=0.8)
         step = max(1, len(xs) // 24)
         sub = g.reshape(len(ys), len(xs), 2)[::step, ::step].reshape(-1, 2)
@@ -900,11 +908,8 @@ def profile_picture(result: dict, title: str) -> bytes:
         shade = np.zeros((len(ys), len(xs), 4))
         shade[..., 3] = np.where(dist > EXTRAPOLATION_MM, 0.6, np.where(dist > 1.0, 0.3, 0.0))
         shade[~part] = [1.0, 1.0, 1.0, 0.85]
-        ax.imshow(shade, extent=(0, W, H, 0), origin="upper")
-        ax.set_xlim(0, W)
-        ax.set_ylim(H, 0)
-        ax.set_xlabel("print x (mm)")
-        ax.set_ylabel("print y (mm)")
+        ax.imshow(shade, extent=print_extent(W, H), origin="upper")
+        print_axes(ax, W, H, "film")
         pl = res["placement"]
         ax.set_title(
             (f"{res['name']}: " if n > 1 else "")
@@ -920,4 +925,4 @@ def profile_picture(result: dict, title: str) -> bytes:
         "white: beyond the film's outline on the part",
         fontsize=9,
     )
-    return figure_png(fig)
+    return fig

@@ -6,7 +6,51 @@ import io
 
 import numpy as np
 
-from workbench.raster import rasterize_triangles
+# Every picture of the print reads it the way the design writes it: millimetres from the top-left
+# corner, x right, y down (print.png's rows, --defect, validation.json's positions). A film's own
+# pictures (the forming profile's panels) read the same from that film's top-left corner.
+PRINT_X_LABEL = "x (mm, from the {}'s left edge)"
+PRINT_Y_LABEL = "y (mm, down from the {}'s top edge)"
+# a picture of a photo or a view stays in its pixels, y down as every image
+PHOTO_X_LABEL = "x (px, from the {}'s left edge)"
+PHOTO_Y_LABEL = "y (px, down from the {}'s top edge)"
+
+
+def print_axes(ax, width_mm: float, height_mm: float, what: str = "print") -> None:
+    """Make ``ax`` a picture of the print: [0, width_mm] x [0, height_mm] mm, y down from the top edge.
+
+    Every figure over print coordinates goes through here, so that none draws y up: the limits
+    put y = 0 at the top, the aspect is true, both axes carry tick labels and say what they count.
+    Draw images with ``extent=print_extent(width_mm, height_mm)`` (row 0 at y = 0).
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    width_mm, height_mm : float
+        The rectangle shown, mm.
+    what : str
+        What the corner is the corner of, in the axis labels: "print" or "film".
+    """
+    ax.set_xlim(0.0, width_mm)
+    ax.set_ylim(height_mm, 0.0)
+    ax.set_aspect("equal")
+    ax.tick_params(axis="both", labelbottom=True, labelleft=True)
+    ax.set_xlabel(PRINT_X_LABEL.format(what))
+    ax.set_ylabel(PRINT_Y_LABEL.format(what))
+
+
+def print_extent(width_mm: float, height_mm: float) -> tuple[float, float, float, float]:
+    """imshow's extent for an image whose row 0 is the print's top edge (with ``origin="upper"``)."""
+    return (0.0, width_mm, height_mm, 0.0)
+
+
+def photo_axes(ax, width_px: int, height_px: int, what: str = "photo") -> None:
+    """Make ``ax`` a picture of an image in its own pixels, y down from its top edge, labelled so."""
+    ax.set_xlim(0, width_px)
+    ax.set_ylim(height_px, 0)
+    ax.set_aspect("equal")
+    ax.set_xlabel(PHOTO_X_LABEL.format(what))
+    ax.set_ylabel(PHOTO_Y_LABEL.format(what))
 
 
 def _figure():
@@ -65,6 +109,8 @@ def face_image(
     img : (h, w) float
         Values per pixel, NaN outside the mesh.
     """
+    from workbench.raster import rasterize_triangles
+
     px_per_mm = max_px / max(width_mm, height_mm)
     w = max(int(round(width_mm * px_per_mm)), 1)
     h = max(int(round(height_mm * px_per_mm)), 1)
@@ -77,12 +123,17 @@ def face_image(
 
 
 def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=None, labels=()) -> bytes:
-    """PNG of the film stretch over the flat print, with a colour bar and the corners.
+    """PNG of the film stretch over the flat print (:func:`stretch_plot`)."""
+    return figure_png(stretch_plot(uv, F, stretch, corners, width_mm, height_mm, title, limit, labels))
+
+
+def stretch_plot(uv, F, stretch, corners, width_mm, height_mm, title, limit=None, labels=()):
+    """The film stretch over the print, y down from its top-left corner, with a colour bar and the corners.
 
     Parameters
     ----------
     uv : (#V, 2) float
-        Flat positions, mm.
+        Flat positions, mm, y up (the flat layout's; drawn at print y = height_mm - y).
     F : (#F, 3) int
         Triangles.
     stretch : (#F,) float
@@ -95,11 +146,13 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
         Figure title.
     limit : float, optional
         The material's stretch limit, marked on the colour bar.
+    labels : list of (x_mm, y_mm, text)
+        Names written on the picture, print mm (x right, y down).
 
     Returns
     -------
-    bytes
-        PNG file content (reproducible for the same inputs and library versions).
+    matplotlib Figure
+        Its first axes is the print (:func:`print_axes`).
     """
     plt = _figure()
     img = face_image(uv, F, stretch, width_mm, height_mm)
@@ -112,13 +165,14 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
         hi = limit + 0.08 * (limit - lo)  # show how far the part stays below the limit
     im = ax.imshow(
         img,
-        extent=(0, width_mm, 0, height_mm),
+        extent=print_extent(width_mm, height_mm),
         origin="upper",
         cmap="viridis",
         vmin=lo,
         vmax=hi,
         interpolation="nearest",
     )
+    print_axes(ax, width_mm, height_mm)
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     bar.set_label("film stretch (3D length / print length)")
     if limit is not None:
@@ -136,25 +190,23 @@ def stretch_figure(uv, F, stretch, corners, width_mm, height_mm, title, limit=No
         )
     _label_films(ax, labels)
     for name, v in zip("ABCD"[: len(corners)], corners, strict=True):
-        x, y = uv[v]
+        x, y = uv[v][0], height_mm - uv[v][1]
         ax.plot([x], [y], "o", color="red", ms=6, clip_on=False)
         # labels point inwards so they stay clear of the colour bar and the title
-        right, top = x > 0.5 * width_mm, y > 0.5 * height_mm
+        right, bottom = x > 0.5 * width_mm, y > 0.5 * height_mm
         ax.annotate(
             f"{name} ({v})",
             (x, y),
             textcoords="offset points",
-            xytext=(-6 if right else 6, -6 if top else 6),
+            xytext=(-6 if right else 6, 6 if bottom else -6),
             ha="right" if right else "left",
-            va="top" if top else "bottom",
+            va="bottom" if bottom else "top",
             color="red",
             fontsize=10,
             fontweight="bold",
         )
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
     ax.set_title(title, fontsize=10)
-    return figure_png(fig)
+    return fig
 
 
 VIEW_COLOURS = [
@@ -182,7 +234,22 @@ def views_figure(
     film: np.ndarray | None = None,
     labels=(),
 ) -> bytes:
-    """PNG of which view owns each print pixel, with a legend.
+    """PNG of which view owns each print pixel, with a legend (:func:`views_plot`)."""
+    return figure_png(views_plot(owner, names, shares, width_mm, height_mm, title, max_px, film, labels))
+
+
+def views_plot(
+    owner: np.ndarray,
+    names: list[str],
+    shares: list[float],
+    width_mm: float,
+    height_mm: float,
+    title: str,
+    max_px: int = 1000,
+    film: np.ndarray | None = None,
+    labels=(),
+):
+    """Which view owns each print pixel, y down from the print's top-left corner, with a legend.
 
     Parameters
     ----------
@@ -202,12 +269,12 @@ def views_figure(
         Pixels inside the film's outline; the rest is drawn white, outside the
         shares. None: the whole rectangle is film.
     labels : list of (x_mm, y_mm, text)
-        Names written on the picture (the films of a design with several).
+        Names written on the picture (the films of a design with several), print mm (x right, y down).
 
     Returns
     -------
-    bytes
-        PNG.
+    matplotlib Figure
+        Its first axes is the print (:func:`print_axes`).
     """
     import cv2
     from matplotlib.patches import Patch
@@ -223,7 +290,8 @@ def views_figure(
         small_film = cv2.resize(film.astype(np.uint8), small.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
         img[~small_film] = 255
     fig, ax = plt.subplots(figsize=(8, max(8 * height_mm / width_mm, 3) + 1.2), dpi=110)
-    ax.imshow(img, extent=(0, width_mm, 0, height_mm), origin="upper", interpolation="nearest", aspect="equal")
+    ax.imshow(img, extent=print_extent(width_mm, height_mm), origin="upper", interpolation="nearest")
+    print_axes(ax, width_mm, height_mm)
     _label_films(ax, labels)
     handles = [
         Patch(color=palette[i] / 255, label=f"{n} ({100 * sh:.1f} %)")
@@ -232,8 +300,6 @@ def views_figure(
     unowned = float((owner < 0).mean() if film is None else (owner[film] < 0).mean())
     handles.append(Patch(color=(235 / 255,) * 3, label=f"no view, background ({100 * unowned:.1f} %)"))
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=min(len(handles), 3), fontsize=9)
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    return figure_png(fig)
+    return fig

@@ -173,13 +173,20 @@ def arrow_layout(magnitudes: np.ndarray, width: int) -> tuple[float, int]:
 
 
 def residual_picture(cal, title: str) -> bytes:
-    """Corner residuals over the image, coloured by size.
+    """PNG of the corner residuals over the image (:func:`residual_plot`)."""
+    from workbench.figures import figure_png
+
+    return figure_png(residual_plot(cal, title))
+
+
+def residual_plot(cal, title: str):
+    """Corner residuals over the image, in its pixels (y down), coloured by size; a matplotlib Figure.
 
     The arrows are magnified so that the 95th percentile residual is drawn at most 3 % of
     the image width long, and at most MAX_ARROWS of them are drawn (every k-th corner),
     so that thousands of corners stay readable (:func:`arrow_layout`).
     """
-    from workbench.figures import _figure, figure_png
+    from workbench.figures import _figure, photo_axes
 
     plt = _figure()
     W, H = cal.image_size
@@ -202,14 +209,19 @@ def residual_picture(cal, title: str) -> bytes:
     )
     shown = f"; 1 in {step} of {len(pts)} corners" if step > 1 else ""
     fig.colorbar(q, ax=ax, fraction=0.046, pad=0.04).set_label(f"residual (px); arrows x{gain:g}{shown}")
-    ax.set_xlim(0, W)
-    ax.set_ylim(H, 0)
-    ax.set_aspect("equal")
+    photo_axes(ax, W, H)
     ax.set_title(title, fontsize=9)
-    return figure_png(fig)
+    return fig
 
 
 def coverage_picture(views: list, coverage: dict, width: int, height: int, title: str) -> bytes:
+    """PNG of what of the frame and which tilts the photos cover (:func:`coverage_plot`)."""
+    from workbench.figures import figure_png
+
+    return figure_png(coverage_plot(views, coverage, width, height, title))
+
+
+def coverage_plot(views: list, coverage: dict, width: int, height: int, title: str):
     """What of the frame and which tilts the photos cover, and what the next photos should add.
 
     Left: the frame with :data:`~workbench.calibration.COVERAGE_GRID`'s cells shaded by how many
@@ -221,7 +233,7 @@ def coverage_picture(views: list, coverage: dict, width: int, height: int, title
     from matplotlib.patches import Rectangle
 
     from workbench.calibration_coverage import TILT_ADVISED_DEG
-    from workbench.figures import _figure, figure_png
+    from workbench.figures import _figure, photo_axes
 
     plt = _figure()
     cells = np.asarray(coverage["cells"])
@@ -247,11 +259,7 @@ def coverage_picture(views: list, coverage: dict, width: int, height: int, title
     for name in coverage["missing"]:
         x, y = spots[name]
         ax.text(x * width, y * height, "none here", color="red", ha="center", va="center", fontsize=8)
-    ax.set_xlim(0, width)
-    ax.set_ylim(height, 0)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (px)")
-    ax.set_ylabel("y (px, down)")
+    photo_axes(ax, width, height)
     ax.set_title(f"corners over the frame: {100 * coverage['share']:.0f} % of its {cols} x {rows} cells", fontsize=9)
     ty, tx = np.asarray(coverage["tilt_y_deg"]), np.asarray(coverage["tilt_x_deg"])
     lo, hi = TILT_ADVISED_DEG, 45.0
@@ -269,7 +277,7 @@ def coverage_picture(views: list, coverage: dict, width: int, height: int, title
     advice = coverage["next"]
     fig.suptitle(title + ("\nnext: " + "; ".join(advice) if advice else "\nframe and tilts covered"), fontsize=9)
     fig.tight_layout()
-    return figure_png(fig)
+    return fig
 
 
 def coverage_path(out: Path) -> Path:

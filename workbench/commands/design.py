@@ -241,7 +241,8 @@ def run(args) -> int:
         pts = flat.uv[np.unique(result.F[lo:hi])]
         # the film's point nearest its centroid: on the film even for a ring
         c = pts[np.argmin(np.linalg.norm(pts - pts.mean(axis=0), axis=1))]
-        labels.append((float(c[0]), float(c[1]), f"{k + 1}" if len(result.films) > 9 else f.name))
+        # (the flat layout counts y up; the pictures, as the print, down from its top edge)
+        labels.append((float(c[0]), float(flat.height_mm - c[1]), f"{k + 1}" if len(result.films) > 9 else f.name))
     files = {
         # outside a free outline there is no film: transparent, in the background colour
         out / "print.png": png_bytes(print_with_alpha(result.rgb, result.film), grid.dpi),

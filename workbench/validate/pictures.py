@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from workbench.figures import PRINT_X_LABEL, PRINT_Y_LABEL
 from workbench.text import ascii_text
 from workbench.validate import print_warp
 
@@ -39,7 +40,24 @@ def outlines(labels: np.ndarray) -> list[np.ndarray]:
 
 
 def defects_on_print(warped: np.ndarray, labels: np.ndarray, defects: list, px_per_mm: float) -> np.ndarray:
-    """The photo on the print with each defect outlined and numbered; (rows, cols, 3) uint8 RGB."""
+    """The photo on the print with each defect outlined and numbered, with the print's axes; RGB uint8.
+
+    Parameters
+    ----------
+    warped : (rows, cols, 3) uint8
+        The photo on the print grid.
+    labels : (rows, cols) int
+        Defect number + 1 per grid pixel.
+    defects : list
+        The defects (their order numbers them).
+    px_per_mm : float
+        Grid resolution.
+
+    Returns
+    -------
+    (H, W, 3) uint8
+        The print with its x and y axes in mm (:func:`print_axes_image`).
+    """
     img = cv2.cvtColor(warped, cv2.COLOR_RGB2BGR)
     thick = max(1, int(round(px_per_mm * 0.2)))
     for k, c in enumerate(outlines(labels)):
@@ -47,7 +65,8 @@ def defects_on_print(warped: np.ndarray, labels: np.ndarray, defects: list, px_p
             cv2.polylines(img, [c.reshape(-1, 1, 2)], True, DEFECT_BGR, thick, cv2.LINE_AA)
             x, y = c.max(axis=0)
             cv2.putText(img, str(k + 1), (int(x) + 3, int(y)), cv2.FONT_HERSHEY_SIMPLEX, 0.6, DEFECT_BGR, 2)
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return print_axes_image(img, px_per_mm, _unit(img.shape[1]))
 
 
 def coverage_image(state: np.ndarray) -> np.ndarray:
@@ -119,7 +138,7 @@ def coverage_figure(state: np.ndarray, px_per_mm: float, title: str, defects: li
         cv2.circle(img, (x, y), int(11 * u), (220, 30, 30), max(2, int(2 * u)), cv2.LINE_AA)
         (tw, th), _ = _text_size(str(k + 1), _FONT, 0.45 * u, _weight(u))
         _text(img, str(k + 1), (x - tw // 2, y + th // 2), 0.45 * u, (0, 0, 0), _weight(u))
-    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
+    img = print_axes_image(img, px_per_mm, u)
     on = state != print_warp.OFF_PART
     n_on = max(int(on.sum()), 1)
     entries = []
@@ -174,7 +193,7 @@ def uncovered_figure(reference: np.ndarray, uncovered: dict, regions: list, px_p
     for k, r in enumerate(regions):
         x, y = (int(round(v * px_per_mm)) for v in r["centre_mm"])
         _text(img, str(k + 1), (x, y), 0.5 * u, (0, 0, 0), _weight(u), outline=True)
-    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
+    img = print_axes_image(img, px_per_mm, u)
     words = [
         (UNCOVERED_COLOURS["slide"], "a slide of the film is not found here"),
         (UNCOVERED_COLOURS["ink"], "ink gone or a scratch is not found here"),
@@ -230,7 +249,7 @@ def dense_heatmap(
             x = min(int(c[:, 0].max()) + 3, img.shape[1] - tw - 2)
             y = max(int(c[:, 1].min()), th + 2)
             _text(img, str(k + 1), (x, y), 0.6 * u, CYAN, 2 * _weight(u), outline=True)
-    img = _with_axes(img, px_per_mm, "print x (mm)", "print y (mm)", u)
+    img = print_axes_image(img, px_per_mm, u)
     bar = _colour_bar(img.shape[0], vmax, "misregistration on the surface (mm)", lut, u)
     return _titled(np.concatenate([img, bar], axis=1), title, u)
 
@@ -246,7 +265,7 @@ def colour_difference(reference: np.ndarray, de_map: np.ndarray, px_per_mm: floa
         ΔE00 per grid pixel, NaN where not compared (an even subsample of the compared
         pixels: each also shows in its 3 x 3 neighbours that were not compared).
     px_per_mm : float
-        Grid resolution: a tick every 10 mm along the top and left edges.
+        Grid resolution: the axes' ticks every 10 mm (:func:`print_axes_image`).
     vmax : float
         Top of the scale ('inferno': black 0 to yellow ``vmax``; twice the tolerance puts it mid-scale).
 
@@ -261,13 +280,11 @@ def colour_difference(reference: np.ndarray, de_map: np.ndarray, px_per_mm: floa
     on = shown >= 0
     img[on] = lut[np.clip(shown[on] / vmax * 255, 0, 255).astype(np.uint8)]
     rows, cols = de_map.shape
-    for k in range(0, int(max(rows, cols) / px_per_mm) + 1, 10):
-        t = int(round(k * px_per_mm))
-        img[:6, t : t + 2] = 0
-        img[t : t + 2, :6] = 0
-    # the scale: a bar beside the map, its ends and middle labelled in ΔE00
+    img = print_axes_image(img, px_per_mm, _unit(cols))
+    # the scale: a bar beside the map (as tall as the map, the axes below it), its ends and middle
+    # labelled in ΔE00
     bar_w = max(60, cols // 12)
-    bar = np.full((rows, bar_w, 3), 255, np.uint8)
+    bar = np.full((img.shape[0], bar_w, 3), 255, np.uint8)
     top, bottom = rows // 10, rows - rows // 10
     ramp = np.linspace(255, 0, bottom - top).astype(np.uint8)
     bar[top:bottom, 8 : bar_w // 3] = lut[ramp][:, None, :]
@@ -402,8 +419,13 @@ def _text(img, text: str, org, scale: float, colour=(0, 0, 0), thickness: int = 
 
 
 def _vertical_text(text: str, scale: float, height: int, thickness: int = 1) -> np.ndarray:
-    """A white strip with ``text`` written upwards, centred on ``height`` rows; (height, w, 3) uint8."""
+    """A white strip with ``text`` written upwards, centred on ``height`` rows; (height, w, 3) uint8.
+
+    Text longer than the strip is written smaller (a small map's y caption would lose its ends)."""
     (tw, th), base = _text_size(text, _FONT, scale, thickness)
+    if tw > height - 8:
+        scale *= max(height - 8, 1) / tw
+        (tw, th), base = _text_size(text, _FONT, scale, thickness)
     strip = np.full((th + base + 8, max(tw + 8, height), 3), 255, np.uint8)
     _text(strip, text, ((strip.shape[1] - tw) // 2, th + 4), scale, thickness=thickness)
     strip = np.rot90(strip)  # reads from the bottom up
@@ -425,6 +447,32 @@ def _colour_bar(height: int, vmax: float, label: str, lut: np.ndarray, u: float 
     return np.concatenate([bar, _vertical_text(label, 0.5 * u, height, _weight(u))], axis=1)
 
 
+def print_axes_image(img: np.ndarray, px_per_mm: float, u: float = 1.0, what: str = "print") -> np.ndarray:
+    """A picture of the print with its axes: mm from its top-left corner, x right, y down.
+
+    Every OpenCV picture over print coordinates goes through here (as matplotlib's through
+    :func:`workbench.figures.print_axes`): row 0 of ``img`` is the print's top edge, so y counts
+    down; a tick every 10 mm along the left and bottom edges, each labelled, and the captions.
+
+    Parameters
+    ----------
+    img : (rows, cols, 3) uint8
+        The print on a grid of ``px_per_mm`` pixels per mm, pixel (0, 0) at its top-left corner.
+    px_per_mm : float
+        Grid resolution.
+    u : float
+        Type size (:func:`_unit`).
+    what : str
+        What the corner is the corner of, in the captions ("print" or "film").
+
+    Returns
+    -------
+    (rows + below, cols + left, 3) uint8
+        ``img`` at the top right, the y axis at its left, the x axis below.
+    """
+    return _with_axes(img, px_per_mm, PRINT_X_LABEL.format(what), PRINT_Y_LABEL.format(what), u)
+
+
 def _with_axes(img: np.ndarray, px_per_mm: float, xlabel: str, ylabel: str, u: float = 1.0) -> np.ndarray:
     """The image with a tick every 10 mm along its left and bottom edges, labelled, and the axes' captions."""
     rows, cols = img.shape[:2]
@@ -435,7 +483,8 @@ def _with_axes(img: np.ndarray, px_per_mm: float, xlabel: str, ylabel: str, u: f
         x = left + int(round(k * px_per_mm))
         out[rows : rows + int(6 * u), x : x + 2 * t] = 0
         (tw, th), _ = _text_size(str(k), _FONT, 0.45 * u, t)
-        _text(out, str(k), (x - tw // 2, rows + int(8 * u) + th), 0.45 * u, thickness=t)
+        # (centred on its tick, the last kept inside the picture)
+        _text(out, str(k), (min(x - tw // 2, out.shape[1] - tw - 1), rows + int(8 * u) + th), 0.45 * u, thickness=t)
     for k in range(0, int(rows / px_per_mm) + 1, 10):
         y = int(round(k * px_per_mm))
         out[y : y + 2 * t, left - int(6 * u) : left] = 0
@@ -484,7 +533,7 @@ def detectable_print(
     dropout, scratch : (rows, cols) bool
         Where ink that is gone is found, and a scratch.
     px_per_mm : float
-        Grid resolution: a tick every 10 mm along the top and left edges.
+        Grid resolution: the axes' ticks every 10 mm (:func:`print_axes_image`).
     tolerance_mm : float
         The bottom of the scale.
     """
@@ -505,13 +554,9 @@ def detectable_print(
         right[thin] = (0.5 * right[thin] + 0.5 * np.array([170, 230, 170])).astype(np.uint8)
     right[drop] = (0.4 * right[drop] + 0.6 * np.array([30, 170, 60])).astype(np.uint8)
     rows, cols = lim.shape
-    for img in (left, right):
-        for k in range(0, int(max(rows, cols) / ppm) + 1, 10):
-            t = int(round(k * ppm))
-            img[:6, t : t + 2] = 0
-            img[t : t + 2, :6] = 0
+    left, right = (print_axes_image(img, ppm, _unit(cols)) for img in (left, right))
     bar_w = max(70, cols // 10)
-    bar = np.full((rows, bar_w, 3), 255, np.uint8)
+    bar = np.full((left.shape[0], bar_w, 3), 255, np.uint8)
     top, bottom = rows // 10, rows - rows // 10
     bar[top:bottom, 8 : bar_w // 3] = lut[np.linspace(255, 0, bottom - top).astype(np.uint8)][:, None, :]
     scale = max(0.4, rows / 1500)
@@ -519,7 +564,7 @@ def detectable_print(
     for v, y in ((vmax, top), ((vmax + tolerance_mm) / 2, (top + bottom) // 2), (tolerance_mm, bottom)):
         cv2.putText(bar, f"{v:.2g}", (bar_w // 3 + 4, y + 5), font, scale, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(bar, "mm", (4, top - 30), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
-    right = np.concatenate([right, np.full((rows, bar_w, 3), 255, np.uint8)], axis=1)
+    right = np.concatenate([right, np.full((right.shape[0], bar_w, 3), 255, np.uint8)], axis=1)
     panels = []
     for text, img in (("smallest slide of the film found", np.concatenate([left, bar], axis=1)),
                       ("ink gone found (green; a scratch only: pale green)", right)):  # fmt: skip

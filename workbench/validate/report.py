@@ -174,7 +174,7 @@ def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) 
     y -= 5 * mm
     if defects:
         cols = [20, 28, 46, 86, 108, 128, 150]
-        heads = ["#", "kind", "position on the print (mm)", "area mm²", "view", "over limit", "photos"]
+        heads = ["#", "kind", "print x, y (mm, y down)", "area mm²", "view", "over limit", "photos"]
         draw_row(c, cols, heads, y)
         c.setFont("Helvetica", 8)
         for k, d in enumerate(defects[:12]):

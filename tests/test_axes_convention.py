@@ -111,11 +111,7 @@ def test_stretch_figure_reads_y_down():
     assert_mark_where_drawn(fig, ax, (253, 231, 37))  # viridis at the top of its scale
     # corner A, the flat layout's origin, is the print's bottom-left corner
     a = next(t for t in ax.texts if t.get_text().startswith("A"))
-    assert t_xy(a) == pytest.approx((0.0, H_MM))
-
-
-def t_xy(annotation) -> tuple[float, float]:
-    return tuple(float(v) for v in annotation.xy)
+    assert tuple(a.xy) == pytest.approx((0.0, H_MM))
 
 
 def test_views_figure_reads_y_down():
@@ -128,11 +124,7 @@ def test_views_figure_reads_y_down():
     assert_reads_y_down(fig, ax, W_MM, H_MM, PRINT_X_LABEL.format("print"), PRINT_Y_LABEL.format("print"))
     assert_mark_where_drawn(fig, ax, VIEW_COLOURS[0])
     # a film's name is written where its print mm put it
-    assert [t_xy_text(t) for t in ax.texts] == [(60.0, 40.0)]
-
-
-def t_xy_text(text) -> tuple[float, float]:
-    return tuple(float(v) for v in text.get_position())
+    assert [tuple(t.get_position()) for t in ax.texts] == [(60.0, 40.0)]
 
 
 def test_forming_profile_reads_y_down():

@@ -222,7 +222,7 @@ def coverage_picture(views: list, coverage: dict, width: int, height: int, title
 
 
 def coverage_plot(views: list, coverage: dict, width: int, height: int, title: str):
-    """What of the frame and which tilts the photos cover, and what the next photos should add.
+    """What of the frame and which tilts the photos cover, and what the next photos should add; a Figure.
 
     Left: the frame with :data:`~workbench.calibration.COVERAGE_GRID`'s cells shaded by how many
     corners fall in them (red where none), every corner a dot; the frame's corners and borders

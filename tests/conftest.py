@@ -73,3 +73,19 @@ def cylinder_patch(n: int, seed: int = 0, radius=40.0, angle=2.0, height=60.0):
     th = s / radius
     V = np.stack([radius * np.sin(th), h, radius * np.cos(th)], 1)
     return V, F, np.stack([s, h], 1)
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def store(request, tmp_path):
+    """A new, empty results store: a SQLite file, then a database of a real PostgreSQL server (tests/postgres.py)."""
+    from postgres import make_store
+
+    yield from make_store(request.param, tmp_path)
+
+
+@pytest.fixture(scope="module", params=["sqlite", "postgresql"])
+def module_store(request, tmp_path_factory):
+    """:func:`store` shared by a module's tests."""
+    from postgres import make_store
+
+    yield from make_store(request.param, tmp_path_factory.mktemp("store"))

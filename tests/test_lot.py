@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -126,28 +127,23 @@ def test_a_part_counts_once_by_its_first_conclusive_record():
     assert [(p.part_id, p.verdict, p.record_id) for p in parts] == [("a", "FAIL", 2), ("b", "PASS", 4)]
 
 
-def fake_record(url, part_id, lot, verdict):
-    report = {"software": {"version": "t"}, "design": {"job": None}, "part": {"verdict": verdict}, "photos": []}
+def fake_record(url, part_id, lot, verdict, job=None):
+    """One part's record: a validation.json reduced to its verdict (and the design's job, if given)."""
+    report = {"software": {"version": "t"}, "design": {"job": job}, "part": {"verdict": verdict}, "photos": []}
     rec = Recorder(url=url, part_id=part_id, lot=lot, station="s", operator="o")
-    rows = validation_rows(json.dumps(report), url_folder(url), [], rec, "2023-11-14T22:13:20Z")
+    rows = validation_rows(json.dumps(report), Path("/parts") / part_id, [], rec, "2023-11-14T22:13:20Z")
     return record_validation(rows, url)
 
 
-def url_folder(url):
-    from pathlib import Path
-
-    return Path(url.database).parent
-
-
-def test_lot_command(tmp_path, capsys):
-    url = store_url(str(tmp_path / "s.db"))
+def test_lot_command(store, tmp_path, capsys):
+    url = store_url(store.text)
     for k in range(4):
         fake_record(url, f"p{k}", "L", "PASS")
     fake_record(url, "bad", "L", "FAIL")
     fake_record(url, "dark", "L", "INVALID")
     fake_record(url, "other", "M", "FAIL")
     report = tmp_path / "lot.html"
-    args = ["lot", "L", "--aql", "6.5", "--lot-size", "20", "--store", str(tmp_path / "s.db"), "--json"]
+    args = ["lot", "L", "--aql", "6.5", "--lot-size", "20", "--store", store.text, "--json"]
     assert main([*args, "--report", str(report)]) == 0
     d = json.loads(capsys.readouterr().out)
     # 20 items at level II: C, n 5; C at 6.5 is a down arrow: D, n 8, Ac 1, Re 2
@@ -191,9 +187,21 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, extra, says,
     assert sorted(tmp_path.iterdir()) == before
 
 
-def test_an_unknown_lot_is_one_line(tmp_path, capsys):
-    url = store_url(str(tmp_path / "s.db"))
+def test_an_unknown_lot_is_one_line(store, tmp_path, capsys):
+    url = store_url(store.text)
     fake_record(url, "p", "L", "PASS")
-    assert main(["lot", "NOPE", "--aql", "1.0", "--store", str(tmp_path / "s.db")]) == 1
+    report = tmp_path / "r.html"
+    assert main(["lot", "NOPE", "--aql", "1.0", "--store", store.text, "--report", str(report)]) == 1
     err = capsys.readouterr().err
     assert "lot NOPE: no part of it is recorded" in err and len(err.strip().splitlines()) == 1
+    assert not report.exists()
+
+
+def test_an_aql_the_standard_does_not_list_is_one_line(store, tmp_path, capsys):
+    url = store_url(store.text)
+    fake_record(url, "p", "L", "PASS")
+    report = tmp_path / "r.html"
+    assert main(["lot", "L", "--aql", "0.5", "--store", store.text, "--report", str(report)]) == 2
+    err = capsys.readouterr().err
+    assert "--aql 0.5: not an AQL of ISO 2859-1" in err and len(err.strip().splitlines()) == 1
+    assert not report.exists()

@@ -11,6 +11,13 @@ from workbench.errors import UsageError, WorkbenchError
 ENVIRONMENT = "WORKBENCH_STORE"
 # SQLite: how long a writer waits for another's transaction before giving up (two stations at once)
 BUSY_TIMEOUT_S = 60.0
+# PostgreSQL: how long a connection may take before the server counts as unreachable (a host that
+# drops packets would otherwise hold the command for minutes; one that refuses fails at once)
+CONNECT_TIMEOUT_S = 10
+# PostgreSQL: the transaction-scoped advisory lock that serialises schema migrations (any number)
+MIGRATION_LOCK = 0x5742_5354  # "WBST"
+# the driver a URL without one gets: psycopg 3 (a dependency), not SQLAlchemy's default psycopg2
+POSTGRES_DRIVER = "postgresql+psycopg"
 
 
 def store_text(given: str | None, environ=os.environ) -> str | None:
@@ -31,6 +38,8 @@ def store_url(text: str, option: str = "--store"):
         return make_url("sqlite://").set(database=str(Path(text).expanduser().absolute()))
     try:
         url = make_url(text)
+        if url.drivername in ("postgresql", "postgres"):
+            url = url.set(drivername=POSTGRES_DRIVER)
         url.get_dialect()
     except NoSuchModuleError:  # (an ArgumentError: first)
         raise UsageError(f"{option} {text}: no database driver for {text.split(':', 1)[0]!r}") from None
@@ -80,8 +89,9 @@ def engine_for(url, *, create: bool, option: str = "--store"):
             conn.exec_driver_sql("BEGIN IMMEDIATE")
 
         return engine
+    connect_args = {"connect_timeout": CONNECT_TIMEOUT_S} if url.get_backend_name() == "postgresql" else {}
     try:
-        return create_engine(url, poolclass=NullPool)
+        return create_engine(url, poolclass=NullPool, connect_args=connect_args)
     except ImportError as exc:  # the dialect's driver (psycopg, ...) is not installed
         raise WorkbenchError(
             f"{option} {shown(url)}: its database driver is not installed ({exc.name or exc})"
@@ -95,6 +105,7 @@ def transaction(engine, url, *, migrate: bool, option: str = "--store"):
     Everything in the block is committed together or not at all. A store whose schema is newer
     than this workbench's, or that cannot be reached, is one line.
     """
+    from sqlalchemy import text
     from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 
     from workbench.store.schema import LATEST, stored_version
@@ -108,6 +119,10 @@ def transaction(engine, url, *, migrate: bool, option: str = "--store"):
                     f"{option} {shown(url)}: a store of schema version {version}, newer than this workbench's "
                     f"({LATEST}); update the workbench"
                 )
+            if migrate and version < LATEST and conn.dialect.name == "postgresql":
+                # two first records at once would both create the tables: the second waits for the
+                # first's commit here, then finds them (each statement sees what is committed)
+                conn.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": MIGRATION_LOCK})
             if migrate:
                 apply_steps(conn)
             elif version < LATEST:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from workbench.errors import UsageError, WorkbenchError
@@ -16,11 +17,13 @@ def add_parser(sub) -> None:
         "lot",
         help="accept or reject a lot by ISO 2859-1 (AQL sampling) from the parts validated into the store",
         description=(
-            "The single sampling plan of ISO 2859-1 (normal inspection) for the lot's size, the inspection "
-            "level and the AQL: its sample size code letter, sample size, acceptance and rejection numbers; "
-            "the parts the store has for the lot against it (a FAIL is nonconforming; INVALID and "
-            "INCOMPLETE parts are not inspected, never conforming); and the decision: accept, reject, or "
-            "how many more parts to inspect."
+            "The single sampling plan of ISO 2859-1 for the lot's size, the inspection level and the AQL: its "
+            "sample size code letter, sample size, acceptance and rejection numbers; the parts the store has "
+            "for the lot against it (a FAIL is nonconforming; INVALID and INCOMPLETE parts are not inspected, "
+            "never conforming); and the decision: accept, reject, or how many more parts to inspect. The "
+            "inspection (normal, tightened, reduced, or discontinued) follows the standard's switching rules "
+            "over the lots recorded before it for the same design, each decided with the same level and AQL "
+            "(and --lot-size, when given)."
         ),
     )
     p.add_argument("lot", metavar="LOT")
@@ -34,6 +37,12 @@ def add_parser(sub) -> None:
         integer=True,
         help="items in the lot (default: the parts the store has for it)",
     )
+    p.add_argument(
+        "--allow-reduced",
+        action="store_true",
+        help="production is steady and reduced inspection is approved: a switching score of 30 switches to "
+        "reduced inspection (ISO 2859-1 9.3.3; without it, normal inspection continues)",
+    )
     p.add_argument("--store", metavar="URL", help="the store (default: $WORKBENCH_STORE)")
     p.add_argument("--json", action="store_true", help="print the plan and the decision as JSON")
     p.add_argument("--report", metavar="FILE.html", help="write the lot report: every part, its verdict and evidence")
@@ -46,7 +55,7 @@ def run(args) -> int:
     from workbench.lots.plan import aql_text, code_letter, sampling_plan
     from workbench.lots.report import lot_report_html
     from workbench.store.database import engine_for, shown, store_text, store_url, transaction
-    from workbench.store.export import validation_records
+    from workbench.store.export import lot_records
 
     aql = aql_text(args.aql)  # (before the store: a bad option is the command line's fault)
     if args.lot_size is not None:
@@ -62,25 +71,35 @@ def run(args) -> int:
     engine = engine_for(url, create=False, option=option)
     try:
         with transaction(engine, url, migrate=False, option=option) as conn:
-            records = validation_records(conn, args.lot)
+            everything = lot_records(conn)
     finally:
         engine.dispose()
+    by_lot: dict[str, list[dict]] = {}
+    for r in everything:  # (in recording order: each lot where its first record is)
+        by_lot.setdefault(r["lot"], []).append(r)
+    records = by_lot.get(args.lot)
     if not records:
         raise WorkbenchError(f"lot {args.lot}: no part of it is recorded in {shown(url)}")
     parts = lot_parts(records)
     lot_size = args.lot_size if args.lot_size is not None else max(len(parts), 2)
     if lot_size < len(parts):
         raise WorkbenchError(f"--lot-size {lot_size}: the store has {len(parts)} parts of lot {args.lot}")
-    decision = lot_decision(sampling_plan(lot_size, args.level, aql), parts)
+    switching = lot_switching(args, aql, by_lot)
+    inspection = "tightened" if switching.inspection == "discontinued" else switching.inspection
+    decision = lot_decision(sampling_plan(lot_size, args.level, aql, inspection), parts)
+    if switching.inspection == "discontinued":
+        decision = replace(decision, decision="discontinued (ISO 2859-1 9.4: no lot is accepted by sampling)")
     if report is not None:
-        write_files({report: lot_report_html(args.lot, decision, parts, shown(url))})
-    d = decision_dict(args.lot, decision)
+        write_files({report: lot_report_html(args.lot, decision, parts, shown(url), switching)})
+    d = decision_dict(args.lot, decision, switching)
     if args.json:
         print(json.dumps(d, indent=1))
     else:
         size = "" if args.lot_size is not None else f" (the {len(parts)} part(s) recorded, at least 2; give --lot-size)"
         print(
-            f"lot {args.lot}: {d['decision']}: {lot_size} items{size}, level {d['level']}, AQL {d['aql']}: "
+            f"lot {args.lot}: {d['decision']}: {d['inspection']} inspection ({switching.rule}"
+            + (f": lots {', '.join(switching.lots)}" if switching.lots else "")
+            + f"); {lot_size} items{size}, level {d['level']}, AQL {d['aql']}: "
             f"code letter {d['code_letter']}, sample {d['sample_size']}"
             + (" (100 %)" if d["hundred_percent"] else "")
             + f", accept {d['accept']}, reject {d['reject']}; inspected {d['inspected']}, nonconforming "
@@ -89,3 +108,28 @@ def run(args) -> int:
     if report is not None:
         print(f"wrote {report}", file=sys.stderr)
     return 0
+
+
+def lot_switching(args, aql: str, by_lot: dict[str, list[dict]]):
+    """The lot's inspection by the switching rules over the lots recorded before it for the same design.
+
+    A lot's design is its first record's design (``design.json``'s hash); the earlier lots are the
+    lots of that design whose first record precedes the lot's, in that order. Each is decided with
+    this command's level and AQL, and lot size (``--lot-size``, or its own parts, at least 2).
+    """
+    from workbench.lots.decision import lot_parts
+    from workbench.lots.plan import sampling_plan
+    from workbench.lots.switching import series_inspection
+
+    first = by_lot[args.lot][0]
+    earlier = [
+        (name, lot_parts(rs))
+        for name, rs in by_lot.items()
+        if rs[0]["id"] < first["id"] and rs[0]["design_json_sha256"] == first["design_json_sha256"]
+    ]
+
+    def plan_for(parts, inspection):
+        size = max(args.lot_size or 0, len(parts), 2)
+        return sampling_plan(size, args.level, aql, inspection)
+
+    return series_inspection(earlier, plan_for, args.allow_reduced)

@@ -81,15 +81,23 @@ def lot_decision(plan: SamplingPlan, parts: list[LotPart]) -> LotDecision:
     )
 
 
-def decision_dict(lot: str, d: LotDecision) -> dict:
-    """What ``workbench lot --json`` prints: the plan and the decision."""
+def decision_dict(lot: str, d: LotDecision, switching=None) -> dict:
+    """What ``workbench lot --json`` prints: the plan and the decision.
+
+    ``switching``: the :class:`~workbench.lots.switching.Switching` the lot was inspected under
+    (``inspection`` is its inspection, ``switching`` its rule and lots); None: normal, no series.
+    """
+    from workbench.lots.switching import START, switching_dict
+
     p = d.plan
+    switching = START if switching is None else switching
     return {
         "lot": lot,
         "lot_size": p.lot_size,
         "level": p.level,
         "aql": p.aql,
-        "inspection": "normal",
+        "inspection": switching.inspection,
+        "switching": switching_dict(switching),
         "code_letter": p.code_letter,
         "plan_letter": p.plan_letter,
         "sample_size": p.sample_size,

@@ -5,18 +5,36 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from workbench.errors import UsageError
-from workbench.lots.tables import AQLS, CODE_LETTERS, LEVELS, NORMAL, SAMPLE_SIZES
+from workbench.lots.tables import (
+    AQLS,
+    CODE_LETTERS,
+    LEVELS,
+    NORMAL,
+    REDUCED,
+    REDUCED_SAMPLE_SIZES,
+    SAMPLE_SIZES,
+    TIGHTENED,
+    TIGHTENED_SAMPLE_SIZES,
+)
 
 LETTERS = tuple(SAMPLE_SIZES)
+# each inspection's master table (Tables 2-A, 2-B, 2-C) and its sample size per code letter
+INSPECTIONS = ("normal", "tightened", "reduced")
+MASTER_TABLES = {
+    "normal": (NORMAL, SAMPLE_SIZES),
+    "tightened": (TIGHTENED, TIGHTENED_SAMPLE_SIZES),
+    "reduced": (REDUCED, REDUCED_SAMPLE_SIZES),
+}
 
 
 @dataclass(frozen=True)
 class SamplingPlan:
-    """A single sampling plan (normal inspection).
+    """A single sampling plan under ``inspection`` (normal, tightened or reduced).
 
-    ``code_letter`` is Table 1's letter for the lot; ``plan_letter`` the row of Table 2-A the
-    arrows lead to, whose sample size the plan takes. ``sample_size`` is at most the lot size
-    (a sample as large as the lot is 100 % inspection, ``hundred_percent``).
+    ``code_letter`` is Table 1's letter for the lot; ``plan_letter`` the row of the inspection's
+    master table (2-A, 2-B or 2-C) the arrows lead to, whose sample size the plan takes.
+    ``sample_size`` is at most the lot size (a sample as large as the lot is 100 % inspection,
+    ``hundred_percent``).
     """
 
     lot_size: int
@@ -28,6 +46,7 @@ class SamplingPlan:
     accept: int
     reject: int
     hundred_percent: bool
+    inspection: str = "normal"
 
 
 def aql_text(value: str) -> str:
@@ -54,8 +73,8 @@ def code_letter(lot_size: int, level: str) -> str:
     raise AssertionError("Table 1's last row has no bound")
 
 
-def sampling_plan(lot_size: int, level: str, aql: str) -> SamplingPlan:
-    """The single sampling plan for normal inspection (ISO 2859-1, Tables 1 and 2-A).
+def sampling_plan(lot_size: int, level: str, aql: str, inspection: str = "normal") -> SamplingPlan:
+    """The single sampling plan (ISO 2859-1, Table 1 and Table 2-A, 2-B or 2-C).
 
     Parameters
     ----------
@@ -65,18 +84,22 @@ def sampling_plan(lot_size: int, level: str, aql: str) -> SamplingPlan:
         Inspection level: S-1 to S-4, I, II or III.
     aql : str
         An AQL of Table 2-A (see :func:`aql_text`).
+    inspection : str
+        ``normal``, ``tightened`` or ``reduced`` (see :mod:`workbench.lots.switching`).
 
     Returns
     -------
     SamplingPlan
-        The arrows of Table 2-A followed to the first plan below (``v``) or above (``^``); the
-        one up arrow with no plan above it (code letter A, AQL 10) is read as A's 0/1.
+        The arrows of the master table followed to the first plan below (``v``) or above (``^``);
+        the one up arrow with no plan above it (code letter A, AQL 10, normal) is read as A's 0/1.
     """
     aql = aql_text(aql)
     letter = code_letter(lot_size, level)
+    table, sizes = MASTER_TABLES[inspection]
+    letters = tuple(table)
     column = AQLS.index(aql)
-    row = LETTERS.index(letter)
-    cell = NORMAL[letter].split(" | ")[column]
+    row = letters.index(letter)
+    cell = table[letter].split(" | ")[column]
     while cell in ("v", "^"):
         if cell == "^" and row == 0:
             # the first row's up arrow (A at AQL 10) has no plan above it: our reading takes the
@@ -84,17 +107,20 @@ def sampling_plan(lot_size: int, level: str, aql: str) -> SamplingPlan:
             column -= 1
         else:
             row += 1 if cell == "v" else -1
-        cell = NORMAL[LETTERS[row]].split(" | ")[column]
+        cell = table[letters[row]].split(" | ")[column]
+    if cell == "-":
+        raise AssertionError(f"{inspection} {letter} {aql}: an arrow to a cell without a plan")
     accept, reject = map(int, cell.split())
-    n = SAMPLE_SIZES[LETTERS[row]]
+    n = sizes[letters[row]]
     return SamplingPlan(
         lot_size=lot_size,
         level=level,
         aql=aql,
         code_letter=letter,
-        plan_letter=LETTERS[row],
+        plan_letter=letters[row],
         sample_size=min(n, lot_size),
         accept=accept,
         reject=reject,
         hundred_percent=n >= lot_size,
+        inspection=inspection,
     )

@@ -22,6 +22,17 @@ def validation_records(conn, lot: str | None = None) -> list[dict]:
     return [dict(r._mapping) for r in conn.execute(query)]
 
 
+# what the lots and their switching rules read of a record (not its validation.json: a store of
+# 100,000 parts would otherwise be read whole for each lot)
+LOT_COLUMNS = ("id", "part_id", "lot", "verdict", "reason", "recorded_at", "out_dir", "design_json_sha256")
+
+
+def lot_records(conn) -> list[dict]:
+    """Every validation recorded in a lot, in recording order, with the columns of :data:`LOT_COLUMNS`."""
+    query = select(*(validations.c[k] for k in LOT_COLUMNS)).where(validations.c.lot.is_not(None))
+    return [dict(r._mapping) for r in conn.execute(query.order_by(validations.c.id))]
+
+
 def full_records(conn, lot: str | None = None) -> list[dict]:
     """Validations with their photos, defects and files, and ``validation`` the parsed validation.json."""
     out = []

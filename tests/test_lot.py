@@ -205,3 +205,33 @@ def test_an_aql_the_standard_does_not_list_is_one_line(store, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--aql 0.5: not an AQL of ISO 2859-1" in err and len(err.strip().splitlines()) == 1
     assert not report.exists()
+
+
+def test_lot_report_pdf_lists_every_part_with_its_evidence(tmp_path, capsys):
+    from pypdf import PdfReader
+
+    url = store_url(str(tmp_path / "s.db"))
+    ids = [f"part-{k:03d}" for k in range(90)]
+    for k, pid in enumerate(ids):
+        fake_record(url, pid, "L", "FAIL" if k == 7 else "INVALID" if k == 8 else "PASS")
+    args = ["lot", "L", "--aql", "1.0", "--lot-size", "1200", "--store", str(tmp_path / "s.db")]
+    reports = ["--report", str(tmp_path / "lot.pdf"), "--report", str(tmp_path / "lot.html")]
+    assert main([*args, *reports]) == 0
+    first = (tmp_path / "lot.pdf").read_bytes()
+    pdf = PdfReader(tmp_path / "lot.pdf")
+    assert len(pdf.pages) >= 2  # 90 parts do not fit one A4 page
+    text = "\n".join(page.extract_text() for page in pdf.pages)
+    assert "Lot L: accept" in text and "normal inspection" in text and "sample size: 80" in text
+    cells = text.splitlines()  # (one cell a line, as pypdf reads the table back)
+    for k, pid in enumerate(ids):
+        at = cells.index(pid)
+        verdict = "FAIL" if k == 7 else "INVALID" if k == 8 else "PASS"
+        row = [str(k + 1), pid, verdict, "2023-11-14T22:13:20Z", f"/parts/{pid}/validation.json"]
+        assert cells[at - 1 : at + 4] == row, cells[at - 1 : at + 4]
+    assert (tmp_path / "lot.html").read_text().count("<tr class=") == 90
+    # the same records, the same bytes
+    assert main([*args, "--report", str(tmp_path / "again.pdf")]) == 0
+    assert (tmp_path / "again.pdf").read_bytes() == first
+    capsys.readouterr()
+    assert main([*args, "--report", str(tmp_path / "lot.txt")]) == 2
+    assert "--report" in capsys.readouterr().err and not (tmp_path / "lot.txt").exists()

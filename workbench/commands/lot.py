@@ -45,7 +45,13 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--store", metavar="URL", help="the store (default: $WORKBENCH_STORE)")
     p.add_argument("--json", action="store_true", help="print the plan and the decision as JSON")
-    p.add_argument("--report", metavar="FILE.html", help="write the lot report: every part, its verdict and evidence")
+    p.add_argument(
+        "--report",
+        metavar="FILE",
+        action="append",
+        help="write the lot report (FILE.html or FILE.pdf; give it twice for both): the plan, the decision, "
+        "and every part with its verdict and evidence",
+    )
     p.set_defaults(run=run)
 
 
@@ -53,7 +59,7 @@ def run(args) -> int:
     from workbench.atomic import check_outputs, write_files
     from workbench.lots.decision import decision_dict, lot_decision, lot_parts
     from workbench.lots.plan import aql_text, code_letter, sampling_plan
-    from workbench.lots.report import lot_report_html
+    from workbench.lots.report import lot_report_html, lot_report_pdf
     from workbench.store.database import engine_for, shown, store_text, store_url, transaction
     from workbench.store.export import lot_records
 
@@ -65,9 +71,12 @@ def run(args) -> int:
         raise UsageError("--store: no store given (nor WORKBENCH_STORE)")
     option = "--store" if args.store is not None else "WORKBENCH_STORE"
     url = store_url(text, option)
-    report = Path(args.report) if args.report else None
-    if report is not None:
-        check_outputs(report)
+    reports = [Path(r) for r in args.report or []]
+    for r in reports:
+        if r.suffix.lower() not in (".html", ".pdf"):
+            raise UsageError(f"--report {r}: give a .html or a .pdf file")
+    if reports:
+        check_outputs(*reports)
     engine = engine_for(url, create=False, option=option)
     try:
         with transaction(engine, url, migrate=False, option=option) as conn:
@@ -89,8 +98,9 @@ def run(args) -> int:
     decision = lot_decision(sampling_plan(lot_size, args.level, aql, inspection), parts)
     if switching.inspection == "discontinued":
         decision = replace(decision, decision="discontinued (ISO 2859-1 9.4: no lot is accepted by sampling)")
-    if report is not None:
-        write_files({report: lot_report_html(args.lot, decision, parts, shown(url), switching)})
+    if reports:
+        make = {".html": lot_report_html, ".pdf": lot_report_pdf}
+        write_files({r: make[r.suffix.lower()](args.lot, decision, parts, shown(url), switching) for r in reports})
     d = decision_dict(args.lot, decision, switching)
     if args.json:
         print(json.dumps(d, indent=1))
@@ -105,8 +115,8 @@ def run(args) -> int:
             + f", accept {d['accept']}, reject {d['reject']}; inspected {d['inspected']}, nonconforming "
             f"{d['nonconforming']}, not inspected (INVALID, INCOMPLETE) {d['not_inspected']}"
         )
-    if report is not None:
-        print(f"wrote {report}", file=sys.stderr)
+    for r in reports:
+        print(f"wrote {r}", file=sys.stderr)
     return 0
 
 

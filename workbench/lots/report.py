@@ -1,4 +1,4 @@
-"""The lot report as HTML: the plan, the decision and every part with its verdict and evidence."""
+"""The lot report as HTML and PDF: the plan, the decision and every part with its verdict and evidence."""
 
 from __future__ import annotations
 
@@ -37,3 +37,73 @@ first PASS or FAIL.</p>
 {part_rows}</table></body></html>
 """
     return page.encode()
+
+
+def lot_report_pdf(lot: str, decision: LotDecision, parts: list[LotPart], store: str, switching=None) -> bytes:
+    """The lot report as a PDF (A4): the plan, the decision and why this inspection, then every part
+    with its verdict, time and evidence (its validation.json), as many pages as the parts need.
+
+    Reproducible: ReportLab's invariant mode (no date, a fixed document id); the same bytes for
+    the same records.
+    """
+    import io
+
+    from reportlab.lib.pagesizes import A4
+    from reportlab.lib.units import mm
+    from reportlab.lib.utils import simpleSplit
+    from reportlab.pdfgen import canvas as rl_canvas
+
+    d = decision_dict(lot, decision, switching)
+    why = d.pop("switching")
+    buf = io.BytesIO()
+    c = rl_canvas.Canvas(buf, pagesize=A4, invariant=1, pageCompression=1)
+    c.setTitle(f"Lot {lot}: {decision.decision}")
+    c.setCreator("workbench lot")
+    W, H = A4
+    left, width, bottom = 15 * mm, W - 30 * mm, 15 * mm
+    y = H - 18 * mm
+
+    def line(text: str, font: str = "Helvetica", size: float = 8.5, step: float = 4.2) -> None:
+        nonlocal y
+        for piece in simpleSplit(text, font, size, width) or [""]:
+            if y < bottom:
+                c.showPage()
+                y = H - 18 * mm
+            c.setFont(font, size)
+            c.drawString(left, y, piece)
+            y -= step * mm
+
+    line(f"Lot {lot}: {decision.decision}", "Helvetica-Bold", 14, 7)
+    lots = f" (lots {', '.join(why['lots'])})" if why["lots"] else ""
+    line(f"ISO 2859-1 single sampling, {d['inspection']} inspection: {why['rule']}{lots}.")
+    line(f"Store {store}. INVALID and INCOMPLETE parts are not inspected (never conforming); each part counts "
+         "once, by its first PASS or FAIL.")  # fmt: skip
+    y -= 2 * mm
+    for k, v in d.items():
+        if k != "lot":
+            line(f"{k.replace('_', ' ')}: {v}")
+    y -= 3 * mm
+    line(f"Parts ({len(parts)})", "Helvetica-Bold", 11, 6)
+    cols = (0, 10 * mm, 55 * mm, 75 * mm, 108 * mm)  # #, part, verdict, recorded, evidence and reason
+    evidence_width = width - cols[4]
+
+    def row(cells, font):
+        nonlocal y
+        wrapped = [simpleSplit(cells[4], font, 7.5, evidence_width) or [""]]
+        need = (len(wrapped[0]) + 0.3) * 3.6 * mm
+        if y - need < bottom:
+            c.showPage()
+            y = H - 18 * mm
+        c.setFont(font, 7.5)
+        for x, text in zip(cols[:4], cells[:4], strict=True):
+            c.drawString(left + x, y, text)
+        for j, piece in enumerate(wrapped[0]):
+            c.drawString(left + cols[4], y - j * 3.6 * mm, piece)
+        y -= need
+
+    row(("#", "part", "verdict", "recorded (UTC)", "evidence; reason"), "Helvetica-Bold")
+    for k, p in enumerate(parts):
+        evidence = f"{p.out_dir}/validation.json" + (f"; {p.reason}" if p.reason else "")
+        row((str(k + 1), p.part_id[:28], p.verdict, p.recorded_at, evidence), "Helvetica")
+    c.save()
+    return buf.getvalue()

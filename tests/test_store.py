@@ -261,3 +261,21 @@ def test_an_unreachable_store_is_one_line_and_writes_nothing(part, tmp_path, cap
     assert status == 1 and len(err.strip().splitlines()) == 1, err
     assert "Connection refused" in err and "postgresql+psycopg://workbench@127.0.0.1" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_postgresql_urls_take_psycopg():
+    assert store_url("postgresql://u@h/db").drivername == "postgresql+psycopg"
+    assert store_url("postgres://u:secret@h:5433/db").render_as_string(hide_password=False) == (
+        "postgresql+psycopg://u:secret@h:5433/db"
+    )
+    assert store_url("postgresql+psycopg://u@h/db").drivername == "postgresql+psycopg"
+
+
+def test_a_postgresql_database_that_does_not_exist_is_one_line(tmp_path, capsys):
+    from postgres import server_url
+
+    given = server_url().set(database="no_such_store").render_as_string(hide_password=False)
+    assert main(["lot", "L", "--aql", "1.0", "--store", given, "--report", str(tmp_path / "r.pdf")]) == 1
+    err = capsys.readouterr().err
+    assert 'database "no_such_store" does not exist' in err and len(err.strip().splitlines()) == 1, err
+    assert list(tmp_path.iterdir()) == []

@@ -38,6 +38,7 @@ from workbench.validate.part import light_in_one_photo, part_summary
 from workbench.validate.part_colour import fused_colour, photo_names, take_colour_maps
 from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
+from workbench.validate.report_html import interactive_report
 from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, photo_verdict, verdict_rule
 
 
@@ -452,7 +453,7 @@ def run(args) -> int:
     output_profile = Path(args.output_profile) if args.output_profile else None
     inputs = [*design_files(design.dir), profile_path, *photos, *([output_profile] if output_profile else [])]
     check_output_dir(out, inputs)
-    check_outputs(out / "validation.json", out / "qa_report.pdf", inputs=inputs)
+    check_outputs(out / "validation.json", out / "qa_report.pdf", out / "qa_report.html", inputs=inputs)
     proof = read_output_profile(output_profile) if output_profile else None
     stems = output_stems(photos)
     seat = (args.seating, args.max_seating_mm, held)
@@ -570,7 +571,9 @@ def run(args) -> int:
     files.update(landing.add_to_report(report, entries, out))
     files.update(detection.add_to_report(report, maps, out))
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
-    files[out / "qa_report.pdf"] = qa_report(report, {k.name: v for k, v in files.items() if k.suffix == ".png"}, pages)
+    shown = {k.name: v for k, v in files.items() if k.suffix == ".png"}
+    files[out / "qa_report.pdf"] = qa_report(report, shown, pages)
+    files[out / "qa_report.html"] = interactive_report(report, shown, design, grid, combined, photos)
     write_folder(out, files, inputs)
     if recorder is not None:
         record(recorder, files[out / "validation.json"].decode(), out, list(files))
@@ -578,6 +581,6 @@ def run(args) -> int:
     why = f" ({part['reason']})" if part.get("reason") else ""
     log(
         f"{len(entries)} photo(s), part: {part['verdict']}{why}; wrote {out / 'validation.json'} and "
-        f"{out / 'qa_report.pdf'}"
+        f"{out / 'qa_report.pdf'} (and qa_report.html)"
     )
     return 0

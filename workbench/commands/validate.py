@@ -50,7 +50,8 @@ def add_parser(sub) -> None:
             "For each photo: pose from the fixture's markers, the photo warped into the designed view through "
             "the mesh, misregistration (px in the view, mm on the surface), similarity, coverage, the film "
             "placement error that explains it, and a verdict (PASS, FAIL, or INVALID with the reason). Writes "
-            "validation.json, per photo the warped photo, an overlay and a heat map, and qa_report.pdf."
+            "validation.json, per photo the warped photo, an overlay and a heat map, qa_report.pdf, and "
+            "qa_report.html (one self-contained page: the part in 3D with its defects and coverage, its photos)."
         ),
     )
     p.add_argument("design", metavar="DESIGN_DIR")

@@ -18,9 +18,10 @@ from conftest import ROOT
 
 from workbench.cli import main
 from workbench.design_dir import Design
-from workbench.validate.part_glb import print_uv
+from workbench.validate.part_glb import grid_on_texture, print_uv
 from workbench.validate.pictures import STATE_COLOURS
 from workbench.validate.print_warp import STATE_NAMES
+from workbench.validate.report_html import surface_point
 
 # the demo's defective part: a bubble that slid the film 1 mm over 12 mm, and ink gone over 10 mm²
 DEFECTS = ["bubble:45,30,6,1", "dropout:60,25,1.784"]
@@ -188,3 +189,27 @@ def test_the_page_opens_offline_and_shows_the_part_its_markers_and_its_coverage(
     red = near(covered, DEFECTIVE_RGB, 12) & around
     assert red.sum() >= 100 and not (near(shot, DEFECTIVE_RGB, 12) & around).any()
     assert np.hypot(xx[red].mean() - big["x"], yy[red].mean() - big["y"]) <= 8  # around the marker
+
+
+def test_a_defect_whose_centre_is_off_the_part_takes_the_nearest_point_of_its_box():
+    # a 10 x 10 grid at 2 px/mm whose point under pixel (i, j) is (j, i, 0), with a hole in the middle
+    ii, jj = np.mgrid[:10, :10]
+    X = np.stack([jj, ii, np.zeros_like(ii)], axis=-1).astype(np.float64)
+    X[3:7, 3:7] = np.nan
+    # under its centre: that pixel's point
+    assert surface_point(X, 2.0, (1.3, 4.6), (0, 0, 5, 5)) == [2.0, 9.0, 0.0]
+    # a ring's centre in the hole: the nearest pixel of its box that is on the part
+    assert surface_point(X, 2.0, (2.3, 2.3), (1.0, 1.0, 3.6, 3.6)) == [4.0, 2.0, 0.0]
+    # no part under its box at all
+    assert surface_point(X, 2.0, (2.3, 2.3), (1.6, 1.6, 3.4, 3.4)) is None
+
+
+def test_the_coverage_map_is_resampled_onto_the_print_texture_by_print_millimetres():
+    # a 4 x 6 grid at 2 px/mm (3 x 2 mm) onto a texture of 12 x 8 px over 3.5 x 2.5 mm
+    grid = np.arange(24, dtype=np.uint8).reshape(4, 6, 1).repeat(3, axis=2)
+    texture = grid_on_texture(grid, 2.0, (12, 8), (3.5, 2.5))
+    assert texture.shape == (8, 12, 3)
+    for i, j in [(0, 0), (3, 5), (5, 7), (7, 11)]:
+        x, y = (j + 0.5) * 3.5 / 12, (i + 0.5) * 2.5 / 8  # the texture pixel's centre, print mm
+        gi, gj = min(int(y * 2.0), 3), min(int(x * 2.0), 5)  # the grid pixel under it (the last beyond)
+        assert texture[i, j, 0] == grid[gi, gj, 0]

@@ -179,6 +179,10 @@ def _crop(img: np.ndarray, centre, half: float) -> np.ndarray | None:
 
 
 def _closeup(label: str, crop: np.ndarray, options: HtmlOptions) -> dict:
+    # a small crop (a coarse print grid) enlarged by a whole factor, each of its pixels a square
+    k = options.closeup_px // max(crop.shape[:2])
+    if k > 1:
+        crop = cv2.resize(crop, None, fx=k, fy=k, interpolation=cv2.INTER_NEAREST)
     return {"label": label, "src": _data_url(_jpeg(crop, options.closeup_px, options.jpeg_quality), "image/jpeg")}
 
 

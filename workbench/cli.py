@@ -56,7 +56,19 @@ from workbench.text import one_line  # noqa: E402
 INTERNAL_ERROR = 70
 
 # in the order of `workbench --help`
-COMMANDS = ("flatten", "design", "suggest-views", "pdf", "board", "render", "validate", "lot", "store", "calibrate")
+COMMANDS = (
+    "flatten",
+    "design",
+    "suggest-views",
+    "pdf",
+    "board",
+    "render",
+    "validate",
+    "lot",
+    "trend",
+    "store",
+    "calibrate",
+)
 
 
 class _Parser(argparse.ArgumentParser):

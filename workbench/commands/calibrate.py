@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -119,6 +120,13 @@ def add_parser(sub) -> None:
         metavar="PICTURE.png",
         default=None,
         help="camera: write a picture of what of the frame and which tilts the photos cover, and what to add",
+    )
+    k.add_argument(
+        "--store",
+        metavar="URL",
+        help="record the check (focal length, principal point or printer scale, the verdict, the profile's "
+        "name and hash, the time) in a store: a SQLite file's path or a SQLAlchemy URL; default: "
+        "$WORKBENCH_STORE, else no store (workbench trend --calibration charts them)",
     )
     k.add_argument("-q", "--quiet", action="store_true")
     k.set_defaults(run=run_check)
@@ -410,9 +418,20 @@ def _measure(scan: Path, board: dict, dpi: float):
         raise WorkbenchError(str(exc) if str(exc).startswith(str(scan)) else f"{scan}: {exc}") from None
 
 
-def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[str], str, str]:
-    """The camera half of ``calibrate check``: what drifted (empty when within tolerance), on what, and
-    what drift of the lab's tolerances the photos cannot see (empty when they see both)."""
+@dataclass(frozen=True)
+class CameraCheck:
+    """The camera half of ``calibrate check``: what drifted (empty when within tolerance), on what, what
+    drift of the lab's tolerances the photos cannot see (empty when they see both), and fx, fy, cx, cy
+    as re-measured (px; None where not re-measured)."""
+
+    drift: list[str]
+    on: str
+    short: str
+    remeasured: dict
+
+
+def _check_camera(args, path: Path, prof: dict, board: dict, log) -> CameraCheck:
+    """The camera half of ``calibrate check`` (:class:`CameraCheck`)."""
     K = np.asarray(prof["K"], dtype=np.float64)
     problem = intrinsics_problem(K, *prof["image_size"])
     if problem:
@@ -474,7 +493,55 @@ def _check_camera(args, path: Path, prof: dict, board: dict, log) -> tuple[list[
         if not args.strict:
             log(f"warning: {short}")
     left_out = len(c.per_photo) - used
-    return c.drift, f"{used} photos" + (f" ({left_out} left out)" if left_out else ""), short
+    values = {k: (float(r[k]["value"]) if r is not None and k in r["measured"] else None) for k in INTRINSICS}
+    return CameraCheck(c.drift, f"{used} photos" + (f" ({left_out} left out)" if left_out else ""), short, values)
+
+
+def _store_url(args):
+    """The store the check is recorded in (``--store``, else ``WORKBENCH_STORE``), checked; None: no store."""
+    from workbench.store.database import check_store, store_text, store_url
+
+    text = store_text(args.store)
+    if text is None:
+        return None
+    option = "--store" if args.store is not None else "WORKBENCH_STORE"
+    url = store_url(text, option)
+    check_store(url, option)
+    return url
+
+
+def _record_check(url, path: Path, prof: dict, args, verdict: str, reason: str | None, figures: dict) -> None:
+    """The check recorded (one row of ``calibrations``), its time ``SOURCE_DATE_EPOCH`` when set."""
+    import os
+
+    from workbench.environment import source_date_epoch
+    from workbench.store.record import default_operator, default_station, record_calibration, recorded_at
+
+    K = prof.get("K") or [[None] * 3] * 3
+    row = {
+        "kind": prof["kind"],
+        "camera": path.stem,
+        "profile_sha256": _sha(path),
+        "station": default_station(),
+        "operator": default_operator(),
+        "recorded_at": recorded_at(source_date_epoch(os.environ)),
+        "software_version": __version__,
+        "verdict": verdict,
+        "reason": reason,
+        "inputs": len(args.inputs),
+        "profile_fx": K[0][0] if prof["kind"] == "camera-profile" else None,
+        "profile_fy": K[1][1] if prof["kind"] == "camera-profile" else None,
+        "profile_cx": K[0][2] if prof["kind"] == "camera-profile" else None,
+        "profile_cy": K[1][2] if prof["kind"] == "camera-profile" else None,
+        "focal_tolerance_pct": args.focal_tolerance_pct if prof["kind"] == "camera-profile" else None,
+        "pp_tolerance_px": args.pp_tolerance_px if prof["kind"] == "camera-profile" else None,
+        "profile_scale_x": prof.get("scale_x"),
+        "profile_scale_y": prof.get("scale_y"),
+        "scale_tolerance_pct": args.tolerance_pct if prof["kind"] == "printer-profile" else None,
+        **figures,
+    }
+    row["check_json"] = json.dumps({k: v for k, v in row.items() if k != "check_json"}, sort_keys=True)
+    record_calibration(row, url)
 
 
 def run_check(args) -> int:
@@ -495,8 +562,13 @@ def run_check(args) -> int:
     check(prof, schemas.CALIBRATION_KINDS[kind], path)
     board_path = resolve_recorded(prof["board"]["file"], path)
     board = load_board(board_path)
+    url = _store_url(args)
     if kind == "camera-profile":
-        drift, on, short = _check_camera(args, path, prof, board, log)
+        cam = _check_camera(args, path, prof, board, log)
+        drift, on, short = cam.drift, cam.on, cam.short
+        if url is not None:
+            reason = "; ".join(drift) if drift else (short or None)
+            _record_check(url, path, prof, args, "DRIFT" if drift else "OK", reason, cam.remeasured)
         if drift:
             raise WorkbenchError(f"{path.name}: the camera drifted: {'; '.join(drift)}: recalibrate")
         if short and args.strict:
@@ -504,6 +576,7 @@ def run_check(args) -> int:
         log(f"{path.name}: within tolerance on {on}" + (f"; warning: {short}" if short else ""))
         return 0
     failures = []
+    scales = []
     for item in args.inputs:
         p = Path(item)
         _check_dpi(p, prof["dpi"])
@@ -516,6 +589,12 @@ def run_check(args) -> int:
         )
         if not ok:
             failures.append(p.name)
+        scales.append((m.scale_x, m.scale_y))
+    if url is not None:
+        # the scans' mean scale: one check, one point on the chart
+        sx, sy = (float(np.mean(v)) for v in zip(*scales, strict=True))
+        reason = f"drifted in {name_list(failures)}" if failures else None
+        _record_check(url, path, prof, args, "DRIFT" if failures else "OK", reason, {"scale_x": sx, "scale_y": sy})
     if failures:
         raise WorkbenchError(
             f"calibration drifted beyond tolerance in {len(failures)} of {len(args.inputs)} "

@@ -119,14 +119,14 @@ def transaction(engine, url, *, migrate: bool, option: str = "--store"):
                     f"{option} {shown(url)}: a store of schema version {version}, newer than this workbench's "
                     f"({LATEST}); update the workbench"
                 )
-            if migrate and version < LATEST and conn.dialect.name == "postgresql":
-                # two first records at once would both create the tables: the second waits for the
-                # first's commit here, then finds them (each statement sees what is committed)
-                conn.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": MIGRATION_LOCK})
-            if migrate:
-                apply_steps(conn)
-            elif version < LATEST:
+            if version == 0 and not migrate:
                 raise WorkbenchError(f"{option} {shown(url)}: not a workbench store (schema version {version})")
+            if version < LATEST:  # (a store an older workbench made is brought up to date by any command)
+                if conn.dialect.name == "postgresql":
+                    # two first records at once would both create the tables: the second waits for the
+                    # first's commit here, then finds them (each statement sees what is committed)
+                    conn.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": MIGRATION_LOCK})
+                apply_steps(conn)
             yield conn
     except DBAPIError as exc:
         raise WorkbenchError(f"{option} {shown(url)}: {_first_line(exc.orig)}") from None

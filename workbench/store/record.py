@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from workbench.store.database import engine_for, transaction
-from workbench.store.schema import defects, files, photos, validations
+from workbench.store.figures import part_figures
+from workbench.store.schema import calibrations, defects, files, photos, validations
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,7 @@ def validation_rows(report_text: str, out: Path, written: list[Path], rec: Recor
         "max_delta_e": report.get("max_delta_e"),
         "out_dir": str(out.absolute()),
         "validation_json": report_text,
+        **part_figures(report),
     }
     photo_rows = []
     for k, e in enumerate(entries):
@@ -155,5 +157,16 @@ def record_validation(rows: dict, url) -> int:
                 if rows[key]:
                     conn.execute(table.insert(), [{**r, "validation_id": vid} for r in rows[key]])
         return vid
+    finally:
+        engine.dispose()
+
+
+def record_calibration(row: dict, url) -> int:
+    """Insert one calibration check (a row of ``calibrations``) in one transaction, the schema made or
+    updated in it; its id."""
+    engine = engine_for(url, create=True)
+    try:
+        with transaction(engine, url, migrate=True) as conn:
+            return conn.execute(calibrations.insert().values(**row)).inserted_primary_key[0]
     finally:
         engine.dispose()

@@ -9,9 +9,10 @@ are SQLAlchemy Core, so the same ones run on SQLite and PostgreSQL.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 
-from sqlalchemy import Column, Float, ForeignKey, Integer, MetaData, String, Table, Text, select
+from sqlalchemy import Column, Float, ForeignKey, Index, Integer, MetaData, String, Table, Text, select, update
 
 metadata = MetaData()
 
@@ -52,7 +53,17 @@ validations = Table(
     Column("max_delta_e", Float),
     Column("out_dir", Text, nullable=False),
     Column("validation_json", Text, nullable=False),
+    # version 2: the part's placement and colour, for the control charts (workbench trend)
+    Column("film_offset_x_mm", Float),
+    Column("film_offset_y_mm", Float),
+    Column("film_rotation_deg", Float),
+    Column("delta_e00_mean", Float),
+    Index("ix_validations_design", "design_json_sha256", "id"),
+    Index("ix_validations_job", "job", "id"),
 )
+# the columns and indexes version 2 added to ``validations``
+ADDED_IN_2 = ("film_offset_x_mm", "film_offset_y_mm", "film_rotation_deg", "delta_e00_mean")
+INDEXES_IN_2 = ("ix_validations_design", "ix_validations_job")
 
 photos = Table(
     "photos",
@@ -97,13 +108,80 @@ files = Table(
 )
 
 
+calibrations = Table(
+    "calibrations",
+    metadata,
+    Column("id", Integer, primary_key=True),
+    Column("kind", String(40), nullable=False),  # camera-profile or printer-profile
+    Column("camera", String(200), nullable=False),  # the profile's name (its file's stem)
+    Column("profile_sha256", String(64), nullable=False),
+    Column("station", String(200), nullable=False),
+    Column("operator", String(200), nullable=False),
+    Column("recorded_at", String(32), nullable=False),
+    Column("software_version", String(50), nullable=False),
+    Column("verdict", String(20), nullable=False),  # OK or DRIFT
+    Column("reason", Text),
+    Column("inputs", Integer, nullable=False),
+    Column("fx", Float),
+    Column("fy", Float),
+    Column("cx", Float),
+    Column("cy", Float),
+    # the stored profile's values and the lab's tolerances they are charted against
+    Column("profile_fx", Float),
+    Column("profile_fy", Float),
+    Column("profile_cx", Float),
+    Column("profile_cy", Float),
+    Column("focal_tolerance_pct", Float),
+    Column("pp_tolerance_px", Float),
+    Column("scale_x", Float),
+    Column("scale_y", Float),
+    Column("profile_scale_x", Float),
+    Column("profile_scale_y", Float),
+    Column("scale_tolerance_pct", Float),
+    Column("check_json", Text, nullable=False),
+    Index("ix_calibrations_camera", "camera", "id"),
+)
+
+
 def _create_version_1(conn) -> None:
-    metadata.create_all(conn, tables=[validations, photos, defects, files])
+    # version 1's validations, as released: without the columns and indexes later versions added
+    v1 = MetaData()
+    Table(
+        "validations",
+        v1,
+        *(
+            Column(c.name, c.type, primary_key=c.primary_key, nullable=c.nullable, index=c.index)
+            for c in validations.columns
+            if c.name not in ADDED_IN_2
+        ),
+    )
+    for table in (photos, defects, files):
+        table.to_metadata(v1)
+    v1.create_all(conn)
+
+
+def _create_version_2(conn) -> None:
+    from workbench.store.figures import part_figures
+
+    for name in ADDED_IN_2:
+        column = validations.c[name]
+        conn.exec_driver_sql(f"ALTER TABLE validations ADD COLUMN {name} {column.type.compile(dialect=conn.dialect)}")
+    for index in validations.indexes:
+        if index.name in INDEXES_IN_2:
+            index.create(conn)
+    metadata.create_all(conn, tables=[calibrations])
+    # the parts recorded before: their figures from the validation.json each record keeps
+    rows = conn.execute(select(validations.c.id, validations.c.validation_json)).all()
+    for vid, text in rows:
+        figures = part_figures(json.loads(text))
+        if any(v is not None for v in figures.values()):
+            conn.execute(update(validations).where(validations.c.id == vid).values(**figures))
 
 
 # (number, what it does, the step): append a step for every change, never edit one released
 MIGRATIONS: list[tuple[int, str, Callable]] = [
     (1, "validations, their photos, defects and files", _create_version_1),
+    (2, "the part's film offset, rotation and mean colour difference; calibration checks", _create_version_2),
 ]
 LATEST = MIGRATIONS[-1][0]
 

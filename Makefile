@@ -52,6 +52,7 @@ bench: install
 	$(PY) benchmarks/bench_defects.py
 	$(PY) benchmarks/bench_suggest.py
 	$(PY) benchmarks/bench_forming.py --rounds 2
+	$(PY) benchmarks/bench_trend.py
 	$(if $(FACE),$(PY) benchmarks/bench_forming.py --job fixtures/face-mask-films/job.toml --scale 1.5 --min-fov-deg 0 --calibration-film --rounds 2)
 	$(PY) -m pytest -q -m slow
 

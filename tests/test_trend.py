@@ -146,7 +146,7 @@ def test_the_same_run_without_drift_raises_no_alarm_over_200_parts(tmp_path, cap
     db = tmp_path / "s.db"
     record_run(run, store_url(str(db)), tmp_path)
     d = run_trend(capsys, "--store", str(db), "--design", "sim")
-    assert d["alarms"] == [] and len(d["charts"]) == 6
+    assert d["alarms"] == [] and len(d["charts"]) == 6 and d["not_charted"] == []
     # the rules fire by chance all the same, and are listed: signals, no tolerance at stake
     assert all(s["rule_name"] for s in d["signals"])
     u = next(c for c in d["charts"] if c["figure"] == "defects")

@@ -40,9 +40,9 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--rules",
         metavar="LIST",
-        default="1,2,3,5,6",
-        help="the Nelson rules applied, by number (default 1,2,3,5,6: shifts and trends; 4, 7 and 8 find "
-        "alternation, stratification and mixtures)",
+        default="1,2,3,4,5,6,7,8",
+        help="the Nelson rules applied, by number (default all eight; 1, 2, 3, 5 and 6 find shifts and "
+        "trends, 4, 7 and 8 alternation, stratification and mixtures)",
     )
     p.add_argument(
         "--horizon",

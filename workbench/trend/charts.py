@@ -69,7 +69,7 @@ class AlarmOptions:
     every_signal : every rule's firing is an alarm, whatever the tolerance (the classical chart)
     """
 
-    rules: tuple[int, ...] = (1, 2, 3, 5, 6)
+    rules: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7, 8)
     window: int = WINDOW
     horizon: float = 25.0
     min_t: float = 3.0

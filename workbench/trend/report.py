@@ -41,13 +41,13 @@ def _marks(events: list[dict], shown: np.ndarray) -> np.ndarray:
     return np.flatnonzero((np.cumsum(edges[:-1]) > 0) & shown)
 
 
-def _axis(ax, positions: np.ndarray, labels: list[str]) -> None:
+def _axis(ax, positions: np.ndarray, labels: list[str], word: str) -> None:
     step = max(1, int(np.ceil(len(positions) / MAX_TICK_LABELS)))
     ax.set_xticks(positions[::step], [labels[k] for k in range(0, len(labels), step)], rotation=60, fontsize=6)
-    ax.set_xlabel("part, in recording order", fontsize=8)
+    ax.set_xlabel(f"{word}, in recording order", fontsize=8)
 
 
-def chart_picture(chart: Chart, title: str) -> bytes:
+def chart_picture(chart: Chart, title: str, word: str = "part") -> bytes:
     """One chart's PNG: points, centre line, limits, tolerance; alarms in red, signals in orange.
 
     I-MR: the individuals above, the moving ranges below. The x axis is the points' order,
@@ -61,7 +61,7 @@ def chart_picture(chart: Chart, title: str) -> bytes:
     x = s.values
     labels = [s.labels[s.order[k]] for k in idx]
     u = isinstance(chart.limits, ULimits)
-    fig, axes = plt.subplots(1 if u else 2, 1, figsize=(9, 3.2 if u else 5.2), dpi=100, squeeze=False)
+    fig, axes = plt.subplots(1 if u else 2, 1, figsize=(9, 3.2 if u else 5.2), dpi=100, squeeze=False, sharex=True)
     ax = axes[0, 0]
     ax.plot(idx, x[idx], "-o", color="#333", lw=0.6, ms=2.5)
     lim = chart.limits
@@ -91,10 +91,10 @@ def chart_picture(chart: Chart, title: str) -> bytes:
         if len(m):
             ax2.plot(m, mr[m], "o", color="#f90", ms=5, mfc="none", mew=1.2)
         ax2.set_ylabel("moving range", fontsize=8)
-        ax.set_xticks([])
-        _axis(ax2, idx, labels)
+        ax.tick_params(labelbottom=False)
+        _axis(ax2, idx, labels, word)
     else:
-        _axis(ax, idx, labels)
+        _axis(ax, idx, labels, word)
     fig.tight_layout()
     return figure_png(fig)
 
@@ -113,7 +113,7 @@ def report_files(out: Path, results: dict[str, list[Chart]], calibration: bool, 
         blocks = []
         for c in charts:
             title = f"{TITLES.get(c.series.figure, c.series.figure)}: {word} {group[:16]}"
-            png = chart_picture(c, title)
+            png = chart_picture(c, title, "check" if calibration else "part")
             name = _png_name(group, c.series.figure)
             files[out / name] = png
             rows = "".join(

@@ -48,7 +48,19 @@ def summary_json(results: dict[str, list[Chart]], baseline: int, opts: AlarmOpti
         "charts": charts,
         "alarms": [_public(e) for e in alarms],
         "signals": [_public(e) for e in signals],
+        "not_charted": [] if calibration else not_charted(results, baseline),
     }
+
+
+def not_charted(results: dict[str, list[Chart]], baseline: int) -> list[dict]:
+    """The part figures a design has no chart of: fewer than ``baseline`` of its parts have them
+    (ΔE00 where no photo shows the colour chart, offsets where no photo was scored)."""
+    return [
+        {"design": name, "figure": figure, "reason": f"fewer than {baseline} of its parts have it"}
+        for name, cs in results.items()
+        for figure, _ in query.PART_FIGURES
+        if figure not in {c.series.figure for c in cs}
+    ]
 
 
 def _public(e: dict) -> dict:
@@ -78,6 +90,8 @@ def summary_text(d: dict) -> str:
         )
     if not d["alarms"]:
         lines.append("no alarm")
+    for m in d.get("not_charted", []):
+        lines.append(f"no chart of {m['figure']} ({group} {m[group][:12]}): {m['reason']}")
     n = sum(s["count"] for s in d["signals"])
     if n:
         lines.append(f"{n} signal(s): rules that fired with no tolerance at stake (counted in --json)")

@@ -147,8 +147,12 @@ def test_the_same_run_without_drift_raises_no_alarm_over_200_parts(tmp_path, cap
     record_run(run, store_url(str(db)), tmp_path)
     d = run_trend(capsys, "--store", str(db), "--design", "sim")
     assert d["alarms"] == [] and len(d["charts"]) == 6 and d["not_charted"] == []
-    # the rules fire by chance all the same, and are listed: signals, no tolerance at stake
-    assert all(s["rule_name"] for s in d["signals"])
+    # the rules fire by chance all the same, and are counted: signals, no tolerance at stake
+    assert sum(s["count"] for s in d["signals"]) > 0 and all(s["rule_name"] for s in d["signals"])
+    # the classical chart, every firing an alarm: the same firings, now alarms
+    classical = run_trend(capsys, "--store", str(db), "--every-signal")
+    individuals = sum(s["count"] for s in d["signals"] if s["chart"] == "individuals")
+    assert len(classical["alarms"]) == individuals > 0
     u = next(c for c in d["charts"] if c["figure"] == "defects")
     assert u["chart"] == "u" and u["centre"] == pytest.approx(max(run.defects[:15].mean(), 0.5 / 15), abs=1e-6)
 
@@ -283,6 +287,7 @@ def test_bad_input(store60, tmp_path, capsys):
     out = tmp_path / "out"
     cases = [
         (["--store", str(store60), "--design", "no-such-job"], "--design no-such-job: no part of it is recorded"),
+        (["--store", str(store60), "--design", "x'); drop table validations; --"], "no part of it is recorded"),
         (["--store", str(store60), "--baseline-parts", "61"], "--baseline-parts 61: design"),
         (["--store", str(tmp_path / "none.db")], "no store at"),
         (["--store", str(store60), "--calibration"], "no calibration check recorded"),

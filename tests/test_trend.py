@@ -101,6 +101,15 @@ def test_trend_and_parts_to_tolerance_on_an_exact_line():
     assert parts_to_tolerance(slope, now + 1, Tolerance(None, 0.5))[11] == 0.0  # beyond already
 
 
+def test_a_slope_is_as_significant_as_the_larger_scatter_allows():
+    from workbench.trend.analysis import slope_significance
+
+    slope = np.array([0.025, 0.025, -0.025])
+    t_window = np.array([9.0, 2.0, 9.0])
+    by_baseline = 0.025 * np.sqrt(42.0) / 0.03  # sum of (t - mean)^2 over 8 parts: 42
+    assert slope_significance(slope, t_window, 8, 0.03) == pytest.approx([by_baseline, 2.0, by_baseline])
+
+
 # --- the done-when: a simulated production run recorded in a real SQLite store
 
 
@@ -110,8 +119,9 @@ def run_trend(capsys, *args) -> dict:
 
 
 # seed 0, the first: over seeds 0-99 the drift is caught 15 parts or more before the first FAIL in
-# 56 % of runs (median 15 parts ahead), and 21 % of 200-part runs without it raise a false alarm
-# (benchmarks/trend_false_alarms.py): this seed is one of the majority for both, as a fixed example
+# 50 % of runs (median 14.5 parts ahead), and 12 % of 200-part runs without it raise a false alarm
+# (benchmarks/trend_false_alarms.py): the done-when asks for both in every run, which no rule on
+# these figures gives (see the report); seed 0 was not chosen, it is the first
 SEED = 0
 
 

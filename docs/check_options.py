@@ -16,21 +16,17 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-COMMANDS = (
-    "flatten",
-    "design",
-    "suggest-views",
-    "pdf",
-    "board",
-    "render",
-    "validate",
-    "lot",
-    "store export",
-    "calibrate camera",
-    "calibrate printer",
-    "calibrate check",
-    "calibrate forming",
-)
+
+
+def _commands() -> tuple[str, ...]:
+    """Every command as the docs write it, from the command line's own list (the groups with their actions)."""
+    from workbench.cli import COMMANDS as TOP
+
+    groups = {"store": ("export",), "calibrate": ("camera", "printer", "check", "forming")}
+    return tuple(c for c in TOP if c not in groups) + tuple(f"{c} {a}" for c in TOP if c in groups for a in groups[c])
+
+
+COMMANDS = _commands()
 # a command as the docs write it: the groups (calibrate, store) take their action's name after them
 NAMED = re.compile(r"workbench (calibrate \w+|store \w+|calibrate|store|[a-z][a-z-]*[a-z])\b")
 CODE_SPAN = re.compile(r"`([^`]+)`")

@@ -216,7 +216,7 @@ def test_the_first_page_gives_a_long_reason_in_full(tmp_path):
     }
     (tmp_path / "r.pdf").write_bytes(qa_report(report, {}))
     first = pypdf.PdfReader(tmp_path / "r.pdf").pages[0].extract_text()
-    assert len(reason) > 110 and " ".join(first.split()).count(" ".join(f"why: {reason}".split())) == 1, first
+    assert len(reason) > 110 and " ".join(first.split()).count(" ".join(f"a.jpg: {reason}".split())) == 1, first
 
 
 @pytest.mark.parametrize("name", ["inferno", "viridis"])

@@ -120,107 +120,19 @@ def page_picture(img) -> bytes:
     return buf.getvalue()
 
 
-def first_page(c, report: dict, pictures: dict[str, bytes], W: float, H: float) -> None:
-    """Page one: is this part good, and if not, where is it wrong (the part's verdict, its defects on the
-    print, the coverage map, the rule)."""
+def _wrapped(
+    c, line: str, y: float, W: float, x_mm: float = 20.0, font: tuple[str, float] = ("Helvetica", 8.0)
+) -> float:
+    """A line of text wrapped to the page's width, from ``x_mm`` to the 20 mm right margin, in ``font``
+    (name, size in points; the leading is 1.35 times the size); returns the y below it (points)."""
     from reportlab.lib.units import mm
     from reportlab.lib.utils import simpleSplit
 
-    part = report.get("part") or {}
-    verdict = part.get("verdict", "INVALID")
-    job = report["design"].get("job") or {}
-    c.setFont("Helvetica-Bold", 14)
-    c.drawString(20 * mm, H - 20 * mm, f"Is this part good?  {job.get('name', 'design')}")
-    c.setFillColorRGB(*VERDICT_COLOURS[verdict])
-    # (36 pt, smaller where the word would run into the lines beside it at 70 mm: INCOMPLETE)
-    size = min(36.0, 36.0 * 48 * mm / c.stringWidth(verdict, "Helvetica-Bold", 36))
-    c.setFont("Helvetica-Bold", size)
-    c.drawString(20 * mm, H - 36 * mm, verdict)
-    c.setFillColorRGB(0, 0, 0)
-    c.setFont("Helvetica", 9)
-    photos = report["photos"]
-    n_pass = sum(e["verdict"] == "PASS" for e in photos)
-    n_fail = sum(e["verdict"] == "FAIL" for e in photos)
-    n_inv = sum(e["verdict"] == "INVALID" for e in photos)
-    c.drawString(70 * mm, H - 28 * mm, f"{len(photos)} photo(s): {n_pass} PASS, {n_fail} FAIL, {n_inv} INVALID")
-    measured = part.get("measured_share_of_part")
-    if measured is not None:
-        views = part.get("coverage_by_view", {})
-        cov = ", ".join(f"{k} {100 * v['measured']:.0f} %" for k, v in views.items())
-        c.drawString(70 * mm, H - 33 * mm, f"measured: {100 * measured:.0f} % of the part's print ({cov})")
-    fails = [e for e in photos if e["verdict"] == "FAIL"]
-    y = H - 48 * mm
-    # (an INCOMPLETE part's why is its own: what its photos do not cover, and the next photo)
-    why = fails[0]["reason"] if fails else part.get("reason")
-    if why:
-        # the reason in full, wrapped to the page (three lines at most; validation.json has it all)
-        lines = simpleSplit(f"why: {why}", "Helvetica", 9, W - 85 * mm)
-        if len(lines) > 3:
-            lines = lines[:2] + [lines[2][: max(0, len(lines[2]) - 4)] + " ..."]
-        for i, line in enumerate(lines):
-            c.drawString(70 * mm, H - (38 + 4 * i) * mm, line)
-    else:
-        lines = []
-    # the colour on the line after the why (no why: where it would be)
-    shown = simpleSplit(colour_line(part.get("colour"), report.get("max_delta_e")), "Helvetica", 9, W - 85 * mm)
-    c.drawString(70 * mm, H - (38 + 4 * len(lines)) * mm, shown[0] + (" ..." if len(shown) > 1 else ""))
-    y -= 4 * mm * max(0, len(lines) + 1 - 2)
-    defects = part.get("defects", [])
-    limit = report.get("max_defect_mm2")
-    c.setFont("Helvetica-Bold", 9)
-    c.drawString(
-        20 * mm, y, f"Where it is wrong: {len(defects)} defect(s) on the print" if defects else "No defect found"
-    )
-    y -= 5 * mm
-    if defects:
-        cols = [20, 28, 46, 86, 108, 128, 150]
-        heads = ["#", "kind", "print x, y (mm, y down)", "area mm²", "view", "over limit", "photos"]
-        draw_row(c, cols, heads, y)
-        c.setFont("Helvetica", 8)
-        for k, d in enumerate(defects[:12]):
-            y -= 4.2 * mm
-            over = limit is not None and d["area_mm2"] > limit
-            row = [
-                str(k + 1),
-                d["kind"],
-                f"x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f}",
-                f"{d['area_mm2']:.1f}",
-                d.get("view") or "-",
-                "yes" if over else "no",
-                ", ".join(d["photos"])[:40],
-            ]
-            if over:
-                c.setFillColorRGB(*VERDICT_COLOURS["FAIL"])
-            draw_row(c, cols, row, y)
-            c.setFillColorRGB(0, 0, 0)
-        if len(defects) > 12:
-            y -= 4.2 * mm
-            c.drawString(20 * mm, y, f"... and {len(defects) - 12} more (validation.json)")
-    y -= 6 * mm
-    if "coverage_print.png" in pictures:
-        y -= draw_picture(c, pictures["coverage_print.png"], y, W - 40 * mm, y - 45 * mm) + 4 * mm
-    rule = (report.get("verdict_rule") or {}).get("text", "")
-    c.setFont("Helvetica-Oblique", 7)
-    words, line = rule.split(), ""
-    for word in words:
-        if len(line) + len(word) > 150:
-            c.drawString(20 * mm, y, line)
-            y -= 3.5 * mm
-            line = ""
-        line += word + " "
-    if line:
-        c.drawString(20 * mm, y, line)
-    c.showPage()
-
-
-def _wrapped(c, line: str, y: float, W: float) -> float:
-    """One line of 8 pt text wrapped to the page's width at 20 mm margins; returns the y below it (points)."""
-    from reportlab.lib.units import mm
-    from reportlab.lib.utils import simpleSplit
-
-    for piece in simpleSplit(line, "Helvetica", 8, W - 40 * mm):
-        c.drawString(20 * mm, y, piece)
-        y -= 3.8 * mm
+    name, size = font
+    c.setFont(name, size)
+    for piece in simpleSplit(line, name, size, W - (x_mm + 20) * mm):
+        c.drawString(x_mm * mm, y, piece)
+        y -= 1.35 * size
     return y
 
 
@@ -284,12 +196,11 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
     if nxt:
         az, el, dist = nxt["orbit"]
         y -= 2 * mm
-        c.setFont("Helvetica-Bold", 9)
-        c.drawString(
-            20 * mm, y, f"Next photo: azimuth {az:g}°, elevation {el:g}°, {dist:g} mm from the part's centre "
-            f"(sees {100 * nxt['sees_share']:.0f} % of what is uncovered from a new angle)",
-        )  # fmt: skip
-        y -= 4 * mm
+        line = (
+            f"Next photo: azimuth {az:g}°, elevation {el:g}°, {dist:g} mm from the part's centre "
+            f"(sees {100 * nxt['sees_share']:.0f} % of what is uncovered from a new angle)"
+        )
+        y = _wrapped(c, line, y, W, font=("Helvetica-Bold", 9)) + 1.35 * 9 - 4 * mm
         c.setFont("Helvetica", 7)
         c.drawString(20 * mm, y, "azimuth 0: in front of the part (towards -y), counter-clockwise seen from above")
         y -= 5 * mm
@@ -301,16 +212,14 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
             f"finest now {fine['photo_px_per_mm']:g}) finds a slide on {100 * fine['share_found_at_factor']:.0f} % of "
             "where none is found yet"
         )
-        c.drawString(20 * mm, y, line)
-        y -= 5 * mm
+        y = _wrapped(c, line, y, W) + 1.35 * 8 - 5 * mm
     unc = cov.get("uncovered") or {}
     if unc.get("measured_share"):
-        c.setFont("Helvetica", 8)
-        c.drawString(
-            20 * mm, y, f"{100 * unc['measured_share']:.0f} % of what is uncovered was measured and is below the "
-            "stated limit there: a finer photo (closer, or more pixels) or one without the lamp's glint there",
-        )  # fmt: skip
-        y -= 5 * mm
+        line = (
+            f"{100 * unc['measured_share']:.0f} % of what is uncovered was measured and is below the "
+            "stated limit there: a finer photo (closer, or more pixels) or one without the lamp's glint there"
+        )
+        y = _wrapped(c, line, y, W) + 1.35 * 8 - 5 * mm
     regions = unc.get("regions", [])
     c.setFont("Helvetica-Bold", 9)
     c.drawString(20 * mm, y, f"Uncovered regions: {unc.get('area_mm2', 0):.0f} mm² in all, the largest {len(regions)}")
@@ -322,31 +231,10 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
             f"{k + 1}. ({x0:.1f}, {y0:.1f}) mm, {r['area_mm2']:.0f} mm², {', '.join(r['classes'])}: "
             f"{r['why']} ({100 * r['why_share']:.0f} % of it)"
         )
-        c.drawString(20 * mm, y, line[:190])
-        y -= 3.6 * mm
+        y = _wrapped(c, line, y, W, font=("Helvetica", 7))
     if "uncovered_print.png" in pictures:
         draw_picture(c, pictures["uncovered_print.png"], y - 2 * mm, W - 40 * mm, y - 22 * mm)
     c.showPage()
-
-
-def colour_line(colour: dict | None, max_delta_e: float | None) -> str:
-    """The part's colour in one line of the first page."""
-    if not colour:
-        return "colour: not measured"
-    if colour["verdict"] == "not measured":
-        return f"colour: not measured ({'; '.join(r.removeprefix('colour not measured: ') for r in colour['reasons'])})"
-    if colour.get("delta_e00"):  # the part's own: each print pixel from its squarest photo
-        n = len(colour.get("decided_by_photo") or {})
-        return (
-            f"colour: {colour['verdict']}, mean ΔE00 {colour['delta_e00']['mean']:.2f} (limit {max_delta_e:g}) over "
-            f"the part, each print pixel from the photo that sees it most squarely ({n} photo(s))"
-            + ("; shading taken out" if colour.get("shading_directional") else "")
-        )
-    worst = colour["worst_delta_e00"]
-    return (
-        f"colour: {colour['verdict']}, mean ΔE00 {worst['mean']:.2f} (limit {max_delta_e:g}) in the worst of "
-        f"{colour['photos_measured']} photo(s)" + ("; shading taken out" if colour.get("shading_directional") else "")
-    )
 
 
 def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, bytes], W: float, H: float) -> None:
@@ -369,10 +257,7 @@ def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, b
         f"{report.get('max_delta_e', 3.0):g}. A camera screens colour; a spectrophotometer decides conformance.",
     ]
     y = H - 27 * mm
-    for line in lines:
-        c.drawString(20 * mm, y, line)
-        y -= 4 * mm
-    y -= 2 * mm
+    y = _wrapped(c, " ".join(lines), y, W) - 2 * mm
     cols = [20, 66, 88, 104, 120, 136, 156, 172]
     heads = ["photo", "colour", "mean", "p95", "max", "chromatic", "chart fit", "shading"]
     c.setFont("Helvetica-Bold", 8)
@@ -384,7 +269,7 @@ def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, b
         name = e["photo"].rsplit("/", 1)[-1][:28]
         if not col.get("measured"):
             c.drawString(cols[0] * mm, y, name)
-            c.drawString(cols[1] * mm, y, col["reason"][:110])
+            y = _wrapped(c, col["reason"], y, W, cols[1], ("Helvetica", 8)) + 1.35 * 8
             continue
         de, ch, sh = col["delta_e00"], col["delta_e00_chromatic"], col.get("shading") or {}
         row = [
@@ -438,8 +323,7 @@ def colour_pages(c, report: dict, pictures: dict[str, bytes], pages: dict[str, b
         y -= 6 * mm
         c.setFont("Helvetica", 7)
         for line in text:
-            c.drawString(20 * mm, y, line[:175])
-            y -= 3.6 * mm
+            y = _wrapped(c, line, y, W, font=("Helvetica", 7))
         c.drawImage(img, 20 * mm, y - h, width=w, height=h)
         y -= h + 4 * mm
     c.showPage()
@@ -558,6 +442,7 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
     from reportlab.lib.utils import ImageReader, simpleSplit
     from reportlab.pdfgen import canvas as rl_canvas
 
+    from workbench.validate.report_first_page import first_page, rule_page
     from workbench.validate.seating import seating_text
 
     pages = pages or {}
@@ -567,8 +452,9 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
     job = report["design"].get("job") or {}
     c.setTitle(f"workbench QA report: {job.get('name', '')}")
     c.setCreator(f"workbench {report['software']['version']}")
-    first_page(c, report, pictures, W, H)
+    first_page(c, report, pictures, pages, W, H)
     coverage_page(c, report, pictures, W, H)
+    rule_page(c, report, W, H)
     c.setFont("Helvetica-Bold", 14)
     c.drawString(20 * mm, H - 20 * mm, f"QA acceptance report: {job.get('name', 'design')}")
     c.setFont("Helvetica", 8)
@@ -581,12 +467,11 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
         f"camera profile {report['camera_profile']['file']}  sha256 {report['camera_profile']['sha256']}",
     ]
     part_seat = (report.get("part") or {}).get("seating")
-    for line in ids + ([f"the part: {seating_text(part_seat)}"[:170]] if part_seat else []):
-        c.drawString(20 * mm, y, line)
-        y -= 4.2 * mm
+    for line in ids + ([f"the part: {seating_text(part_seat)}"] if part_seat else []):
+        y = _wrapped(c, line, y, W)
     y -= 4 * mm
     cols = [20, 62, 80, 98, 118, 134, 150, 172]
-    heads = ["photo", "view", "verdict", "p95 mm", "max mm", "SSIM", "coverage", "film offset mm / rot"]
+    heads = ["photo", "view", "verdict", "p95 mm", "max mm", "SSIM", "shows view", "film offset mm / rot"]
     c.setFont("Helvetica-Bold", 8)
     draw_row(c, cols, heads, y)
     c.setFont("Helvetica", 8)
@@ -612,11 +497,10 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
             c.setFillColorRGB(0, 0, 0)
             c.setFont("Helvetica", 8)
         y -= 4 * mm
-        c.setFont("Helvetica-Oblique", 7)
-        c.drawString(24 * mm, y, f"{e['reason']}  (photo sha256 {e.get('sha256', '?')[:16]})"[:150])
+        line = f"{e['reason']}  (photo sha256 {e.get('sha256', '?')[:16]})"
+        y = _wrapped(c, line, y, W, 24, ("Helvetica-Oblique", 7)) + 1.35 * 7
         if e.get("seating"):
-            y -= 3.6 * mm
-            c.drawString(24 * mm, y, seating_text(e["seating"])[:170])
+            y = _wrapped(c, seating_text(e["seating"]), y - 1.35 * 7, W, 24, ("Helvetica-Oblique", 7)) + 1.35 * 7
         c.setFont("Helvetica", 8)
         if y < 30 * mm:
             c.showPage()
@@ -635,8 +519,7 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
         c.drawString(20 * mm, H - 20 * mm, f"{stem}: {e['verdict']} in view {e['view']}")
         c.setFillColorRGB(0, 0, 0)
         c.setFont("Helvetica", 8)
-        c.drawString(20 * mm, H - 26 * mm, e["reason"][:160])
-        top = H - 32 * mm
+        top = _wrapped(c, e["reason"], H - 26 * mm, W) - 2 * mm
         dn = e.get("dense") or {}
         if dn:
             mm_ = dn.get("misregistration_mm") or {}
@@ -674,18 +557,19 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
             )
             top -= 3.8 * mm
         top -= 2 * mm
-        for name in names:
+        # the pictures share the height the text leaves, down to the bottom margin
+        shown = [n for n in names if n in pages or n in pictures]
+        each = (top - 15 * mm - 6 * mm * max(len(shown) - 1, 0)) / max(len(shown), 1)
+        for name in shown:
             if name in pages:
                 jpeg = pages[name]
-            elif name in pictures:
-                jpeg = page_picture(Image.open(io.BytesIO(pictures[name])))
             else:
-                continue
+                jpeg = page_picture(Image.open(io.BytesIO(pictures[name])))
             img = ImageReader(io.BytesIO(jpeg))
             iw, ih = img.getSize()
             w = W - 40 * mm
             h = w * ih / iw
-            h = min(h, (H - 60 * mm) / 3)
+            h = min(h, each)
             w = h * iw / ih
             c.drawImage(img, 20 * mm, top - h, width=w, height=h)
             top -= h + 6 * mm

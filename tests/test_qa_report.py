@@ -1,0 +1,158 @@
+"""The QA report: its first page says what to do, and no text on any page is cut off."""
+
+from __future__ import annotations
+
+import json
+
+import pypdfium2 as pdfium
+import pytest
+from conftest import ROOT
+
+from workbench.cli import main
+from workbench.design_dir import Design
+from workbench.validate.report import qa_report
+from workbench.validate.report_first_page import actions
+
+MM = 72 / 25.4
+MARGIN_MM = 10.0  # every character lies at least this far inside the page (the frames' margins are 15 and 20)
+
+
+@pytest.fixture(scope="module")
+def design(tmp_path_factory):
+    d = tmp_path_factory.mktemp("qa") / "design"
+    assert main(["design", str(ROOT / "fixtures" / "default" / "job.toml"), "--out", str(d), "-q"]) == 0
+    return Design(d)
+
+
+def validated(design, folder, *render_flags):
+    """A 2000 x 1500 photo rendered as the demo does, validated; (validation.json, qa_report.pdf's path)."""
+    photo = folder / "p.jpg"
+    args = ["render", str(design.dir), "--orbit=10,55,330", "--size", "2000x1500", "--realistic", "-q"]
+    assert main([*args, *render_flags, "-o", str(photo)]) == 0
+    out = folder / "out"
+    main(
+        ["validate", str(design.dir), str(photo), "--camera", str(photo.with_suffix(".json")), "--out", str(out), "-q"]
+    )
+    return json.loads((out / "validation.json").read_text()), out / "qa_report.pdf"
+
+
+def page_texts(pdf_path) -> list[str]:
+    """Each page's text, whitespace folded."""
+    pdf = pdfium.PdfDocument(str(pdf_path))
+    return [" ".join(pdf[i].get_textpage().get_text_range().split()) for i in range(len(pdf))]
+
+
+def text_outside(pdf_path) -> list[tuple]:
+    """The characters whose box leaves the page's frame (MARGIN_MM inside each edge): (page, char, box)."""
+    bad = []
+    pdf = pdfium.PdfDocument(str(pdf_path))
+    for i in range(len(pdf)):
+        page = pdf[i]
+        W, H = page.get_size()
+        tp = page.get_textpage()
+        lo = MARGIN_MM * MM
+        for k in range(tp.count_chars()):
+            ch = tp.get_text_range(k, 1)
+            if not ch.strip():
+                continue
+            left, bottom, right, top = tp.get_charbox(k)
+            if left < lo or bottom < lo or right > W - lo or top > H - lo:
+                bad.append((i + 1, ch, (round(left), round(bottom), round(right), round(top))))
+    return bad
+
+
+def folded(text: str) -> str:
+    return " ".join(text.split())
+
+
+@pytest.fixture(scope="module")
+def misplaced(design, tmp_path_factory):
+    return validated(design, tmp_path_factory.mktemp("film"), "--film-offset-mm", "0.8,0")
+
+
+@pytest.fixture(scope="module")
+def defective(design, tmp_path_factory):
+    flags = ["--gloss", "0.5", "--defect", "bubble:45,30,6,1", "--defect", "dropout:60,25,1.784"]
+    return validated(design, tmp_path_factory.mktemp("defects"), *flags)
+
+
+def test_a_misplaced_film_is_a_move_on_page_one_not_a_shift_defect(misplaced):
+    report, pdf = misplaced
+    place = report["photos"][0]["placement"]
+    (mx, my), turn = place["move_mm"], place["turn_deg"]
+    assert place["verdict"] == "FAIL" and mx == pytest.approx(-0.8, abs=0.05) and abs(my) < 0.05
+    first = page_texts(pdf)[0]
+    assert f"Move the film by ({mx:+.2f}, {my:+.2f}) mm and turn it by {turn:+.2f}°" in first, first
+    assert not [d for d in report["part"]["defects"] if d["kind"] == "shift"]
+    assert "No defect found" in first and "shift" not in first
+
+
+def test_a_defect_is_circled_and_tabled_on_page_one(defective):
+    report, pdf = defective
+    first = page_texts(pdf)[0]
+    over = [d for d in report["part"]["defects"] if d["area_mm2"] > report["max_defect_mm2"]]
+    assert over, report["part"]["defects"]
+    assert f"Reject or rework the part: {len(over)} defect(s) larger than 4 mm²" in first
+    for d in report["part"]["defects"]:
+        assert f"x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f}" in first
+    assert "defect(s) circled and numbered" in first
+
+
+@pytest.mark.parametrize("which", ["misplaced", "defective"])
+def test_no_text_is_cut_off_on_any_page(which, request):
+    report, pdf = request.getfixturevalue(which)
+    assert text_outside(pdf) == []
+    pages = page_texts(pdf)
+    text = " ".join(pages)
+    assert "..." not in text and "…" not in text
+    # the rule and every photo's reason in full, the rule after page one
+    assert folded(report["verdict_rule"]["text"]) in " ".join(pages[1:])
+    for e in report["photos"]:
+        assert folded(e["reason"]) in text
+
+
+def test_a_long_first_page_runs_on_rather_than_off_the_page(tmp_path):
+    # forty defects and a reason of several lines: the table splits onto a second page, nothing leaves the frame
+    reason = "misregistration p95 0.412 mm > tolerance 0.2 mm; " * 12
+    defects = [
+        {"kind": "missing", "centre_mm": [1.0 + k, 2.0], "area_mm2": 5.0 + k, "view": "logo", "photos": ["a.jpg"]}
+        for k in range(40)
+    ]
+    report = {
+        "design": {"dir": "design", "design_json_sha256": "0" * 64, "print_sha256": "1" * 64, "job": {"name": "lid"}},
+        "software": {"version": "0"},
+        "camera_profile": {"file": "cam.json", "sha256": "2" * 64},
+        "tolerance_mm": 0.2,
+        "max_defect_mm2": 4.0,
+        "photos": [{"photo": "a.jpg", "verdict": "FAIL", "reason": reason, "view": "front", "defects": []}],
+        "part": {"verdict": "FAIL", "defects": defects},
+    }
+    (tmp_path / "r.pdf").write_bytes(qa_report(report, {}))
+    assert text_outside(tmp_path / "r.pdf") == []
+    pages = page_texts(tmp_path / "r.pdf")
+    assert folded(f"a.jpg: {reason}") in pages[0]
+    text = " ".join(pages[:2])
+    assert all(f"x {1.0 + k:.1f}, y 2.0" in text for k in range(40))
+
+
+def test_the_actions_name_the_next_photo_and_the_photo_to_retake():
+    report = {
+        "max_defect_mm2": 4.0,
+        "photos": [
+            {"photo": "dir/a.jpg", "verdict": "PASS", "reason": "", "placement": None},
+            {"photo": "b.jpg", "verdict": "INVALID", "reason": "the fixture's markers are not in the photo"},
+        ],
+        "part": {
+            "verdict": "INCOMPLETE",
+            "defects": [],
+            "coverage": {"next_photo": {"orbit": [60.0, 50.0, 330.0], "sees_share": 1.0}},
+            "colour": {"verdict": "not measured", "reasons": ["colour not measured: no chart"]},
+        },
+    }
+    said = actions(report)
+    assert said[0] == "Retake b.jpg: the fixture's markers are not in the photo."
+    assert said[1].startswith("Retake from azimuth 60°, elevation 50°, 330 mm from the part's centre")
+    assert said[2] == "To measure colour, keep the fixture's colour chart in the frame of the next photo."
+    assert actions({**report, "photos": report["photos"][:1], "part": {"verdict": "PASS", "defects": []}}) == [
+        "Accept the part: nothing to do."
+    ]

@@ -22,6 +22,9 @@ test: install
 WB := $(VENV)/bin/workbench
 DEMO := out/demo
 
+# the photos from behind the part (azimuth 200°, elevation 45°, 330 mm): the fixture's colour chart, in
+# front of the part, is then in the frame beyond it (from the front it sits between the camera and the
+# part, out of the frame), and the part fills as much of it as from the front
 # the whole pipeline on the bundled default job: design, print PDF, fixture PDF, two
 # synthetic photos of three parts (one perfect, one with the film 0.8 mm off, one glossy with a bubble
 # and an ink dropout), and each part's validation and QA report
@@ -29,10 +32,10 @@ demo: install
 	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
 	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf
 	$(WB) board fixture fixtures/default/job.toml -o $(DEMO)/fixture.pdf
-	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic -o $(DEMO)/photo_perfect.jpg
-	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic --film-offset-mm 0.8,0 \
+	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic -o $(DEMO)/photo_perfect.jpg
+	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --film-offset-mm 0.8,0 \
 		-o $(DEMO)/photo_film_0.8mm.jpg
-	$(WB) render $(DEMO)/design --orbit 10,55,330 --size 4000x3000 --realistic --gloss 0.5 \
+	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --gloss 0.5 \
 		--defect bubble:45,30,6,1 --defect dropout:60,25,1.784 -o $(DEMO)/photo_defects.jpg
 	@# three photos of three parts: one validation (and one QA report) per part, as a QA line runs them
 	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg --camera $(DEMO)/photo_perfect.json \

@@ -37,15 +37,23 @@ def actions(report: dict) -> list[str]:
                 f"Move the film by ({mx:+.2f}, {my:+.2f}) mm and turn it by {t:+.2f}° on the next part "
                 f"(print mm, x right, y down): {photo_name(e)} shows it ({x:+.2f}, {y:+.2f}) mm and {r:+.2f}° off."
             )
+    moved = bool(out)
     limit = report.get("max_defect_mm2")
     over = [k + 1 for k, d in enumerate(part.get("defects", [])) if limit is not None and d["area_mm2"] > limit]
     if over:
         out.append(
             f"Reject or rework the part: {len(over)} defect(s) larger than {limit:g} mm² "
-            f"(# {', '.join(map(str, over))} below); then look for their cause on the press or the forming tool."
+            f"(# {', '.join(map(str, over))} in the defect table); then look for their cause on the press or the "
+            "forming tool."
         )
     colour = part.get("colour") or {}
-    if colour.get("verdict") == "FAIL":
+    if colour.get("verdict") == "FAIL" and moved:
+        # colour is compared where the design puts the ink: on a film off its place, across the print's edges
+        out.append(
+            f"Judge the colour again once the film is in place: {colour_words(colour, report.get('max_delta_e'))}, "
+            "compared where the design puts each colour, so across its edges on a film that is off."
+        )
+    elif colour.get("verdict") == "FAIL":
         out.append(f"Check the ink and the print profile: {colour_words(colour, report.get('max_delta_e'))}.")
     for e in report.get("photos", []):
         if e["verdict"] == "INVALID":

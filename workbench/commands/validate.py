@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from workbench import __version__
+from workbench import __version__, progress
 from workbench.atomic import check_output_dir, check_outputs, safe_name, write_folder
 from workbench.camera import load_camera_profile
 from workbench.design_dir import Design, design_files
@@ -243,9 +243,10 @@ def held_pose(args, design: Design) -> dict | None:
     return motion_entry(off, rot, design.V)
 
 
-def _init_worker(design_dir: str, camera: str) -> None:
-    """A spawned worker: loads the design and the camera profile itself."""
+def _init_worker(design_dir: str, camera: str, shown: bool = False) -> None:
+    """A spawned worker: loads the design and the camera profile itself (``shown``: progress lines on)."""
     _one_thread()
+    progress.show(shown)
     _WORKER.update(design=Design(Path(design_dir)), profile=usable_profile(Path(camera)), cache={})
 
 
@@ -272,7 +273,7 @@ def validate_in_pool(jobs: int, work: list[tuple], design: Design, profile, prof
     with OpenCV: no worker imports matplotlib.)
     """
     if not fork_is_safe():
-        context, initargs = get_context("spawn"), (str(design.dir), str(profile_path))
+        context, initargs = get_context("spawn"), (str(design.dir), str(profile_path), progress.shown())
         with ProcessPoolExecutor(jobs, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
             return list(pool.map(_validate_in_worker, work))
     cache["grid"] = design_print_grid(design)
@@ -424,6 +425,8 @@ def record(recorder, report_text: str, out: Path, written: list[Path]) -> None:
 def run(args) -> int:
     keep_freed_memory()
     log = (lambda _m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    # a line per photo and stage on a terminal (workers forked later keep the setting)
+    progress.show(progress.wanted(args.quiet))
     if not (np.isfinite(args.tolerance_mm) and args.tolerance_mm > 0):
         raise UsageError(f"--tolerance-mm {args.tolerance_mm:g}: must be a positive number of mm")
     if not (np.isfinite(args.max_defect_mm2) and args.max_defect_mm2 > 0):
@@ -460,6 +463,7 @@ def run(args) -> int:
     seat = (args.seating, args.max_seating_mm, held)
     judge = (args.view, args.tolerance_mm, args.max_defect_mm2, seat, (args.max_delta_e, proof))
     work = [(p, stem, *judge) for p, stem in zip(photos, stems, strict=True)]
+    progress.say(f"{len(work)} photo(s) of {design.dir}, {jobs} at a time")
     if jobs > 1:
         results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
@@ -482,6 +486,7 @@ def run(args) -> int:
     if grid is None and scored:
         grid = design_print_grid(design)
     t_part = time.perf_counter()
+    progress.say(f"the part: its {len(entries)} photo(s) together (defects, colour, coverage)")
     maps = detection.part_maps(entries)
     # several photos, one part: ink gone or a slide that another photo sees intact is light where it was found
     dismissed = light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2, grid.X) if grid else []
@@ -573,6 +578,7 @@ def run(args) -> int:
     files.update(detection.add_to_report(report, maps, out))
     files[out / "validation.json"] = (json.dumps(report, indent=1) + "\n").encode()
     shown = {k.name: v for k, v in files.items() if k.suffix == ".png"}
+    progress.say(f"the QA report: {out / 'qa_report.pdf'}")
     files[out / "qa_report.pdf"] = qa_report(report, shown, pages)
     files[out / "qa_report.html"] = interactive_report(report, shown, design, grid, combined, photos)
     write_folder(out, files, inputs)

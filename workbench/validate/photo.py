@@ -15,6 +15,7 @@ import numba
 import numpy as np
 from PIL import Image
 
+from workbench import progress
 from workbench.atomic import safe_name
 from workbench.camera import Camera
 from workbench.design_dir import Design, read_image
@@ -248,7 +249,7 @@ def _validate_photo(
             f"reprojection error {pose.rms_px:.2f} px is too high (> {MAX_RMS_PX} px): wrong camera profile?"
         )
         return entry, files, None, {}
-    clock.append(time.perf_counter())  # pose
+    tick(clock, path.name)  # pose
     from workbench.part_motion import seated_camera
     from workbench.validate.seating import seat_photo
 
@@ -276,7 +277,7 @@ def _validate_photo(
             R, t, moved = seat.R @ R, seat.R @ t + seat.t, True
     if moved:
         pose.camera = seated_camera(board, R, t)
-    clock.append(time.perf_counter())  # seating
+    tick(clock, path.name)  # seating
     views = design.info["views"]
     if view_name is None:
         dists = [np.linalg.norm(np.asarray(_centre(v)) - pose.camera.center) for v in views]
@@ -297,10 +298,10 @@ def _validate_photo(
         return entry, files, None, {}
     entry["view"] = name
     surface, view_rgb, printed_rgb = cache[vi] = _done(cache.pop(vi))
-    clock.append(time.perf_counter())  # checks and the view
+    tick(clock, path.name)  # checks and the view
     warped, valid = warp_photo(photo, pose.camera, surface, design.V, design.F, depth)
     p = design.info["print"]
-    clock.append(time.perf_counter())  # warps
+    tick(clock, path.name)  # warps
     # the tiles (the view) beside the print warp and the dense analysis (the print)
     tiles = side.submit(
         _timed, score, view_rgb, warped, valid, surface, (p["image_width_mm"], p["image_height_mm"]), tolerance_mm,
@@ -308,7 +309,7 @@ def _validate_photo(
     )  # fmt: skip
     grid = cache["grid"] = _done(cache.pop("grid"))
     on_print, state, scale, footprint = print_warp.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
-    clock.append(time.perf_counter())  # print warp
+    tick(clock, path.name)  # print warp
     dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center)
     sc, tiles_s = tiles.result()
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
@@ -367,7 +368,7 @@ def _validate_photo(
             )
         else:
             entry["misregistration_source"] = None
-    clock.append(time.perf_counter())  # dense analysis
+    tick(clock, path.name)  # dense analysis
     # (the ink's colour where no lamp is mirrored towards the camera: a glossy film's sheen adds
     # light below any glint within the lamp's mirror cone, and the chart, seen apart, carries none;
     # leaving the cone out took perfect glossy renders of the cow, the lily and the face under a
@@ -381,7 +382,7 @@ def _validate_photo(
     entry["colour"]["verdict"] = colour_verdict(entry["colour"], max_delta_e)[0]
     seen = state >= print_warp.GRAZING
     entry["photo_quality"] = photo_quality(photo, on_print, grid.reference, seen, read_jpeg_quality(path))
-    clock.append(time.perf_counter())  # colour
+    tick(clock, path.name)  # colour
     entry["dense"] = dense_summary(dr, grid, design, sc, surface)
     # arrays: the command moves them to landing.npz; a photo at fault lands nothing
     entry["landing"] = (
@@ -406,7 +407,7 @@ def _validate_photo(
     entry["not_counted"] = dr.not_counted or []
     entry["placement"] = placement(entry, tolerance_mm)
     entry["verdict"], entry["reason"] = photo_verdict(entry, tolerance_mm, max_defect_mm2, max_delta_e)
-    clock.append(time.perf_counter())  # summary
+    tick(clock, path.name)  # summary
     stem = stem or safe_name(path.stem)
     entry["pictures"] = stem  # the name the warped photo, overlay and heat map start with
 
@@ -453,18 +454,28 @@ def _validate_photo(
         pages[f"{stem}_colour_print.png"] = side.submit(_page, shown_de)
     files.update({k: v.result() for k, v in files.items()})
     pages.update({k: v.result() for k, v in pages.items()})
-    clock.append(time.perf_counter())  # pictures
+    tick(clock, path.name)  # pictures
     # each stage's seconds on the photo's own thread; the tiles ran beside the print warp and the
     # dense analysis (their own seconds: the stages then add up to more than the photo's)
-    stages = (
-        *("pose", "seating", "checks and view", "view warp", "print warp"),
-        *("dense analysis", "colour", "figures and verdict", "pictures"),
-    )
-    timings = {k: round(b - a, 3) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
+    timings = {k: round(b - a, 3) for k, a, b in zip(STAGES, clock[:-1], clock[1:], strict=True)}
     timings = {**dict(list(timings.items())[:4]), "tiles": round(tiles_s, 3), **dict(list(timings.items())[4:])}
     entry["timings_s"] = timings
     # a photo at fault says nothing of the part's print: neither its coverage nor its defects count
     return entry, files, None if entry["photo_quality"]["problems"] else dr.state, pages
+
+
+# a photo's stages, in order: each one's seconds in its entry's timings_s, and a progress line at its end
+STAGES = (
+    *("pose", "seating", "checks and view", "view warp", "print warp"),
+    *("dense analysis", "colour", "figures and verdict", "pictures"),
+)
+
+
+def tick(clock: list[float], photo: str) -> None:
+    """The end of a photo's next stage: its time on ``clock`` and, on a terminal, a progress line."""
+    clock.append(time.perf_counter())
+    k = len(clock) - 2
+    progress.say(f"{photo}: {STAGES[k]} done ({k + 1}/{len(STAGES)}, {clock[-1] - clock[-2]:.1f} s)")
 
 
 def _done(value):

@@ -162,3 +162,23 @@ def test_bad_input(tmp_path, capsys, args, fragment, status):
     assert main(["board", *args, "-o", str(out), "-q"]) == status
     err = capsys.readouterr().err.strip()
     assert fragment in err and len(err.splitlines()) == 1 and not out.exists()
+
+
+def outline_touching_black(pdf_path) -> tuple[int, float]:
+    """The part's red outline on a fixture PDF: its pixels, and the share of them next to a black pixel."""
+    import pypdfium2 as pdfium
+
+    page = pdfium.PdfDocument(str(pdf_path))[0]
+    rgb = np.asarray(page.render(scale=8 * 25.4 / 72).to_pil().convert("RGB")).astype(int)
+    red = (rgb[..., 0] > 150) & (rgb[..., 1] < 100) & (rgb[..., 2] < 100)
+    black = cv2.dilate((rgb.max(axis=2) < 80).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    return int(red.sum()), float((red & black).sum() / max(red.sum(), 1))
+
+
+def test_the_parts_outline_shows_over_the_black_squares(tmp_path):
+    # red on a white casing: at 8 px per mm no pixel of the red line touches a black square (the default
+    # part's outline crosses ten of them; a bare red line touches black along a fifth of its length)
+    out = tmp_path / "f.pdf"
+    assert main(["board", "fixture", str(ROOT / "fixtures" / "default" / "job.toml"), "-o", str(out), "-q"]) == 0
+    n, share = outline_touching_black(out)
+    assert n > 2000 and share == 0.0, (n, share)

@@ -31,6 +31,11 @@ from workbench.printing.pdf import PT_PER_MM, PrinterProfile, _Page, build_date,
 
 BOARD_MARGIN_MM = 10.0
 BELOW_MM = 22.0  # scale bar and text line under the board
+OUTLINE_MM = 0.5  # the part's red outline on the fixture, line width
+CASING_MM = 0.4  # the white casing on each side of it, so that it shows over black squares
+# no outline, casing included, nearer than this to a ChArUco corner: a line through a corner pulls its
+# sub-pixel position (seen: 0.1 mm)
+CORNER_GAP_MM = 2.75
 
 
 def add_parser(sub) -> None:
@@ -128,8 +133,7 @@ def board_pdf(
     if chart is not None:
         draw_chart_slot(c, chart, left, top)
     if footprint is not None:
-        # the outline leaves a 3 mm gap around every ChArUco corner: a line through a
-        # corner would pull its sub-pixel position (seen: 0.1 mm)
+        # the outline leaves a gap around every ChArUco corner (CORNER_GAP_MM)
         from workbench.printing.boards import board_geometry
 
         corners = board_geometry(spec)["charuco_mm"]
@@ -138,10 +142,9 @@ def board_pdf(
         t = np.concatenate([[0.0], np.cumsum(seg)])
         s_ = np.arange(0.0, t[-1], 0.25)
         pts = np.stack([np.interp(s_, t, closed[:, 0]), np.interp(s_, t, closed[:, 1])], axis=1)
-        near = (np.linalg.norm(pts[:, None, :] - corners[None], axis=2) < 3.0).any(axis=1)
-        c.setStrokeColorRGB(0.85, 0.1, 0.1)
-        c.setLineWidth(0.5)
-        start = None
+        gap = CORNER_GAP_MM + OUTLINE_MM / 2 + CASING_MM  # (to the line's centre)
+        near = (np.linalg.norm(pts[:, None, :] - corners[None], axis=2) < gap).any(axis=1)
+        paths, start = [], None
         for k in range(len(pts) + 1):
             if k < len(pts) and not near[k]:
                 start = k if start is None else start
@@ -151,9 +154,18 @@ def board_pdf(
                 path.moveTo(left + pts[start, 0], top - pts[start, 1])
                 for x, y in pts[start + 1 : k]:
                     path.lineTo(left + x, top - y)
-                c.drawPath(path, stroke=1, fill=0)
+                paths.append(path)
             start = None
+        # red on a white casing: the line shows over the black squares as over the white ones
+        # (the casing's ends squared beyond the red's, so that no red end meets a black square either)
+        for rgb, width, cap in (((1.0, 1.0, 1.0), OUTLINE_MM + 2 * CASING_MM, 2), ((0.85, 0.1, 0.1), OUTLINE_MM, 0)):
+            c.setStrokeColorRGB(*rgb)
+            c.setLineWidth(width)
+            c.setLineCap(cap)
+            for path in paths:
+                c.drawPath(path, stroke=1, fill=0)
         c.setStrokeColorRGB(0, 0, 0)
+        c.setLineCap(0)
         c.setLineWidth(0.25 / PT_PER_MM)
         page.text(left, top + 2.0, "top edge: mesh +y. Place the part inside the red outline.", size=2.6)
     bottom = top - bh - below_board

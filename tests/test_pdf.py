@@ -450,3 +450,36 @@ def test_cut_overprints_the_process_plates(tmp_path):
         under, bare = plates["cut"][c][cut], plates["bare"][c][cut]
         assert bare.mean() > 20  # the checker's black puts ink of every plate along the cut
         assert np.abs(under - bare).max() <= 2, c  # not knocked out
+
+
+def write_layout(d, to_mesh, width_mm=100.0, height_mm=60.0):
+    """A flat layout (flat.obj, mm, y up) of the print's rectangle and the part it lands on (decorated.obj:
+    each flat point (x, y) at ``to_mesh(x, y)``), the same vertices."""
+    xs, ys = np.linspace(0, width_mm, 3), np.linspace(0, height_mm, 3)
+    flat = [(x, y) for y in ys for x in xs]
+    faces = [(r * 3 + c + 1, r * 3 + c + 2, r * 3 + c + 5) for r in range(2) for c in range(2)]
+    faces += [(r * 3 + c + 1, r * 3 + c + 5, r * 3 + c + 4) for r in range(2) for c in range(2)]
+    tail = "".join(f"f {a} {b} {c}\n" for a, b, c in faces)
+    (d / "flat.obj").write_text("".join(f"v {x} {y} 0\n" for x, y in flat) + tail)
+    (d / "decorated.obj").write_text("".join("v {} {} {}\n".format(*to_mesh(x, y)) for x, y in flat) + tail)
+
+
+@pytest.mark.parametrize(
+    "to_mesh, where",
+    [
+        (lambda x, y: (x, y, 0.0), "part +y"),  # laid flat as printed
+        (lambda x, y: (-x, -y, 0.0), "part -y"),  # turned half a turn
+        (lambda x, y: (y, -x, 0.0), "part +x"),  # a quarter turn clockwise: the print's top towards +x
+        (lambda x, y: (x, 0.0, y), "part +z"),  # standing up, as on a box's front
+    ],
+)
+def test_the_print_says_where_its_top_edge_goes(tmp_path, to_mesh, where):
+    d = make_design(tmp_path)
+    write_layout(d, to_mesh)
+    out = tmp_path / "p.pdf"
+    assert main(["pdf", str(d), "-o", str(out), "-q"]) == 0
+    import pypdfium2 as pdfium
+
+    page = pdfium.PdfDocument(str(out))[0]
+    text = page.get_textpage().get_text_range()
+    assert f"this edge: {where}" in text and text.count("this edge:") == 1

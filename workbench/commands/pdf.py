@@ -183,6 +183,30 @@ def film_outline(path: Path) -> np.ndarray | None:
     return V[loops[0], :2]
 
 
+def top_edge(directory: Path) -> str:
+    """Where the print's top edge goes on the part, "part +y" and the like, from the design's flat layout.
+
+    The linear map from the flat layout (``flat.obj``, mm, y up: the print's top is its +y)
+    to the part (``decorated.obj``, the same vertices), fitted over every vertex; the print's
+    up direction lands along the mesh axis it is nearest. "" when the layout cannot say
+    (the files missing or not matching, or the up direction along no axis within 45°).
+    """
+    try:
+        flat, _ = read_mesh(directory / "flat.obj", solid=False)
+        V, _ = read_mesh(directory / "decorated.obj", solid=False)
+    except (OSError, WorkbenchError):
+        return ""
+    if flat.shape != V.shape or len(V) < 3:
+        return ""
+    A = np.column_stack([flat[:, :2] - flat[:, :2].mean(axis=0), np.ones(len(flat))])
+    M, *_ = np.linalg.lstsq(A, V - V.mean(axis=0), rcond=None)
+    up = M[1]  # the mesh displacement of one mm up the print
+    k = int(np.argmax(np.abs(up)))
+    if not np.isfinite(up).all() or abs(up[k]) < np.linalg.norm(up) * np.sqrt(0.5):
+        return ""
+    return f"part {'+' if up[k] > 0 else '-'}{'xyz'[k]}"
+
+
 def film_pages(directory: Path, info: dict, pattern: np.ndarray | None = None) -> list[FilmPage]:
     """One page per film of a design with several: its print, outline and label; with ``pattern``
     (the atlas's calibration pattern, RGB), each film's part of it instead of its print."""
@@ -298,7 +322,7 @@ def run(args) -> int:
         pages = film_pages(Path(args.design), info, pattern)
     else:
         outline = None if args.no_cut else film_outline(Path(args.design) / "flat.obj")
-        pages = [FilmPage(rgb, pr["width_mm"], pr["height_mm"], outline, film)]
+        pages = [FilmPage(rgb, pr["width_mm"], pr["height_mm"], outline, film, top_edge=top_edge(Path(args.design)))]
     pdf, sheets, ink = print_pdf_pages(
         pages, pr["dpi"], name, job.get("sha256") or "unknown", paper, bleed, margin, profile, not args.no_cut, pdfx
     )

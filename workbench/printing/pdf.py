@@ -208,6 +208,20 @@ def registration_marks(page: _Page, trim, bleed_mm: float) -> None:
         page.line(cx, cy - REG_RADIUS_MM, cx, cy + REG_RADIUS_MM)
 
 
+def orientation_mark(page: _Page, trim, bleed_mm: float, where: str) -> None:
+    """Which way the film goes on the part: an arrow and "this edge: WHERE" above the trim's top edge, outside the
+    bleed, between the top-left crop mark and the registration mark."""
+    x0, _, _, y1 = trim
+    x, y = x0 + 2.0, y1 + bleed_mm + 1.5
+    path = page.c.beginPath()  # a small arrow pointing at the edge
+    path.moveTo(x, y + 2.2)
+    path.lineTo(x + 2.0, y + 2.2)
+    path.lineTo(x + 1.0, y + 0.4)
+    path.close()
+    page.c.drawPath(path, stroke=0, fill=1)
+    page.text(x + 3.0, y + 0.6, f"this edge: {where}", size=2.6)
+
+
 def scale_bar(page: _Page, x: float, y: float, vertical: bool) -> None:
     """A 100 mm bar with mm ticks (long every 10 mm, labelled), starting at (x, y)."""
 
@@ -608,7 +622,8 @@ def finish_pdfx(data: bytes, opts: PdfxOptions) -> tuple[bytes, InkReport | None
 class FilmPage:
     """One film's page of a print PDF (see :func:`print_pdf` for the fields).
 
-    ``label``: printed on the page, e.g. "film 2 of 5: cheek".
+    ``label``: printed on the page, e.g. "film 2 of 5: cheek". ``top_edge``: where the trim's top
+    edge goes on the part, printed above it, e.g. "part +y" ("": no mark).
     """
 
     rgb: np.ndarray
@@ -617,6 +632,7 @@ class FilmPage:
     outline_mm: np.ndarray | None = None
     film: np.ndarray | None = None
     label: str = ""
+    top_edge: str = ""
 
 
 def print_pdf_pages(
@@ -714,6 +730,8 @@ def _draw_page(c, fp: FilmPage, sheet: PrintSheet, dpi, job_name, job_sha256, bl
     scale_bar(page, *sheet.bar_x, vertical=False)
     scale_bar(page, *sheet.bar_y, vertical=True)
     check_square(page, *sheet.check_square)
+    if fp.top_edge:
+        orientation_mark(page, sheet.trim, b, fp.top_edge)
     note = (
         (f"{fp.label} | " if fp.label else "")
         + f"{job_name} | {width_mm:.2f} x {height_mm:.2f} mm | {dpi:g} dpi | {build_date()} | job {job_sha256[:12]} | "

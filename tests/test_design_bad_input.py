@@ -108,6 +108,8 @@ def test_mesh_that_is_not_a_disc(capsys, job_dir):
         ("[[views]]", "[[viewz]]", "job: unknown key 'viewz'"),
         ("fov_deg = 40", "fov_deg = 40\nfx = 100", "views[0]: give the camera as"),
         ("dpi = 300", 'dpi = 300\nscale = "huge"', "print.scale: 'huge': use isometric, area, no-shrink"),
+        ("[object]", 'name = "  "\n[object]', "job.name: must name the job"),
+        ("[object]", "name = 3\n[object]", "job.name: must be a string, got 3"),
     ],
 )
 def test_job_file_errors_name_the_key(capsys, job_dir, old, new, fragment):
@@ -146,3 +148,10 @@ def test_intrinsics_camera_equals_look_at_camera(job_dir):
     b = design(load_job(job_dir / "k.toml"))
     np.testing.assert_allclose(b.cameras[0].R, a.cameras[0].R, atol=1e-12)
     assert (a.rgb != b.rgb).mean() < 1e-4  # Rodrigues round trip: a few pixels may round differently
+
+
+def test_the_jobs_name_key_names_it_whatever_its_folder(job_dir):
+    # a job.toml in a folder: named after its folder, unless it names itself
+    assert load_job(job_dir / "job.toml").name == "job"
+    (job_dir / "job.toml").write_text(edit(job_dir, "[object]", 'name = "cow flank"\n[object]'))
+    assert load_job(job_dir / "job.toml").name == "cow flank"

@@ -121,10 +121,16 @@ class Job:
     views: tuple[ViewSpec, ...]
     fixture: dict | None
     films: tuple[FilmSpec, ...] | str | None = None
+    given_name: str | None = None
 
     @property
     def name(self) -> str:
-        """The file's name, or its folder's when the file is just ``job.toml``."""
+        """The job's ``name`` key; without one the file's name, or its folder's when the file is just ``job.toml``.
+
+        It names the design folder, the print and fixture files and every report's title.
+        """
+        if self.given_name is not None:
+            return printable(self.given_name)
         return printable(self.path.parent.name if self.path.stem == "job" else self.path.stem)
 
 
@@ -355,7 +361,10 @@ def load_job(path: str | Path) -> Job:
         raise WorkbenchError(f"{path}: not valid TOML: {exc}") from None
     except RecursionError:
         raise WorkbenchError(f"{path}: not valid TOML: nested deeper than a job can be") from None
-    top = _Reader(path, "job", doc, {"object", "print", "views", "fixture", "films"})
+    top = _Reader(path, "job", doc, {"name", "object", "print", "views", "fixture", "films"})
+    given_name = top.string("name")
+    if given_name is not None and not given_name.strip():
+        top.fail("must name the job (it names the design folder and the reports)", "name")
 
     o = _Reader(
         path,
@@ -429,6 +438,7 @@ def load_job(path: str | Path) -> Job:
         views=tuple(views),
         fixture=fixture,
         films=films,
+        given_name=given_name.strip() if given_name is not None else None,
     )
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import tomllib
 from pathlib import Path
 
@@ -346,3 +347,19 @@ def test_a_template_drawn_on_is_never_replaced(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "suggest-1.png: exists and is not the template this run writes" in err[0]
     assert drawn.read_bytes() == b"a picture drawn on the template" and out.read_text() == "an earlier table"
+
+
+def test_elevation_is_above_the_fixtures_plate_by_default(tmp_path, capsys):
+    # the logo view looks down with its image's up along +y: elevations were measured from the plane
+    # normal to +y (a camera overhead: "elevation 7.4°"); by default they are above the plate, +z
+    job = job_with_views(tmp_path, "default", ["logo"])
+    assert main(["suggest-views", str(job), "-n", "2", "--size", "320x240", "-q"]) == 0
+    text = capsys.readouterr().out
+    views = tomllib.loads(text)["views"]
+    said = [float(x) for x in re.findall(r"elevation (-?[0-9.]+)°", text)]
+    assert len(said) == len(views) == 2
+    for v, elevation in zip(views, said, strict=True):
+        d = np.subtract(v["position"], v["look_at"])
+        assert v["up"] == [0.0, 0.0, 1.0]
+        assert elevation == pytest.approx(np.degrees(np.arcsin(d[2] / np.linalg.norm(d))), abs=0.06)
+    assert max(said) > 80.0  # (the suggestion overhead, 24 mm off the logo camera's axis)

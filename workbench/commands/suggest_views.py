@@ -63,7 +63,10 @@ def add_parser(sub) -> None:
         help="lowest camera elevation above the plane normal to --up, degrees (default -90: anywhere)",
     )
     p.add_argument(
-        "--up", metavar="X,Y,Z", help="the direction towards the top of every image (default: the first view's)"
+        "--up",
+        metavar="X,Y,Z",
+        help="the direction towards the top of every image, and the elevation's zenith (default: the fixture plate's "
+        "normal, +z of the mesh: the plate lies under the part, so a camera overhead is at elevation 90°)",
     )
     p.add_argument(
         "--fov-deg",
@@ -97,6 +100,10 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+# the fixture's plate lies in the mesh's x-y plane, under the part (board fixture: mesh = origin + (x, -y, 0))
+PLATE_NORMAL = (0.0, 0.0, 1.0)
+
+
 def _numbers(flag: str, text: str, counts: tuple[int, ...]) -> list[float]:
     n = len(text.split(","))
     if n not in counts:
@@ -116,7 +123,7 @@ def options_from_args(args) -> SuggestOptions:
         if not 0 < lo <= hi:
             raise UsageError(f"--distance-mm {args.distance_mm!r}: give D > 0, or LO,HI with 0 < LO <= HI")
         distance = (lo, hi)
-    up = None
+    up = PLATE_NORMAL  # (the job's views may look any way: the first one's image up is no zenith)
     if args.up is not None:
         up = _numbers("--up", args.up, (3,))
         if np.linalg.norm(up) == 0:

@@ -266,10 +266,13 @@ def first_page_story(report: dict, pictures: dict[str, bytes], pages: dict[str, 
     return story
 
 
-def pictures_row(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes], width: float, height: float):
-    """The circled photo and the coverage map side by side, in ``width`` x ``height`` points; None without either."""
+def pictures_row(
+    report: dict, pictures: dict[str, bytes], pages: dict[str, bytes], width: float, height: float
+) -> list:
+    """The circled photo and the coverage map in ``width`` x ``height`` points, each with its caption (flowables):
+    side by side, or one above the other where that shows them larger."""
     from reportlab.lib.units import mm
-    from reportlab.platypus import Paragraph, Table, TableStyle
+    from reportlab.platypus import Paragraph, Spacer, Table, TableStyle
 
     st = styles()["small"]
     shown = circled_photo(report)
@@ -285,16 +288,22 @@ def pictures_row(report: dict, pictures: dict[str, bytes], pages: dict[str, byte
         cells.append(pictures["coverage_print.png"])
         captions.append("the part's print: what was measured, the defects numbered as in the table (mm, y down)")
     if not cells:
-        return None
+        return []
     gap = 4 * mm
     w = (width - gap * (len(cells) - 1)) / len(cells)
     caption_h = 2 * 9.5 + 2
-    row = [[picture(p, w, height - caption_h) for p in cells], [Paragraph(escape(c), st) for c in captions]]
+    side = [picture(p, w, height - caption_h) for p in cells]
+    each = (height - len(cells) * (caption_h + gap)) / len(cells)
+    stacked = [picture(p, width, each) for p in cells]
+    if sum(f.drawWidth * f.drawHeight for f in stacked) > sum(f.drawWidth * f.drawHeight for f in side):
+        pairs = zip(stacked, captions, strict=True)
+        return [x for f, c in pairs for x in (f, Paragraph(escape(c), st), Spacer(1, gap))]
+    row = [side, [Paragraph(escape(c), st) for c in captions]]
     t = Table(row, colWidths=[w + (gap if k < len(cells) - 1 else 0) for k in range(len(cells))], hAlign="LEFT")
     t.setStyle(TableStyle([("VALIGN", (0, 0), (-1, -1), "TOP"), ("LEFTPADDING", (0, 0), (-1, -1), 0),
                            ("RIGHTPADDING", (0, 0), (-1, -1), 0), ("TOPPADDING", (0, 0), (-1, -1), 0),
                            ("BOTTOMPADDING", (0, 0), (-1, -1), 0)]))  # fmt: skip
-    return t
+    return [t]
 
 
 def flow(c, story: list, W: float, H: float) -> None:
@@ -330,8 +339,7 @@ def first_page(c, report: dict, pictures: dict[str, bytes], pages: dict[str, byt
     story = first_page_story(report, pictures, pages, W)
     used = sum(f.wrap(fw, fh)[1] + f.getSpaceBefore() + f.getSpaceAfter() for f in story)
     room = fh - used - 2
-    row = pictures_row(report, pictures, pages, fw, room if room > fh / 3 else fh / 2)
-    flow(c, story + ([row] if row is not None else []), W, H)
+    flow(c, story + pictures_row(report, pictures, pages, fw, room if room > fh / 3 else fh / 2), W, H)
 
 
 def rule_page(c, report: dict, W: float, H: float) -> None:

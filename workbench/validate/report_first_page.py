@@ -50,11 +50,11 @@ def actions(report: dict) -> list[str]:
     if colour.get("verdict") == "FAIL" and moved:
         # colour is compared where the design puts the ink: on a film off its place, across the print's edges
         out.append(
-            f"Judge the colour again once the film is in place: {colour_words(colour, report.get('max_delta_e'))}, "
-            "compared where the design puts each colour, so across its edges on a film that is off."
+            f"Judge the colour again once the film is in place ({colour_words(colour, report.get('max_delta_e'))}): "
+            "it is compared where the design puts each colour, so across its edges on a film that is off."
         )
     elif colour.get("verdict") == "FAIL":
-        out.append(f"Check the ink and the print profile: {colour_words(colour, report.get('max_delta_e'))}.")
+        out.append(f"Check the ink and the print profile ({colour_words(colour, report.get('max_delta_e'))}).")
     for e in report.get("photos", []):
         if e["verdict"] == "INVALID":
             out.append(f"Retake {photo_name(e)}: {e['reason']}.")
@@ -82,20 +82,20 @@ def photo_name(e: dict) -> str:
 def colour_words(colour: dict | None, max_delta_e: float | None) -> str:
     """The part's colour in words, in full (its reasons when not measured)."""
     if not colour:
-        return "colour not measured"
+        return "colour: not measured"
     if colour["verdict"] == "not measured":
         why = "; ".join(r.removeprefix("colour not measured: ") for r in colour["reasons"])
-        return f"colour not measured ({why})"
+        return f"colour: not measured ({why})"
     shading = "; shading taken out" if colour.get("shading_directional") else ""
     if colour.get("delta_e00"):  # the part's own: each print pixel from its squarest photo
         n = len(colour.get("decided_by_photo") or {})
         return (
-            f"colour {colour['verdict']}, mean ΔE00 {colour['delta_e00']['mean']:.2f} (limit {max_delta_e:g}) over "
+            f"colour: {colour['verdict']}, mean ΔE00 {colour['delta_e00']['mean']:.2f} (limit {max_delta_e:g}) over "
             f"the part, each print pixel from the photo that sees it most squarely ({n} photo(s)){shading}"
         )
     worst = colour["worst_delta_e00"]
     return (
-        f"colour {colour['verdict']}, mean ΔE00 {worst['mean']:.2f} (limit {max_delta_e:g}) in the worst of "
+        f"colour: {colour['verdict']}, mean ΔE00 {worst['mean']:.2f} (limit {max_delta_e:g}) in the worst of "
         f"{colour['photos_measured']} photo(s){shading}"
     )
 

@@ -560,6 +560,10 @@ def qa_report(report: dict, pictures: dict[str, bytes], pages: dict[str, bytes] 
         # the pictures share the height the text leaves, down to the bottom margin
         shown = [n for n in names if n in pages or n in pictures]
         each = (top - 15 * mm - 6 * mm * max(len(shown) - 1, 0)) / max(len(shown), 1)
+        if shown and each < 30 * mm:  # (text down to the bottom: the pictures on a page of their own)
+            c.showPage()
+            top = H - 20 * mm
+            each = (top - 15 * mm - 6 * mm * (len(shown) - 1)) / len(shown)
         for name in shown:
             if name in pages:
                 jpeg = pages[name]

@@ -22,12 +22,12 @@ test: install
 WB := $(VENV)/bin/workbench
 DEMO := out/demo
 
-# the photos from behind the part (azimuth 200°, elevation 45°, 330 mm): the fixture's colour chart, in
-# front of the part, is then in the frame beyond it (from the front it sits between the camera and the
-# part, out of the frame), and the part fills as much of it as from the front
 # the whole pipeline on the bundled default job: design, print PDF, fixture PDF, two
 # synthetic photos of three parts (one perfect, one with the film 0.8 mm off, one glossy with a bubble
 # and an ink dropout), and each part's validation and QA report
+# the photos from behind the part (azimuth 200°, elevation 45°, 330 mm): the fixture's colour chart, in
+# front of the part, is then in the frame beyond it (from the front it sits between the camera and the
+# part, out of the frame), and the part fills as much of it as from the front
 demo: install
 	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
 	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf

@@ -157,3 +157,30 @@ def test_the_actions_name_the_next_photo_and_the_photo_to_retake():
     assert actions({**report, "photos": report["photos"][:1], "part": {"verdict": "PASS", "defects": []}}) == [
         "Accept the part: nothing to do."
     ]
+
+
+def test_the_circled_photo_is_the_part_cropped_with_its_circles(design, defective):
+    # the photo's page picture: the part's box in the photo (its vertices projected by the pose the
+    # validation measured) and a 10 % margin, not the whole fixture; each defect's circle on it
+    import cv2
+    import numpy as np
+
+    from workbench.camera import Camera, load_camera_profile
+    from workbench.validate.photo import part_box
+
+    report, pdf = defective
+    e = report["photos"][0]
+    img = cv2.imread(str(pdf.parent / f"{e['pictures']}_defects_photo.png"))
+    lens = load_camera_profile(pdf.parent.parent / "p.json")
+    cam = Camera(lens.K, np.array(e["pose"]["R"]), np.array(e["pose"]["t"]), lens.width, lens.height, lens.dist)
+    x0, y0, x1, y1 = part_box(cam, design.V, (lens.height, lens.width))
+    # (the crop is from the part where the validation seated it; this pose is the board's: a pixel or two apart)
+    assert np.abs(np.subtract(img.shape[:2], (y1 - y0, x1 - x0))).max() <= 2
+    assert (x1 - x0) * (y1 - y0) < 0.5 * lens.width * lens.height
+    red = (img[..., 2] > 200) & (img[..., 1] < 40) & (img[..., 0] < 40)
+    rows, cols = np.nonzero(red)
+    for d in e["defects"]:
+        cx, cy = d["photo_px"][0] - x0, d["photo_px"][1] - y0
+        r = max(d["photo_radius_px"], 12)
+        on = np.abs(np.hypot(cols - cx, rows - cy) - r) <= 3  # the circle's ring, 3 px wide
+        assert on.sum() > 2 * np.pi * r, (d["id"], on.sum())

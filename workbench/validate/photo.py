@@ -437,7 +437,9 @@ def _validate_photo(
     in_view = pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm))
     centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
     radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
-    circled = pictures.photo_circled(photo, centres, radii)
+    # the part, not the whole fixture: the photo cropped to the part's outline and a margin
+    x0, y0, x1, y1 = part_box(pose.camera, design.V, photo.shape[:2])
+    circled = pictures.photo_circled(photo[y0:y1, x0:x1], centres - [x0, y0], radii)
     files[f"{stem}_dense_print.png"] = encoded(dense_map)
     files[f"{stem}_defects_{name}.png"] = encoded(in_view)
     files[f"{stem}_defects_photo.png"] = encoded(circled)
@@ -476,6 +478,40 @@ def tick(clock: list[float], photo: str) -> None:
     clock.append(time.perf_counter())
     k = len(clock) - 2
     progress.say(f"{photo}: {STAGES[k]} done ({k + 1}/{len(STAGES)}, {clock[-1] - clock[-2]:.1f} s)")
+
+
+def part_box(cam: Camera, V: np.ndarray, shape: tuple[int, int], margin: float = 0.1) -> tuple[int, int, int, int]:
+    """The part's box in a photo: its vertices projected, widened by ``margin`` of its size on each side.
+
+    Parameters
+    ----------
+    cam : Camera
+        The photo's camera, the part where it sits (lens distortion aside: the margin covers it).
+    V : (n, 3) float
+        The part's vertices, mm.
+    shape : (rows, cols)
+        The photo's size, px.
+    margin : float
+        Share of the box's width and height added on each side.
+
+    Returns
+    -------
+    (x0, y0, x1, y1) : int
+        Column and row bounds (end exclusive), within the photo; the whole photo when the part
+        does not project into it.
+    """
+    rows, cols = shape
+    xy, z = cam.project(V)
+    px = xy[(z > 0) & np.isfinite(xy).all(axis=1)]
+    if not len(px):
+        return 0, 0, cols, rows
+    lo, hi = px.min(axis=0), px.max(axis=0)
+    pad = margin * (hi - lo)
+    x0, y0 = np.floor(np.clip(lo - pad, 0, [cols, rows])).astype(int)
+    x1, y1 = np.ceil(np.clip(hi + pad, 0, [cols, rows])).astype(int)
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        return 0, 0, cols, rows
+    return int(x0), int(y0), int(x1), int(y1)
 
 
 def _done(value):

@@ -88,6 +88,16 @@ def test_a_misplaced_film_is_a_move_on_page_one_not_a_shift_defect(misplaced):
     assert "No defect found" in first and "shift" not in first
 
 
+def test_a_misplaced_films_colour_is_judged_where_the_film_lies(misplaced):
+    # compared where the design puts each ink, the film 0.8 mm off read its print's every edge as a
+    # colour difference (7.6 ΔE00 on the demo's part at 4000 x 3000, a colour FAIL beside the
+    # placement's); where the film lies, its colour passes as the perfect part's does (0.96 there)
+    report = misplaced[0]
+    colour = report["photos"][0]["colour"]
+    assert colour["measured"] and colour["verdict"] == "PASS", colour.get("delta_e00")
+    assert report["part"]["colour"]["verdict"] == "PASS", report["part"]["colour"]
+
+
 def test_a_defect_is_circled_and_tabled_on_page_one(defective):
     report, pdf = defective
     first = page_texts(pdf)[0]

@@ -918,6 +918,7 @@ def photo_colour(
     depth: np.ndarray,
     output_profile: bytes | None = None,
     opts: ColourOptions = ColourOptions(),
+    reference: np.ndarray | None = None,
 ) -> tuple[dict, np.ndarray | None, np.ndarray | None]:
     """:func:`measure_colour` on what validate has of a photo once its dense analysis is done.
 
@@ -941,6 +942,9 @@ def photo_colour(
     output_profile : bytes or None
         The soft proof's output profile (None: the design's sRGB as it is).
     opts : ColourOptions
+    reference : (rows, cols, 3) uint8, optional
+        The print on the grid where the film lies (moved by its fitted placement:
+        :func:`workbench.validate.placement.placed_print`); default ``grid.reference``.
 
     Returns
     -------
@@ -968,7 +972,7 @@ def photo_colour(
         design.fixture.get("colour_chart"),
         warped,
         scored,
-        grid.reference,
+        grid.reference if reference is None else reference,
         regions=regions,
         output_profile=output_profile,
         part_depth=depth,

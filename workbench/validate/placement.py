@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 if TYPE_CHECKING:
@@ -16,6 +17,33 @@ if TYPE_CHECKING:
 
 PLACEMENT_STRIDE = 8  # every 8th grid pixel each way: 20,000 samples on a 1.4 Mpx grid fit six terms
 PLACEMENT_TRIM = 3.0  # a sample beyond this many median normalised residuals is a local defect's, not the film's
+
+
+def placed_print(image: np.ndarray, field_px: np.ndarray, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
+    """An image on the print's grid moved as the films' placement moves the film.
+
+    The photo shows at grid pixel p what the print holds at p - d(p) (the film moved by d), so
+    the placed print samples the print there.
+
+    Parameters
+    ----------
+    image : (rows, cols) or (rows, cols, C) array
+        On the print's grid (the print, or a mask as uint8).
+    field_px : (rows, cols, 2) float
+        The placement per grid pixel (:func:`placement_field`), grid px (x, y).
+    interpolation : int
+        OpenCV's interpolation (``cv2.INTER_NEAREST`` for a mask).
+
+    Returns
+    -------
+    array, the shape and type of ``image``
+        Beyond the grid, the nearest edge pixel.
+    """
+    rows, cols = field_px.shape[:2]
+    jj, ii = np.meshgrid(np.arange(cols, dtype=np.float32), np.arange(rows, dtype=np.float32))
+    mx = jj - field_px[..., 0].astype(np.float32)
+    my = ii - field_px[..., 1].astype(np.float32)
+    return cv2.remap(image, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE)
 
 
 def placement_field(

@@ -998,4 +998,5 @@ def _result(
         thin_found & stated,
         colour.not_counted,
         in_cone if camera_center is not None else None,
+        start.early if start.early.any() else None,
     )

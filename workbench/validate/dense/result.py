@@ -74,6 +74,9 @@ class DenseResult:
     lamp_cone : (rows, cols) bool or None
         Where the surface mirrors the lamp of the photo's sure light towards the camera
         (:func:`mirror_cone`): a glossy film's sheen may add light there below any glint.
+    placement_px : (rows, cols, 2) float32 or None
+        The films' fitted placement (:func:`workbench.validate.placement.placement_field`) where
+        the analysis started again from the print placed so, grid px (x, y); None where it did not.
     """
 
     warped: np.ndarray
@@ -98,6 +101,7 @@ class DenseResult:
     scratch_found: np.ndarray | None = None
     not_counted: list | None = None
     lamp_cone: np.ndarray | None = None
+    placement_px: np.ndarray | None = None
 
 
 def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> dict:

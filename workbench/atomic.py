@@ -86,7 +86,11 @@ def _input_files(inputs: Iterable[Path]) -> tuple[dict[Path, Path], dict[Path, P
         if p is None:
             continue
         r = _resolved(Path(p))
-        (folders if r.is_dir() else files)[r] = Path(p)
+        try:
+            is_dir = r.is_dir()
+        except OSError:  # a name too long to look up (its own command says so): no folder
+            is_dir = False
+        (folders if is_dir else files)[r] = Path(p)
     return files, folders
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -350,3 +351,22 @@ def speak_the_terminals_language(*streams) -> None:
         if stream is not None and hasattr(stream, "reconfigure"):
             with contextlib.suppress(ValueError, OSError):
                 stream.reconfigure(errors=ASCII_ERRORS)
+
+
+def print_result(text: str) -> None:
+    """Write a command's result ``text`` to standard output, flushed, before its files are written.
+
+    A reader that closed the pipe (``| head``) took what it wanted: no error. A full disk or a
+    closed terminal is one line (:class:`WorkbenchError`), raised before any file is written, and
+    what stays in the buffer goes to /dev/null (flushed again at exit, it would fail again: a
+    second line).
+    """
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        pass
+    except OSError as exc:
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        raise WorkbenchError(f"standard output: {exc.strerror or exc}; nothing written") from None

@@ -57,10 +57,11 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from workbench.atomic import check_outputs, write_files
+    from workbench.environment import print_result
     from workbench.lots.decision import decision_dict, lot_decision, lot_parts
     from workbench.lots.plan import aql_text, code_letter, sampling_plan
     from workbench.lots.report import lot_report_html, lot_report_pdf
-    from workbench.store.database import engine_for, shown, store_text, store_url, transaction
+    from workbench.store.database import engine_for, shown, store_file, store_text, store_url, transaction
     from workbench.store.export import lot_records
 
     aql = aql_text(args.aql)  # (before the store: a bad option is the command line's fault)
@@ -76,7 +77,7 @@ def run(args) -> int:
         if r.suffix.lower() not in (".html", ".pdf"):
             raise UsageError(f"--report {r}: give a .html or a .pdf file")
     if reports:
-        check_outputs(*reports)
+        check_outputs(*reports, inputs=[store_file(url)])
     engine = engine_for(url, create=False, option=option)
     try:
         with transaction(engine, url, migrate=False, option=option) as conn:
@@ -98,23 +99,23 @@ def run(args) -> int:
     decision = lot_decision(sampling_plan(lot_size, args.level, aql, inspection), parts)
     if switching.inspection == "discontinued":
         decision = replace(decision, decision="discontinued (ISO 2859-1 9.4: no lot is accepted by sampling)")
-    if reports:
-        make = {".html": lot_report_html, ".pdf": lot_report_pdf}
-        write_files({r: make[r.suffix.lower()](args.lot, decision, parts, shown(url), switching) for r in reports})
     d = decision_dict(args.lot, decision, switching)
     if args.json:
-        print(json.dumps(d, indent=1))
+        print_result(json.dumps(d, indent=1) + "\n")
     else:
         size = "" if args.lot_size is not None else f" (the {len(parts)} part(s) recorded, at least 2; give --lot-size)"
-        print(
+        print_result(
             f"lot {args.lot}: {d['decision']}: {d['inspection']} inspection ({switching.rule}"
             + (f": lots {', '.join(switching.lots)}" if switching.lots else "")
             + f"); {lot_size} items{size}, level {d['level']}, AQL {d['aql']}: "
             f"code letter {d['code_letter']}, sample {d['sample_size']}"
             + (" (100 %)" if d["hundred_percent"] else "")
             + f", accept {d['accept']}, reject {d['reject']}; inspected {d['inspected']}, nonconforming "
-            f"{d['nonconforming']}, not inspected (INVALID, INCOMPLETE) {d['not_inspected']}"
+            f"{d['nonconforming']}, not inspected (INVALID, INCOMPLETE) {d['not_inspected']}\n"
         )
+    if reports:  # (after the decision is printed: a full disk on standard output leaves no report)
+        make = {".html": lot_report_html, ".pdf": lot_report_pdf}
+        write_files({r: make[r.suffix.lower()](args.lot, decision, parts, shown(url), switching) for r in reports})
     for r in reports:
         print(f"wrote {r}", file=sys.stderr)
     return 0

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from workbench.errors import WorkbenchError
@@ -33,13 +32,14 @@ def add_parser(sub) -> None:
 
 def run_export(args) -> int:
     from workbench.atomic import check_outputs, write_files
-    from workbench.store.database import engine_for, shown, store_url, transaction
+    from workbench.environment import print_result
+    from workbench.store.database import engine_for, shown, store_file, store_url, transaction
     from workbench.store.export import as_csv, as_json, full_records
 
     url = store_url(args.url, "URL")
     out = Path(args.out) if args.out else None
     if out is not None:
-        check_outputs(out)
+        check_outputs(out, inputs=[store_file(url)])  # (-o the store itself replaced it with its export)
     engine = engine_for(url, create=False, option="URL")
     try:
         with transaction(engine, url, migrate=False, option="URL") as conn:
@@ -50,7 +50,7 @@ def run_export(args) -> int:
         raise WorkbenchError(f"--lot {args.lot}: no part of it is recorded in {shown(url)}")
     text = as_csv(records) if args.format == "csv" else as_json(records)
     if out is None:
-        sys.stdout.write(text)
+        print_result(text)
     else:
         write_files({out: text.encode()})
     return 0

@@ -78,7 +78,8 @@ def parse_rules(text: str) -> tuple[int, ...]:
 
 def run(args) -> int:
     from workbench.atomic import check_output_dir
-    from workbench.store.database import engine_for, shown, store_text, store_url, transaction
+    from workbench.environment import print_result
+    from workbench.store.database import engine_for, shown, store_file, store_text, store_url, transaction
     from workbench.trend import query
     from workbench.trend.charts import WINDOW, AlarmOptions
     from workbench.trend.summary import analyse_groups, summary_json, summary_text
@@ -96,7 +97,7 @@ def run(args) -> int:
     url = store_url(text, option)
     out = Path(args.out) if args.out else None
     if out is not None:
-        check_output_dir(out)
+        check_output_dir(out, inputs=[store_file(url)])
     engine = engine_for(url, create=False, option=option)
     try:
         with transaction(engine, url, migrate=False, option=option) as conn:
@@ -119,17 +120,14 @@ def run(args) -> int:
     results = analyse_groups(groups, n, since, args.station, opts, args.calibration)
     if not any(c.series.shown.any() for charts in results.values() for c in charts):
         raise WorkbenchError(f"--station/--since: no {what} recorded matches them")
+    d = summary_json(results, n, opts, args.calibration)
+    # (before the charts are written: a full disk on standard output leaves no folder)
+    print_result((json.dumps(d, indent=1) if args.json else summary_text(d)) + "\n")
     if out is not None:
         from workbench.atomic import write_folder
         from workbench.trend.report import report_files
 
         write_folder(out, report_files(out, results, args.calibration, shown(url)))
-    d = summary_json(results, n, opts, args.calibration)
-    try:
-        sys.stdout.write((json.dumps(d, indent=1) if args.json else summary_text(d)) + "\n")
-        sys.stdout.flush()
-    except BrokenPipeError:
-        return 0  # the reader took what it wanted (``| head``)
     if out is not None:
         print(f"wrote {out}", file=sys.stderr)
     return 0

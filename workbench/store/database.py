@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import stat
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -35,7 +36,11 @@ def store_url(text: str, option: str = "--store"):
     if not text.strip():
         raise UsageError(f"{option}: an empty store; give a path or a URL such as sqlite:///results.db")
     if "://" not in text:
-        return make_url("sqlite://").set(database=str(Path(text).expanduser().absolute()))
+        try:
+            path = Path(text).expanduser()
+        except RuntimeError as exc:  # ``~name/...`` for a user this machine does not know
+            raise UsageError(f"{option} {text}: {exc}") from None
+        return make_url("sqlite://").set(database=str(path.absolute()))
     try:
         url = make_url(text)
         if url.drivername in ("postgresql", "postgres"):
@@ -51,12 +56,36 @@ def store_url(text: str, option: str = "--store"):
 
 
 def shown(url) -> str:
-    """The URL as messages show it (no password)."""
-    return url.render_as_string(hide_password=True)
+    """The URL as messages show it (no password); a file name's bytes that are not UTF-8 as ``\\xfc``."""
+    try:
+        return url.render_as_string(hide_password=True)
+    except UnicodeEncodeError:  # (a name the system gave as bytes: its surrogates cannot be quoted)
+        name = url.database.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+        return url.set(database=name).render_as_string(hide_password=True)
 
 
-def _sqlite_file(url) -> Path | None:
+def store_file(url) -> Path | None:
+    """The SQLite file a URL names (an input no output may replace), None for a server's store."""
     return Path(url.database) if url.get_backend_name() == "sqlite" else None
+
+
+def _not_a_store(path: Path) -> str | None:
+    """Why an existing ``path`` cannot be a store (a folder, a device, a pipe, a name the system refuses),
+    None for a regular file or nothing there. SQLite would open a device or a pipe as a file: it is
+    never opened."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return None
+    except OSError as exc:  # a name too long, a loop of links, a folder that cannot be searched
+        return f"{path}: {exc.strerror or exc}"
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return f"{path} is a folder, not a store"
+    kinds = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe"))
+    kind = next((name for test, name in kinds if test(mode)), "not a regular file")
+    return f"{path} is {kind}, not a store"
 
 
 def engine_for(url, *, create: bool, option: str = "--store"):
@@ -69,10 +98,10 @@ def engine_for(url, *, create: bool, option: str = "--store"):
     from sqlalchemy import create_engine, event
     from sqlalchemy.pool import NullPool
 
-    path = _sqlite_file(url)
+    path = store_file(url)
     if path is not None:
-        if path.is_dir():
-            raise WorkbenchError(f"{option} {shown(url)}: {path} is a folder, not a store")
+        if (why := _not_a_store(path)) is not None:
+            raise WorkbenchError(f"{option} {shown(url)}: {why}")
         if not path.exists():
             if not create:
                 raise WorkbenchError(f"{option} {shown(url)}: no store at {path}")
@@ -132,6 +161,10 @@ def transaction(engine, url, *, migrate: bool, option: str = "--store"):
         raise WorkbenchError(f"{option} {shown(url)}: {_first_line(exc.orig)}") from None
     except SQLAlchemyError as exc:
         raise WorkbenchError(f"{option} {shown(url)}: {_first_line(exc)}") from None
+    except UnicodeDecodeError:  # SQLite hands back a text that is not UTF-8: a damaged file
+        raise WorkbenchError(f"{option} {shown(url)}: a text in the store is not UTF-8 (a damaged store)") from None
+    except engine.dialect.loaded_dbapi.Error as exc:  # the driver's own, from a query run on its cursor
+        raise WorkbenchError(f"{option} {shown(url)}: {_first_line(exc)}") from None
 
 
 def _first_line(exc) -> str:
@@ -141,7 +174,7 @@ def _first_line(exc) -> str:
 def check_store(url, option: str = "--store") -> None:
     """Before a validation's work: the store can be written (a SQLite file's folder exists; a store that
     exists is reachable and not newer than this workbench). Nothing is created."""
-    path = _sqlite_file(url)
+    path = store_file(url)
     engine = engine_for(url, create=True, option=option)
     if path is not None and not path.exists():
         if not os.access(path.parent, os.W_OK):

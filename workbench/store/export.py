@@ -8,6 +8,7 @@ import json
 
 from sqlalchemy import select
 
+from workbench.errors import WorkbenchError
 from workbench.store.schema import defects, files, photos, validations
 
 # the CSV's columns: every column of a validation but its validation.json
@@ -42,10 +43,18 @@ def full_records(conn, lot: str | None = None) -> list[dict]:
             rows = conn.execute(select(table).where(table.c.validation_id == v["id"]).order_by(table.c.id))
             rec[key] = [{k: x for k, x in r._mapping.items() if k not in ("id", "validation_id")} for r in rows]
         for d in rec["defects"]:
-            d["photos"] = json.loads(d["photos"])
-        rec["validation"] = json.loads(v["validation_json"])
+            d["photos"] = _stored_json(d["photos"], f"validation {v['id']}'s defect's photos")
+        rec["validation"] = _stored_json(v["validation_json"], f"validation {v['id']}'s validation.json")
         out.append(rec)
     return out
+
+
+def _stored_json(text, what: str):
+    """A JSON text the store keeps, parsed; a damaged store's (not JSON, or no text) is one line naming ``what``."""
+    try:
+        return json.loads(text)
+    except (TypeError, ValueError):
+        raise WorkbenchError(f"the store's {what} is not JSON (a damaged store)") from None
 
 
 def as_json(records: list[dict]) -> str:

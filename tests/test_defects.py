@@ -210,6 +210,8 @@ def test_a_misplaced_film_is_a_placement_fail_and_a_bubble_on_it_is_still_found(
         assert dist <= 1.0 and abs(area_err) <= 0.25, (t, f)
 
 
+# (78 s: the pool's determinism; make bench runs it, and the fuzz's batch cases run validate's pool)
+@pytest.mark.slow
 def test_parallel_photos_give_the_same_report(design, tmp_path):
     p = render(design, tmp_path / "defects.png", "2000x1500", [spec for spec, _ in DEFECTS.values()])
     serial = validate(design, [p], tmp_path / "serial")

@@ -328,7 +328,8 @@ def face(tmp_path_factory):
 
 
 @pytest.mark.parametrize("renderer", RENDERERS)
-@pytest.mark.parametrize("film", [None, "0.4,0"])
+# (the film in place: make bench; a film 0.4 mm off seats as well, 32 s each)
+@pytest.mark.parametrize("film", [pytest.param(None, marks=pytest.mark.slow), "0.4,0"])
 def test_the_face_mask_is_seated_within_its_share_of_its_size(face, tmp_path, renderer, film):
     # a 342 mm scanned face set down 1.8 mm off and turned 0.8°: its vertices within 0.035 % of
     # its size; its perfect film PASSes with no offset, a film 0.4 mm off is measured as that

@@ -98,6 +98,8 @@ def test_injected_film_errors_are_recovered(design, tmp_path, flags, offset, rot
     assert e["film_scale_pct"] == pytest.approx(scale, abs=tol["scale"])
 
 
+# (26 s; make bench)
+@pytest.mark.slow
 def test_photos_away_from_the_viewpoint_score_the_same(design, tmp_path):
     scores = []
     for k, orbit in enumerate([(0.0, 55.0, 330.0), (15.0, 55.0, 330.0), (-15.0, 45.0, 360.0)]):

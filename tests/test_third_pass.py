@@ -506,3 +506,40 @@ def test_a_finaliser_that_fails_after_an_interrupt_says_nothing(capsys, monkeypa
     monkeypatch.setattr(sys, "__unraisablehook__", lambda u: print("printed", file=sys.stderr))
     interrupts.ignore_swallowed_interrupts(unraisable())
     assert capsys.readouterr().err == "printed\n"
+
+
+def test_a_signal_during_an_import_is_raised_once_the_import_is_done(tmp_path):
+    """An extension module's C initialisation may catch what the handler raises and print it as a
+    traceback (a Ctrl-C 0.6 s into design, once in a suite's run: "Traceback ... in _handler ...
+    Interrupted: 2" above the command's own line). A signal that comes while a module is being
+    imported is sent again until it comes outside the import: here the import completes, and the
+    signal is raised after it, in the code that follows."""
+    import subprocess
+    import sys
+    import textwrap
+
+    from conftest import ROOT
+
+    (tmp_path / "slowmod.py").write_text("import time\ntime.sleep(0.6)\nDONE = True\n")
+    script = textwrap.dedent(
+        f"""
+        import os, signal, sys, threading, time
+        sys.path.insert(0, {str(tmp_path)!r})
+        from workbench import interrupts
+        interrupts.take_signals_early()
+        interrupts.release_early_signals()
+        threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM)).start()
+        try:
+            import slowmod
+            time.sleep(2.0)
+            print("not interrupted")
+        except interrupts.Interrupted as exc:
+            print("interrupted", exc.signum, getattr(sys.modules.get("slowmod"), "DONE", False))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )  # fmt: skip
+    assert done.stdout.split() == ["interrupted", "15", "True"], (done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr

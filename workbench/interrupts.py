@@ -52,7 +52,12 @@ class _Signals:
 _SIGNALS = _Signals()
 
 
-def _handler(signum, _frame) -> None:
+# while a module is being imported, a signal is sent again after this long (seconds), until it
+# comes outside the import
+REDELIVER_S = 0.05
+
+
+def _handler(signum, frame) -> None:
     # recorded before it is raised: Python runs a handler between any two bytecodes, also inside
     # a weakref callback of the garbage collector, which prints what it raises ("Exception ignored
     # in ...") and goes on: design then finished and exited 0 after a Ctrl-C (5 of 13 tries in
@@ -61,7 +66,33 @@ def _handler(signum, _frame) -> None:
     _SIGNALS.came = True
     if _SIGNALS.held:
         return
+    if _importing(frame):
+        # an extension module's initialisation is C code that may catch what the handler raises
+        # and print it as a traceback before failing in its own words (a Ctrl-C 0.6 s into
+        # design, once in a suite's run: "Traceback ... in _handler ... Interrupted: 2" above the
+        # command's own line): the signal is sent again shortly, until it comes outside the import
+        again = threading.Timer(REDELIVER_S, _send_again, (signum,))
+        again.daemon = True  # (nothing to wait for at exit)
+        again.start()
+        return
     raise Interrupted(signum)
+
+
+def _importing(frame) -> bool:
+    """Whether the frame the signal came in is inside the import machinery (a module being imported)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _send_again(signum: int) -> None:
+    """The signal once more, to this process (the handler raises it if it now comes outside an import)."""
+    import os
+
+    if _SIGNALS.pending == signum:  # (not already raised at a safe point meanwhile)
+        os.kill(os.getpid(), signum)
 
 
 def deliver_pending() -> None:

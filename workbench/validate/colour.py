@@ -992,13 +992,3 @@ def photo_colour(
     weight = colour["compared_pixels"] / max(colour["delta_e00"]["pixels"], 1)
     return colour, de_map, {"facing": facing, "weight": float(weight)}
 
-
-def colour_difference_picture(de_map: np.ndarray, vmax: float = 10.0) -> np.ndarray:
-    """A ΔE00 map as an RGB picture (uint8): 0 black through the 'inferno' map to ``vmax``, grey where not compared."""
-    import matplotlib
-
-    cmap = matplotlib.colormaps["inferno"]
-    v = np.clip(np.nan_to_num(de_map, nan=0.0) / vmax, 0, 1)
-    rgb = (cmap(v)[..., :3] * 255).astype(np.uint8)
-    rgb[~np.isfinite(de_map)] = 128
-    return rgb

@@ -3,20 +3,31 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+DEV_STAMP := $(VENV)/.installed-dev
 
-.PHONY: install test demo bench lint docs tutorial clean
+.PHONY: install dev test demo bench lint docs tutorial clean
 
+# what the commands need (make demo, make tutorial); make dev adds the tests', the benchmarks' and
+# the docs' tools (the second renderer, the peers, mkdocs): about half the download again
 install: $(STAMP)
+
+dev: $(DEV_STAMP)
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,bench,docs]'
+	$(PY) -m pip install --quiet -e .
 	@# the command's script starts Python with Ctrl-C and SIGTERM held (workbench/launcher.py)
 	$(PY) -m workbench.launcher $(VENV)/bin/workbench
 	touch $(STAMP)
 
-test: install
+$(DEV_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[test,bench,docs]'
+	@# (pip writes the script again)
+	$(PY) -m workbench.launcher $(VENV)/bin/workbench
+	touch $(DEV_STAMP)
+
+test: dev
 	$(PY) -m pytest -q
 
 WB := $(VENV)/bin/workbench
@@ -32,21 +43,39 @@ demo: install
 	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
 	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf
 	$(WB) board fixture fixtures/default/job.toml -o $(DEMO)/fixture.pdf
-	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic -o $(DEMO)/photo_perfect.jpg
-	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --film-offset-mm 0.8,0 \
-		-o $(DEMO)/photo_film_0.8mm.jpg
-	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --gloss 0.5 \
-		--defect bubble:45,30,6,1 --defect dropout:60,25,1.784 -o $(DEMO)/photo_defects.jpg
-	@# three photos of three parts: one validation (and one QA report) per part, as a QA line runs them
-	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg --camera $(DEMO)/photo_perfect.json \
-		--out $(DEMO)/validation/perfect
-	$(WB) validate $(DEMO)/design $(DEMO)/photo_film_0.8mm.jpg --camera $(DEMO)/photo_perfect.json \
-		--out $(DEMO)/validation/film_0.8mm
-	$(WB) validate $(DEMO)/design $(DEMO)/photo_defects.jpg --camera $(DEMO)/photo_perfect.json \
-		--out $(DEMO)/validation/defects
+	@# the three photos, then the three parts' validations, two at a time: each is one process, and
+	@# a machine has two cores at least (each command's output kept together)
+	$(MAKE) --no-print-directory -j2 --output-sync=target demo-photo-perfect demo-photo-film demo-photo-defects
+	$(MAKE) --no-print-directory -j2 --output-sync=target demo-part-perfect demo-part-film demo-part-defects
 	$(PY) fixtures/demo_summary.py $(DEMO)
 
-bench: install
+.PHONY: demo-photo-perfect demo-photo-film demo-photo-defects demo-part-perfect demo-part-film demo-part-defects
+
+demo-photo-perfect:
+	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic -o $(DEMO)/photo_perfect.jpg
+
+demo-photo-film:
+	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --film-offset-mm 0.8,0 \
+		-o $(DEMO)/photo_film_0.8mm.jpg
+
+demo-photo-defects:
+	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --gloss 0.5 \
+		--defect bubble:45,30,6,1 --defect dropout:60,25,1.784 -o $(DEMO)/photo_defects.jpg
+
+# three photos of three parts: one validation (and one QA report) per part, as a QA line runs them
+demo-part-perfect:
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg --camera $(DEMO)/photo_perfect.json \
+		--out $(DEMO)/validation/perfect
+
+demo-part-film:
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_film_0.8mm.jpg --camera $(DEMO)/photo_perfect.json \
+		--out $(DEMO)/validation/film_0.8mm
+
+demo-part-defects:
+	$(WB) validate $(DEMO)/design $(DEMO)/photo_defects.jpg --camera $(DEMO)/photo_perfect.json \
+		--out $(DEMO)/validation/defects
+
+bench: dev
 	$(PY) benchmarks/bench_flatten.py $(if $(BIG),--big)
 	$(PY) benchmarks/bench_design.py
 	$(PY) benchmarks/bench_render.py
@@ -59,12 +88,12 @@ bench: install
 	$(if $(FACE),$(PY) benchmarks/bench_forming.py --job fixtures/face-mask-films/job.toml --scale 1.5 --min-fov-deg 0 --calibration-film --rounds 2)
 	$(PY) -m pytest -q -m slow
 
-lint: install
+lint: dev
 	$(VENV)/bin/ruff check workbench tests benchmarks fixtures docs calib
 
 # the documentation site (mkdocs.yml, docs/) into out/site; a broken link or anchor fails it, and
 # so does a command or option the docs name that the commands do not have
-docs: install
+docs: dev
 	$(PY) -m mkdocs build --strict --site-dir out/site
 	$(PY) docs/check_options.py
 

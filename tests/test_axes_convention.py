@@ -299,3 +299,30 @@ def test_defects_over_the_print_read_y_down():
     warped[mark_mask()] = (0, 200, 0)
     img = pictures.defects_on_print(warped, np.zeros((ROWS, COLS), int), [], PPM)
     assert_mark_at(img, (0, 200, 0))
+
+
+def test_defects_over_the_view_drawn_over_what_is_printed():
+    """A defect in a region another view decorates is outlined over the print there, not over this view's sky."""
+    # the view: 120 x 200 px, its left 150 columns see the print through an affine map (2.5 px
+    # per mm, the print's (2, 1) mm at the view's top-left corner); the rest is off the part
+    s, rows_v, cols_v, part_cols = 2.5, 120, 200, 150
+    r, c = np.mgrid[0:rows_v, 0:cols_v].astype(np.float64)
+    print_mm = np.stack([(c + 0.5) / s + 2.0, (r + 0.5) / s + 1.0], axis=-1)
+    print_mm[:, part_cols:] = np.nan
+    sky = np.zeros((rows_v, cols_v, 3), np.uint8)
+    sky[...] = (40, 90, 230)  # the view's own image: sky, where the print carries a logo
+    printed = np.full((ROWS, COLS, 3), 200, np.uint8)
+    printed[mark_mask()] = (0, 200, 0)  # the logo, drawn by another view
+    labels = mark_mask().astype(np.int32)  # a dropout over the logo
+    shown = pictures.print_seen_from_view(printed, print_mm, PPM, sky)
+    img = pictures.defects_on_image(shown, pictures.labels_in_view(labels, print_mm, PPM))
+    # the mark's centre, in the view: (MARK - (2, 1)) * s
+    col, row = round((MARK_MM[0] - 2.0) * s), round((MARK_MM[1] - 1.0) * s)
+    assert np.abs(img[row, col].astype(int) - (0, 200, 0)).max() <= 2  # the logo under the outline
+    assert np.abs(img[row, part_cols + 20].astype(int) - (40, 90, 230)).max() == 0  # off the part: the view
+    assert np.abs(img[5, 5].astype(int) - (200, 200, 200)).max() <= 2  # the print, away from the mark
+    # the outline in the defect colour, on the mark's rim: MARK_R_MM * s px from its centre
+    red = np.all(img == pictures.DEFECT_BGR[::-1], axis=-1)
+    rr, cc = np.nonzero(red)
+    dist = np.hypot(rr - row, cc - col)
+    assert len(dist) and np.median(np.abs(dist - MARK_R_MM * s)) < 2.0

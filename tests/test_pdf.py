@@ -103,9 +103,10 @@ def measure_bars(ink, sheet, sx=1.0, sy=1.0):
     vx, vy = sheet.bar_y
     col_mm = cx + (vx - 2.75 - cx) / sx
     cols = (px(col_mm - 0.7), px(col_mm + 0.7))
-    y_at = [sheet.page_h - (cy + (vy + mm - cy) / sy) for mm in (0.0, 100.0)]
+    # the vertical bar hangs from the trim's top edge: its 100 mm tick lies below its 0
+    y_at = [sheet.page_h - (cy + (vy - mm - cy) / sy) for mm in (0.0, 100.0)]
     ys = [line_centre(ink, (px(y - 0.4), px(y + 0.4)), cols, "y") for y in y_at]
-    return xs[1] - xs[0], ys[0] - ys[1]
+    return xs[1] - xs[0], ys[1] - ys[0]
 
 
 def test_trim_bars_and_texture_at_true_size(tmp_path):
@@ -133,6 +134,35 @@ def test_trim_bars_and_texture_at_true_size(tmp_path):
         row = np.argmax(np.abs(gy).sum(axis=1)) + 0.5 + 0.5
         assert abs((X - 40 + col) / PX_PER_MM - (x0 + cx_mm)) < 0.1
         assert abs((Y - 40 + row) / PX_PER_MM - (top + cy_mm)) < 0.1
+
+
+@pytest.mark.parametrize("height_mm", [60.0, 140.0])
+def test_vertical_bar_counts_down_from_the_top_edge(tmp_path, height_mm):
+    """The y bar reads as every figure does (y down from the trim's top), clear of the check square."""
+    import pypdfium2 as pdfium
+
+    from workbench.printing.pdf import CHECK_MM
+
+    d = make_design(tmp_path, height_mm=height_mm)
+    out = tmp_path / "p.pdf"
+    assert main(["pdf", str(d), "-o", str(out), "--paper", "A3", "-q"]) == 0
+    sheet = layout_sheet(100.0, height_mm, 3.0, 10.0, "A3")
+    vx, vy = sheet.bar_y
+    assert vy == pytest.approx(sheet.trim[3])  # it starts at the trim's top edge
+    text = pdfium.PdfDocument(str(out))[0].get_textpage()
+    pt = 72 / 25.4
+    for mm in range(0, 101, 10):
+        # each label sits left of the bar at its own tick, mm below the top edge (a y-up bar puts
+        # "100" 100 mm above the edge, and "0" at the bottom)
+        y = vy - mm
+        got = text.get_text_bounded(left=(vx - 14) * pt, bottom=(y - 2.0) * pt, right=(vx - 4) * pt, top=(y + 2.0) * pt)
+        assert got.strip() == str(mm), (mm, got)
+    # the bar's end and its labels stay above the check square and the horizontal bar
+    cx, cy = sheet.check_square
+    assert vy - 100.0 - 2.0 > cy + CHECK_MM
+    assert vy - 100.0 - 2.0 > sheet.bar_x[1]
+    square = text.get_text_bounded(left=cx * pt, bottom=cy * pt, right=(cx + CHECK_MM) * pt, top=(cy + CHECK_MM) * pt)
+    assert square.strip() == ""
 
 
 def test_printer_profile_precompensates(tmp_path):

@@ -92,15 +92,15 @@ class PrintSheet:
 
     @property
     def bar_x(self) -> tuple[float, float]:
-        """Start (left end) of the horizontal 100 mm bar."""
-        x0, y0 = self.trim[0], self.trim[1]
-        return x0, y0 - self.bleed_mm - 12.0
+        """Start (left end) of the horizontal 100 mm bar, below the trim and below the vertical bar's end."""
+        x0, y0, _, y1 = self.trim
+        return x0, min(y0, y1 - BAR_MM) - self.bleed_mm - 12.0
 
     @property
     def bar_y(self) -> tuple[float, float]:
-        """Start (bottom end) of the vertical 100 mm bar."""
-        x0, y0 = self.trim[0], self.trim[1]
-        return x0 - self.bleed_mm - 12.0, y0
+        """Start (top end) of the vertical 100 mm bar: it counts down from the trim's top edge, y down as the design."""
+        x0, y1 = self.trim[0], self.trim[3]
+        return x0 - self.bleed_mm - 12.0, y1
 
     @property
     def check_square(self) -> tuple[float, float]:
@@ -114,9 +114,9 @@ def layout_sheet(width_mm: float, height_mm: float, bleed_mm: float, margin_mm: 
     """Place a design rectangle and its marks on a sheet.
 
     Around the trim: crop marks beyond the bleed, registration crosshairs mid-side,
-    a horizontal 100 mm bar below and a vertical one on the left, the check square
-    in the corner between them, and a line of text at the bottom. The whole block
-    is centred on the sheet.
+    a horizontal 100 mm bar below and a vertical one on the left (counting down from the
+    trim's top edge), the check square in the corner between them, and a line of text at
+    the bottom. The whole block is centred on the sheet.
 
     Parameters
     ----------
@@ -139,8 +139,10 @@ def layout_sheet(width_mm: float, height_mm: float, bleed_mm: float, margin_mm: 
     span_h = bottom + max(height_mm, BAR_MM) + top
     paper_name, pw, ph = choose_sheet(paper, span_w + 2 * margin_mm, span_h + 2 * margin_mm)
     x0 = (pw - span_w) / 2 + left
-    y0 = (ph - span_h) / 2 + bottom
-    return PrintSheet(paper_name, pw, ph, (x0, y0, x0 + width_mm, y0 + height_mm), bleed_mm)
+    # the trim's top edge: the vertical bar hangs 100 mm from it, so on a print shorter than
+    # the bar the marks below start under the bar's end
+    y1 = (ph - span_h) / 2 + bottom + max(height_mm, BAR_MM)
+    return PrintSheet(paper_name, pw, ph, (x0, y1 - height_mm, x0 + width_mm, y1), bleed_mm)
 
 
 def build_date() -> str:
@@ -223,10 +225,12 @@ def orientation_mark(page: _Page, trim, bleed_mm: float, where: str) -> None:
 
 
 def scale_bar(page: _Page, x: float, y: float, vertical: bool) -> None:
-    """A 100 mm bar with mm ticks (long every 10 mm, labelled), starting at (x, y)."""
+    """A 100 mm bar with mm ticks (long every 10 mm, labelled) from (x, y): rightwards, or down when vertical."""
 
+    # the vertical bar runs down the page from (x, y): its millimetres count y down, as the
+    # design's, every figure's and every defect position's do
     def seg(a0, b0, a1, b1):
-        page.line(x + b0, y + a0, x + b1, y + a1) if vertical else page.line(x + a0, y - b0, x + a1, y - b1)
+        page.line(x + b0, y - a0, x + b1, y - a1) if vertical else page.line(x + a0, y - b0, x + a1, y - b1)
 
     seg(0.0, 0.0, BAR_MM, 0.0)
     for mm in range(int(BAR_MM) + 1):
@@ -234,7 +238,7 @@ def scale_bar(page: _Page, x: float, y: float, vertical: bool) -> None:
         seg(mm, 0.0, mm, -length if vertical else length)
         if mm % 10 == 0:
             if vertical:
-                page.text(x - 5.5, y + mm - 0.7, f"{mm}", anchor="right")
+                page.text(x - 5.5, y - mm - 0.7, f"{mm}", anchor="right")
             else:
                 page.text(x + mm, y - 7.0, f"{mm}", anchor="centre")
     label = "100 mm" if not vertical else ""

@@ -991,4 +991,3 @@ def photo_colour(
     # (each sample stands for this many compared pixels: the subsample's even share of them)
     weight = colour["compared_pixels"] / max(colour["delta_e00"]["pixels"], 1)
     return colour, de_map, {"facing": facing, "weight": float(weight)}
-

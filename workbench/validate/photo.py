@@ -438,7 +438,12 @@ def _validate_photo(
         2 * tolerance_mm,
         f"{path.name} on the print: dense misregistration (the tolerance is mid-scale), defects outlined",
     )
-    in_view = pictures.defects_on_image(view_rgb, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm))
+    # over what the part shows from the view (the print), not the view's own image: where another
+    # view decorates, the view's image is not on the part
+    as_printed = pictures.print_seen_from_view(design.rgb, surface.print_mm, p["dpi"] / 25.4, view_rgb)
+    in_view = pictures.defects_on_image(
+        as_printed, pictures.labels_in_view(dr.labels, surface.print_mm, grid.px_per_mm)
+    )
     centres = np.array([d["photo_px"] for d in entry["defects"]], dtype=np.float64).reshape(-1, 2)
     radii = np.array([d["photo_radius_px"] for d in entry["defects"]], dtype=np.float64)
     # the part, not the whole fixture: the photo cropped to the part's outline and a margin

@@ -86,6 +86,43 @@ def labels_in_view(labels: np.ndarray, print_mm: np.ndarray, px_per_mm: float) -
     return out
 
 
+def print_seen_from_view(
+    print_rgb: np.ndarray, print_mm: np.ndarray, px_per_mm: float, view_rgb: np.ndarray
+) -> np.ndarray:
+    """The part as its print makes it look from a view: the print wherever the view sees it, the view's image elsewhere.
+
+    A view's image is the design's wish for what it owns only; over a part another view
+    decorates (a logo on the photo view's sky), the print carries that other view's image,
+    and a defect drawn there must be drawn over what is printed there.
+
+    Parameters
+    ----------
+    print_rgb : (rows, cols, 3) uint8
+        The print.
+    print_mm : (H, W, 2) float
+        Print position (mm, x right, y down from the print's top-left corner) of each view
+        pixel; NaN off the part.
+    px_per_mm : float
+        The print's resolution, pixels per mm.
+    view_rgb : (H, W, 3) uint8
+        The view's image (kept off the part and off the print).
+
+    Returns
+    -------
+    (H, W, 3) uint8
+    """
+    rows, cols = print_rgb.shape[:2]
+    # print pixel (i, j) has its centre at ((j + 0.5), (i + 0.5)) / px_per_mm mm
+    mx = np.nan_to_num(print_mm[..., 0] * px_per_mm - 0.5, nan=-1.0)
+    my = np.nan_to_num(print_mm[..., 1] * px_per_mm - 0.5, nan=-1.0)
+    on = (mx >= -0.5) & (my >= -0.5) & (mx <= cols - 0.5) & (my <= rows - 0.5)
+    seen = cv2.remap(
+        np.ascontiguousarray(print_rgb[..., :3]), mx.astype(np.float32), my.astype(np.float32),
+        cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE,
+    )  # fmt: skip
+    return np.where(on[..., None], seen, view_rgb)
+
+
 def defects_on_image(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
     """An image (a view) with defect outlines and numbers; (H, W, 3) uint8 RGB."""
     img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)

@@ -131,6 +131,21 @@ def cut_sphere(n=16, m=8, r=40.0):
     return V, F
 
 
+def test_a_ply_of_triangle_strips_says_so(tmp_path):
+    # Stanford's scans (the Igea bust) store one strip list, -1 between strips, and no faces:
+    # trimesh reads no mesh from them, and the line says what the file holds instead
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
+    strip = np.array([4, 0, 1, 2, 3], "<i4")  # the list's length, then two triangles' worth of strip
+    header = (
+        "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement tristrips 1\nproperty list int int vertex_indices\nend_header\n"
+    )
+    path = tmp_path / "strips.ply"
+    path.write_bytes(header.encode() + V.astype("<f4").tobytes() + strip.tobytes())
+    with pytest.raises(WorkbenchError, match=r"strips\.ply: holds no triangle mesh \(it stores triangle strips"):
+        read_mesh(path)
+
+
 def test_step_in_mm_inches_and_metres(tmp_path):
     mm = gmsh_step(tmp_path / "box.step")
     V, F = read_mesh(mm, units="in")  # a STEP file states its unit: the job's is not used

@@ -216,6 +216,24 @@ def test_split_films_refuses_in_one_line_when_nothing_fits():
         split_films(V, F, np.ones(len(F), bool), owner, 0.81, FlattenOptions(), max_films=6)
 
 
+def test_split_films_names_a_face_of_zero_area_not_the_material():
+    # a scan's cap: one face's corner moved onto its opposite edge. No film maps it; the split
+    # used to go on around it to the film limit and then blame max_stretch
+    from workbench.conformal.flatten import FlattenOptions
+    from workbench.errors import WorkbenchError
+
+    V, F = hemisphere(n=20)
+    V = V.copy()
+    a, b, c = F[100]
+    V[c] = 0.4 * V[a] + 0.6 * V[b]
+    owner = np.zeros(len(F), dtype=np.int64)
+    x, y, z = V[F[100]].mean(axis=0)
+    with pytest.raises(
+        WorkbenchError, match=rf"1 decorated faces have zero area .* at \({x:.3f}, {y:.3f}, {z:.3f}\) mm"
+    ):
+        split_films(V, F, np.ones(len(F), bool), owner, 1.5, FlattenOptions(), max_films=6)
+
+
 @pytest.mark.parametrize(
     ("extra", "fragment"),
     [

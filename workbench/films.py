@@ -529,10 +529,21 @@ def split_films(
     area = 0.5 * np.linalg.norm(cross, axis=1)
     normals = cross / np.maximum(2 * area, 1e-300)[:, None]
     centroids = V[F].mean(axis=1)
+    # a face of zero area (three vertices on one line: a scan's cap) has no map, whatever the
+    # film: splitting around it would go on to the film limit and then blame the material
     graph = face_graph(F)
+    start = disc_region(F, decorated, area, graph=graph)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    flat = np.flatnonzero(start & (area <= 1e-12 * diag * diag))
+    if len(flat):
+        x, y, z = centroids[flat[0]]
+        raise WorkbenchError(
+            f"{len(flat)} decorated faces have zero area (their three corners on one line; the first at "
+            f"({x:.3f}, {y:.3f}, {z:.3f}) mm): no film is flattened over them; remove them from the mesh"
+        )
     done: list[FilmFit] = []
     claimed = np.zeros(len(F), bool)
-    queue = [(np.flatnonzero(disc_region(F, decorated, area, graph=graph)), True)]
+    queue = [(np.flatnonzero(start), True)]
     attempts = 0
     while queue:
         attempts += 1

@@ -352,6 +352,16 @@ def _read_obj_lines(path: Path, lines: list[str]) -> tuple[np.ndarray, np.ndarra
     return V.reshape(-1, 3), np.array(tris, dtype=np.int64).reshape(-1, 3)
 
 
+def _ply_strips(path: Path) -> str:
+    """Why a PLY file read as no mesh, when its header says: triangle strips in place of faces."""
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    header = head.split(b"end_header", 1)[0]
+    if b"element tristrips" in header and b"element face" not in header:
+        return " (it stores triangle strips, element tristrips, which are not read: export it with faces)"
+    return ""
+
+
 def _read_trimesh(path: Path, suffix: str) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
@@ -364,7 +374,7 @@ def _read_trimesh(path: Path, suffix: str) -> tuple[np.ndarray, np.ndarray]:
             raise WorkbenchError(f"{path}: the scene holds {len(meshes)} meshes; give one mesh")
         loaded = meshes[0]
     if not isinstance(loaded, trimesh.Trimesh):
-        raise WorkbenchError(f"{path}: holds no triangle mesh")
+        raise WorkbenchError(f"{path}: holds no triangle mesh{_ply_strips(path) if suffix == '.ply' else ''}")
     V = np.asarray(loaded.vertices, dtype=np.float64)
     F = np.asarray(loaded.faces, dtype=np.int64)
     if suffix == ".stl":

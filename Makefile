@@ -16,13 +16,15 @@ dev: $(DEV_STAMP)
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e .
+	@# (--no-compile: Python compiles what a command imports when it first does, not every module
+	@# of every package now; the install takes half the time)
+	$(PY) -m pip install --quiet --no-compile -e .
 	@# the command's script starts Python with Ctrl-C and SIGTERM held (workbench/launcher.py)
 	$(PY) -m workbench.launcher $(VENV)/bin/workbench
 	touch $(STAMP)
 
 $(DEV_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet -e '.[test,bench,docs]'
+	$(PY) -m pip install --quiet --no-compile -e '.[test,bench,docs]'
 	@# (pip writes the script again)
 	$(PY) -m workbench.launcher $(VENV)/bin/workbench
 	touch $(DEV_STAMP)

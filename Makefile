@@ -42,38 +42,47 @@ DEMO := out/demo
 # front of the part, is then in the frame beyond it (from the front it sits between the camera and the
 # part, out of the frame), and the part fills as much of it as from the front
 demo: install
-	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
-	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf
-	$(WB) board fixture fixtures/default/job.toml -o $(DEMO)/fixture.pdf
-	@# the three photos, then the three parts' validations, two at a time: each is one process, and
-	@# a machine has two cores at least (each command's output kept together)
-	$(MAKE) --no-print-directory -j2 --output-sync=target demo-photo-perfect demo-photo-film demo-photo-defects
-	$(MAKE) --no-print-directory -j2 --output-sync=target demo-part-perfect demo-part-film demo-part-defects
+	@# each step as soon as what it needs is there, two at a time: each is one process, and a
+	@# machine has two cores at least (each step's output printed together when it ends)
+	$(MAKE) --no-print-directory -j2 --output-sync=target demo-all
+
+.PHONY: demo-all demo-design demo-print demo-fixture demo-photo-perfect demo-photo-film demo-photo-defects \
+	demo-part-perfect demo-part-film demo-part-defects
+
+demo-all: demo-print demo-fixture demo-part-perfect demo-part-film demo-part-defects
 	$(PY) fixtures/demo_summary.py $(DEMO)
 
-.PHONY: demo-photo-perfect demo-photo-film demo-photo-defects demo-part-perfect demo-part-film demo-part-defects
+demo-design:
+	$(WB) design fixtures/default/job.toml --out $(DEMO)/design
 
-demo-photo-perfect:
+demo-print: demo-design
+	$(WB) pdf $(DEMO)/design -o $(DEMO)/print.pdf
+
+demo-fixture:
+	$(WB) board fixture fixtures/default/job.toml -o $(DEMO)/fixture.pdf
+
+demo-photo-perfect: demo-design
 	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic -o $(DEMO)/photo_perfect.jpg
 
-demo-photo-film:
+demo-photo-film: demo-design
 	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --film-offset-mm 0.8,0 \
 		-o $(DEMO)/photo_film_0.8mm.jpg
 
-demo-photo-defects:
+demo-photo-defects: demo-design
 	$(WB) render $(DEMO)/design --orbit 200,45,330 --size 4000x3000 --realistic --gloss 0.5 \
 		--defect bubble:45,30,6,1 --defect dropout:60,25,1.784 -o $(DEMO)/photo_defects.jpg
 
-# three photos of three parts: one validation (and one QA report) per part, as a QA line runs them
-demo-part-perfect:
+# three photos of three parts: one validation (and one QA report) per part, as a QA line runs them;
+# each with the perfect photo's camera (PHOTO.json), as a lab's calibrated camera
+demo-part-perfect: demo-photo-perfect
 	$(WB) validate $(DEMO)/design $(DEMO)/photo_perfect.jpg --camera $(DEMO)/photo_perfect.json \
 		--out $(DEMO)/validation/perfect
 
-demo-part-film:
+demo-part-film: demo-photo-film demo-photo-perfect
 	$(WB) validate $(DEMO)/design $(DEMO)/photo_film_0.8mm.jpg --camera $(DEMO)/photo_perfect.json \
 		--out $(DEMO)/validation/film_0.8mm
 
-demo-part-defects:
+demo-part-defects: demo-photo-defects demo-photo-perfect
 	$(WB) validate $(DEMO)/design $(DEMO)/photo_defects.jpg --camera $(DEMO)/photo_perfect.json \
 		--out $(DEMO)/validation/defects
 

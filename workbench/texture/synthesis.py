@@ -80,7 +80,7 @@ def prefilter(image: np.ndarray, camera: Camera, view_px_per_print_px: float) ->
     return cv2.resize(image, (cam.width, cam.height), interpolation=cv2.INTER_AREA), cam
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _inside(e0, e1, e2, x, y):
     _, ok0 = _weight(e0, x, y)
     _, ok1 = _weight(e1, x, y)

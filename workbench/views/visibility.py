@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     import scipy.sparse as sp
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def project_point(cam, X0, X1, X2):
     """Pixel x, y and depth z of a world point for a packed camera (see Camera.packed)."""
     xc = cam[4] * X0 + cam[5] * X1 + cam[6] * X2 + cam[13]
@@ -33,7 +33,7 @@ def project_point(cam, X0, X1, X2):
     return cam[0] * xc / zc + cam[2], cam[1] * yc / zc + cam[3], zc
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def unoccluded(depth, width, height, fx, x, y, z):
     """True when a point at pixel (x, y), depth z lies inside the image and in front of
     or on the nearest surface at the surrounding 2x2 pixel centres."""

@@ -214,6 +214,38 @@ def test_a_hole_through_the_box_is_cut_open_along_the_shortest_seam(tmp_path):
     assert s["seams"]["count"] == 1 and s["seams"]["joining_rims"] == 1
     assert s["seams"]["length_mm"] == pytest.approx(50.0, abs=1e-9)
     assert is_disc(r.F)  # what was designed: the cut surface (its common subdivision)
+    # surface.png: the top, blue where the view sees it, and the seam red across it (20 mm of
+    # the top at 480 px over the view's field: tens of pixels), drawn where nothing is in front
+    from workbench.figures import SURFACE_RGB
+
+    img = cv2.cvtColor(cv2.imdecode(np.frombuffer(r.surface_picture, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    red = (img[..., 0] > 200) & (img[..., 1] < 60) & (img[..., 2] < 60)
+    seen_blue = np.abs(img.astype(float) / 255 - SURFACE_RGB[1] * 1.0).max(axis=-1) < 0.08
+    assert red.sum() > 40 and seen_blue.sum() > 10000
+
+
+def test_the_selection_says_why_of_every_face():
+    # the box's top seen, a 3 mm margin: each face's class sums to the report's figures, and the
+    # picture's legend takes its areas from them
+    from workbench.mesh.selection import APART, LEFT, MARGIN, SEEN, SelectionOptions, edge_faces, select_surface
+    from workbench.mesh.selection import HOLE as FILLED
+
+    V, F = box_mesh(hole=True)
+    E, FE, _ = unique_edges(F)
+    ef = edge_faces(F, FE, len(E))
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    normal_z = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])[:, 2] / (2 * area)
+    seen = (V[F][:, :, 2].min(axis=1) > 30.0 - 1e-9) & (normal_z > 0.99)  # the top, less the hole
+    region, rep = select_surface(V, F, E, ef, seen, SelectionOptions(3.0))
+    c = rep.face_class
+    per = np.bincount(c, weights=area, minlength=5)
+    assert per[SEEN] == pytest.approx(rep.seen_mm2) == pytest.approx(100 * 60 - HOLE[0] * HOLE[1])
+    assert per[MARGIN] == pytest.approx(rep.margin_mm2) and per[MARGIN] > 0
+    assert per[FILLED] == pytest.approx(rep.holes_filled_mm2)
+    assert per[SEEN] + per[MARGIN] + per[FILLED] == pytest.approx(rep.selected_mm2)
+    assert per[LEFT] + per[APART] == pytest.approx(rep.mesh_mm2 - rep.selected_mm2)
+    assert np.array_equal(region, np.isin(c, [SEEN, MARGIN, FILLED]))
+    assert "face_class" not in rep.to_dict()
 
 
 def test_with_a_margin_the_seam_grows_by_it_at_both_ends(tmp_path):

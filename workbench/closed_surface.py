@@ -8,6 +8,7 @@ import numpy as np
 
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
+from workbench.figures import surface_figure
 from workbench.films import submesh
 from workbench.job import Job
 from workbench.job_views import assign_job_views
@@ -15,7 +16,15 @@ from workbench.mesh import cut as surface_cut
 from workbench.mesh.cut import path_length, split_along
 from workbench.mesh.io import MeshName
 from workbench.mesh.refine import subdivide_to_edge
-from workbench.mesh.selection import SelectionOptions, edge_faces, face_components, read_face_list, select_surface
+from workbench.mesh.selection import (
+    CLASS_WORDS,
+    SEEN,
+    SelectionOptions,
+    edge_faces,
+    face_components,
+    read_face_list,
+    select_surface,
+)
 from workbench.mesh.topology import boundary_loops, half_edges, unique_edges
 from workbench.views.visibility import ViewVisibility
 
@@ -100,7 +109,8 @@ def decorated_surface(
     Fd : (#Fd, 3) int
         Its triangles: the selected faces in the mesh's order.
     report : dict
-        design.json's ``surface`` (and ``warnings``, popped by the caller).
+        design.json's ``surface`` (and ``warnings`` and ``picture``, ``surface.png``'s bytes,
+        popped by the caller).
 
     Raises
     ------
@@ -175,7 +185,7 @@ def decorated_surface(
     else:
         region, sel = select_surface(V, F, E, ef, seen, SelectionOptions(margin), seen_cos)
     faces = np.flatnonzero(region)
-    Vs, Fs, _ = submesh(V, F, faces)
+    Vs, Fs, kept = submesh(V, F, faces)
     unpinched, _ = split_along(Fs, len(Vs))
     rims = len(boundary_loops(unpinched))
     e_count = len(unique_edges(unpinched)[0])
@@ -210,7 +220,40 @@ def decorated_surface(
             "left bare (one film is one piece): a view of them alone, or films, would print them"
         )
     say(f"surface cut out of {name.name}: {len(Fd)} of {len(F)} faces, {len(seams)} seams")
+    report["picture"] = selection_picture(
+        V, F, sel.face_class, cameras, job, [kept[np.asarray(s_)] for s_ in seams], report, mode
+    )
     return Vd, Fd, report
+
+
+def selection_picture(V, F, face_class, cameras, job: Job, seams, report: dict, mode) -> bytes:
+    """``surface.png``: the part from each view, what is printed coloured by why, the seams red."""
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    per = np.bincount(face_class, weights=area, minlength=len(CLASS_WORDS))
+    words = list(CLASS_WORDS)
+    if isinstance(mode, Path):
+        words[SEEN] = f"in {mode.name}"
+    legend = [(k, f"{words[k]}: {per[k]:.0f} mm²") for k in range(len(words)) if per[k] > 0]
+    title = f"{job.name}: the surface printed, and why\n{surface_line(report)}"
+    import textwrap
+
+    title = "\n".join(textwrap.fill(t, 110) for t in title.split("\n"))
+    names = [f"view {v.name}" for v in job.views]
+    # and from the far side, where the margin ends and nothing is printed: opposite the views'
+    # mean direction, at their mean distance, the part's bounding sphere filling the frame
+    centre = 0.5 * (V.min(axis=0) + V.max(axis=0))
+    eyes = np.array([c.center for c in cameras]) - centre
+    towards = eyes.mean(axis=0)
+    if np.linalg.norm(towards) > 1e-9 * np.linalg.norm(eyes):
+        d = float(np.linalg.norm(eyes, axis=1).mean())
+        radius = float(np.linalg.norm(V - centre, axis=1).max())
+        back = centre - d * towards / np.linalg.norm(towards)
+        # (up: the mesh's +z, unless the far side looks along it)
+        up = np.array([0.0, 0.0, 1.0]) if abs(towards[2]) < 0.9 * np.linalg.norm(towards) else np.array([0.0, 1.0, 0.0])
+        fov = float(np.degrees(2 * np.arcsin(min(1.1 * radius / d, 0.95))))
+        cameras = [*cameras, Camera.look_at(back, centre, up, fov, cameras[0].width, cameras[0].width)]
+        names.append("the far side")
+    return surface_figure(V, F, face_class, cameras, names, seams, legend, title)
 
 
 def surface_line(report: dict) -> str:

@@ -110,6 +110,7 @@ class DesignResult:
     # with a surface cut out of the mesh (a closed part, or [object] surface): what was selected
     # and cut, and why (:func:`decorated_surface`); None when the mesh is the surface
     surface: dict | None = None
+    surface_picture: bytes | None = None  # surface.png: the part from each view, what is printed and why
 
 
 def undecorated_surface(V: np.ndarray, F: np.ndarray, status: np.ndarray) -> tuple[float, float]:
@@ -513,12 +514,13 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     implausible = view_image_warnings(
         images, [f"{job.path}: views[{i}].image" for i in range(len(images))], decorations
     )
-    surface = None
+    surface, surface_picture = None, None
     if surface_mode(job, F) != "whole":
         t0 = time.perf_counter()
         V, F, surface = decorated_surface(job, V, F, images, say, decorations)
         t["surface"] = time.perf_counter() - t0
         implausible += surface.pop("warnings")
+        surface_picture = surface.pop("picture")
 
     if forming_profile is not None:
         # before the minutes of work: a profile of another part, dpi or material
@@ -526,7 +528,7 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     if job.films is not None:
         result = _design_films(job, V, F, images, say, t, forming_profile, decorations, surface is not None)
         result.warnings[:0] = implausible
-        result.surface = surface
+        result.surface, result.surface_picture = surface, surface_picture
         return result
 
     t0 = time.perf_counter()
@@ -596,6 +598,7 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
         view_status=status,
         undecorated=undecorated_surface(V, F, status),
         surface=surface,
+        surface_picture=surface_picture,
     )
 
 

@@ -303,3 +303,113 @@ def views_plot(
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+# the selection's classes (workbench.mesh.selection.CLASS_WORDS): not printed grey, seen blue,
+# margin amber, hole filled green, seen but left apart red
+SURFACE_RGB = np.array(
+    [[0.70, 0.70, 0.70], [0.22, 0.52, 0.85], [0.98, 0.68, 0.18], [0.30, 0.72, 0.35], [0.86, 0.22, 0.22]]
+)
+SURFACE_PANEL_PX = 480  # the width each view's panel is drawn at
+
+
+def surface_image(V: np.ndarray, F: np.ndarray, face_class: np.ndarray, camera) -> tuple[np.ndarray, np.ndarray]:
+    """A part seen from a view's camera, each face in its selection class's colour, shaded.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        The part, mm.
+    F : (#F, 3) int
+        Its triangles.
+    face_class : (#F,) int
+        Each face's class, an index into :data:`SURFACE_RGB`.
+    camera : workbench.camera.Camera
+        The view's camera (drawn at :data:`SURFACE_PANEL_PX` wide).
+
+    Returns
+    -------
+    img : (h, w, 3) float
+        RGB in 0-1, white off the part; a face's colour times 0.35 + 0.65 |cos| of the angle
+        between its normal and the ray from it to the camera.
+    depth : (h, w) float
+        The nearest surface's depth, mm, +inf off the part (for what lies in front of a seam).
+    """
+    from workbench.camera import Camera
+    from workbench.raster import depth_buffer
+
+    s = SURFACE_PANEL_PX / camera.width
+    K = camera.K.astype(np.float64).copy()
+    # pixel centres at integers: x' + 0.5 = s (x + 0.5)
+    K[0, :] *= s
+    K[1, :] *= s
+    K[0, 2] += 0.5 * s - 0.5
+    K[1, 2] += 0.5 * s - 0.5
+    cam = Camera(K, camera.R, camera.t, SURFACE_PANEL_PX, max(int(round(camera.height * s)), 1))
+    xy, z = cam.project(V)
+    face, depth = depth_buffer(xy, z, F, cam.width, cam.height)
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    ray = (-cam.R.T @ cam.t).reshape(1, 3) - V[F].mean(axis=1)
+    cos = np.abs((n * ray).sum(axis=1)) / np.maximum(np.linalg.norm(n, axis=1) * np.linalg.norm(ray, axis=1), 1e-300)
+    img = np.ones((cam.height, cam.width, 3))
+    on = face >= 0
+    f = face[on]
+    img[on] = SURFACE_RGB[face_class[f]] * (0.35 + 0.65 * cos[f])[:, None]
+    return img, depth
+
+
+def surface_figure(V, F, face_class, cameras, names, seams, legend, title) -> bytes:
+    """What of a part is printed and why, seen from each view (``surface.png``).
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        The part, mm.
+    F : (#F, 3) int
+        Its triangles.
+    face_class : (#F,) int
+        Each face's selection class (:data:`workbench.mesh.selection.CLASS_WORDS`).
+    cameras : list of Camera
+        The views' cameras, one panel each.
+    names : list of str
+        What each camera is ("view top", "the far side").
+    seams : list of (k,) int
+        Each seam's vertices in order (indices of ``V``), drawn red where no surface is in front.
+    legend : list of (int, str)
+        Each class shown and its words (with its area).
+    title : str
+
+    Returns
+    -------
+    bytes
+        PNG.
+    """
+    from matplotlib.patches import Patch
+
+    plt = _figure()
+    n = max(len(cameras), 1)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 4.4), squeeze=False)
+    for ax, camera, name in zip(axes[0], cameras, names, strict=True):
+        img, depth = surface_image(V, F, face_class, camera)
+        ax.imshow(img, interpolation="nearest")
+        s = SURFACE_PANEL_PX / camera.width
+        for seam in seams:
+            xy, z = camera.project(V[np.asarray(seam)])
+            xy = (xy + 0.5) * s - 0.5
+            i = np.clip(np.round(xy[:, 1]).astype(int), 0, depth.shape[0] - 1)
+            j = np.clip(np.round(xy[:, 0]).astype(int), 0, depth.shape[1] - 1)
+            # in front: no nearer surface at its pixel (a pixel spans a millimetre or so of depth)
+            front = z <= depth[i, j] + 0.01 * z + 1.0
+            shown = np.where(front, xy[:, 0], np.nan)
+            ax.plot(shown, np.where(front, xy[:, 1], np.nan), color="red", lw=1.6)
+        ax.set_title(f"from {name}", fontsize=9)
+        ax.set_axis_off()
+    handles = [Patch(color=SURFACE_RGB[k], label=words) for k, words in legend]
+    if seams:
+        from matplotlib.lines import Line2D
+
+        handles.append(Line2D([0], [0], color="red", lw=1.6, label=f"seam cut to make it one disc ({len(seams)})"))
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 3), fontsize=8, frameon=False)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout(rect=(0, 0.12, 1, 0.93))
+    return figure_png(fig)

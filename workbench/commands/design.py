@@ -287,6 +287,8 @@ def run(args) -> int:
         ),
     }
     files.update(files_forming)
+    if result.surface_picture is not None:
+        files[out / "surface.png"] = result.surface_picture
     if result.films:
         info["films"] = film_records(result)
         for rec, f in zip(info["films"], result.films, strict=True):

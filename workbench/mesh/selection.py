@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -130,9 +130,24 @@ def face_components(ef: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
+# what the selection made of each face (SelectionReport.face_class), and the words for it
+LEFT, SEEN, MARGIN, HOLE, APART = 0, 1, 2, 3, 4
+CLASS_WORDS = (
+    "not printed",
+    "seen by a view",
+    "margin beyond what is seen",
+    "hole filled",
+    "seen, but apart from the rest (left bare)",
+)
+
+
 @dataclass(frozen=True)
 class SelectionReport:
-    """What the selection did, in figures (mm² of surface; counts of faces or pieces)."""
+    """What the selection did, in figures (mm² of surface; counts of faces or pieces).
+
+    ``face_class`` (#F,) uint8 says it per face: :data:`LEFT`, :data:`SEEN`, :data:`MARGIN`,
+    :data:`HOLE` or :data:`APART` (words in :data:`CLASS_WORDS`); not in :meth:`to_dict`.
+    """
 
     seen_faces: int
     seen_mm2: float
@@ -149,10 +164,11 @@ class SelectionReport:
     selected_mm2: float
     mesh_mm2: float
     opened_faces: int
+    face_class: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
         """JSON-ready, the shares of the mesh included."""
-        d = dict(self.__dict__)
+        d = {k: v for k, v in self.__dict__.items() if k != "face_class"}
         d["selected_share"] = self.selected_mm2 / max(self.mesh_mm2, 1e-300)
         d["seen_share"] = self.seen_mm2 / max(self.mesh_mm2, 1e-300)
         return d
@@ -237,6 +253,11 @@ def select_surface(
         c = np.zeros(len(F)) if cost is None else cost
         region[int(np.lexsort((area, c))[0])] = False
         opened = 1
+    face_class = np.full(len(F), LEFT, np.uint8)
+    face_class[seen] = APART  # (seen, and not kept: an island, or the face a closed surface is opened at)
+    face_class[region & seen] = SEEN
+    face_class[region & grown] = MARGIN
+    face_class[region & ~seen & ~grown] = HOLE
     report = SelectionReport(
         seen_faces=int(seen.sum()),
         seen_mm2=float(area[seen].sum()),
@@ -253,6 +274,7 @@ def select_surface(
         selected_mm2=float(area[region].sum()),
         mesh_mm2=float(area.sum()),
         opened_faces=opened,
+        face_class=face_class,
     )
     return region, report
 

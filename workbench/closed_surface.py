@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,7 @@ from workbench.mesh.selection import (
     select_surface,
 )
 from workbench.mesh.topology import boundary_loops, half_edges, unique_edges
+from workbench.mesh.validate import face_areas
 from workbench.views.visibility import ViewVisibility
 
 # a closed part's faces are split to edges of at most its diagonal over this (decorated_surface)
@@ -228,15 +230,12 @@ def decorated_surface(
 
 def selection_picture(V, F, face_class, cameras, job: Job, seams, report: dict, mode) -> bytes:
     """``surface.png``: the part from each view, what is printed coloured by why, the seams red."""
-    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-    per = np.bincount(face_class, weights=area, minlength=len(CLASS_WORDS))
+    per = np.bincount(face_class, weights=face_areas(V, F), minlength=len(CLASS_WORDS))
     words = list(CLASS_WORDS)
     if isinstance(mode, Path):
         words[SEEN] = f"in {mode.name}"
     legend = [(k, f"{words[k]}: {per[k]:.0f} mm²") for k in range(len(words)) if per[k] > 0]
     title = f"{job.name}: the surface printed, and why\n{surface_line(report)}"
-    import textwrap
-
     title = "\n".join(textwrap.fill(t, 110) for t in title.split("\n"))
     names = [f"view {v.name}" for v in job.views]
     # and from the far side, where the margin ends and nothing is printed: opposite the views'

@@ -335,17 +335,9 @@ def surface_image(V: np.ndarray, F: np.ndarray, face_class: np.ndarray, camera) 
     depth : (h, w) float
         The nearest surface's depth, mm, +inf off the part (for what lies in front of a seam).
     """
-    from workbench.camera import Camera
     from workbench.raster import depth_buffer
 
-    s = SURFACE_PANEL_PX / camera.width
-    K = camera.K.astype(np.float64).copy()
-    # pixel centres at integers: x' + 0.5 = s (x + 0.5)
-    K[0, :] *= s
-    K[1, :] *= s
-    K[0, 2] += 0.5 * s - 0.5
-    K[1, 2] += 0.5 * s - 0.5
-    cam = Camera(K, camera.R, camera.t, SURFACE_PANEL_PX, max(int(round(camera.height * s)), 1))
+    cam = camera.scaled(SURFACE_PANEL_PX / camera.width)
     xy, z = cam.project(V)
     face, depth = depth_buffer(xy, z, F, cam.width, cam.height)
     img = np.ones((cam.height, cam.width, 3))
@@ -395,10 +387,9 @@ def surface_figure(V, F, face_class, cameras, names, seams, legend, title) -> by
     for ax, camera, name in zip(axes[0], cameras, names, strict=True):
         img, depth = surface_image(V, F, face_class, camera)
         ax.imshow(img, interpolation="nearest")
-        s = SURFACE_PANEL_PX / camera.width
+        panel = camera.scaled(SURFACE_PANEL_PX / camera.width)  # (the camera surface_image drew with)
         for seam in seams:
-            xy, z = camera.project(V[np.asarray(seam)])
-            xy = (xy + 0.5) * s - 0.5
+            xy, z = panel.project(V[np.asarray(seam)])
             i = np.clip(np.round(xy[:, 1]).astype(int), 0, depth.shape[0] - 1)
             j = np.clip(np.round(xy[:, 0]).astype(int), 0, depth.shape[1] - 1)
             # in front: no nearer surface at its pixel (a pixel spans a millimetre or so of depth)

@@ -14,6 +14,7 @@ from workbench.conformal.flatten import CrowdingError, FlattenOptions, FlattenRe
 from workbench.conformal.layout import polygon_self_intersections
 from workbench.errors import WorkbenchError
 from workbench.mesh.topology import boundary_loops, unique_edges
+from workbench.mesh.validate import zero_area_faces
 from workbench.views.visibility import face_adjacency
 
 # A film is within its material when the stretch (3D length / print length) stays in
@@ -533,8 +534,8 @@ def split_films(
     # film: splitting around it would go on to the film limit and then blame the material
     graph = face_graph(F)
     start = disc_region(F, decorated, area, graph=graph)
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    flat = np.flatnonzero(start & (area <= 1e-12 * diag * diag))
+    flat = zero_area_faces(V, F)
+    flat = flat[start[flat]]
     if len(flat):
         x, y, z = centroids[flat[0]]
         raise WorkbenchError(

@@ -203,8 +203,10 @@ def self_intersections(V: np.ndarray, F: np.ndarray, limit: int | None = None) -
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
     tol = 1e-9 * diag
     found_pairs, found_points = [np.zeros((0, 2), np.int64)], [np.zeros((0, 3))]
-    level = _levels(lo, hi, diag)
-    for grid in _grid_levels(lo, hi, level, diag):
+    # the finest cells about the size of most triangles; at most 2**20 cells along the part
+    s0 = max(float(np.quantile((hi - lo).max(axis=1), 0.9)), diag * 2.0**-20, 1e-300)
+    level = _levels(lo, hi, s0)
+    for grid in _grid_levels(lo, hi, level, s0):
         pairs, points = level_crossings(T, F, lo, hi, level, *grid, tol)
         found_pairs.append(pairs)
         found_points.append(points)
@@ -213,11 +215,9 @@ def self_intersections(V: np.ndarray, F: np.ndarray, limit: int | None = None) -
     return pairs[order], points[order]
 
 
-def _levels(lo: np.ndarray, hi: np.ndarray, diag: float) -> np.ndarray:
-    """Each triangle's level: the finest grid where its box spans at most _MAX_CELLS cells."""
+def _levels(lo: np.ndarray, hi: np.ndarray, s0: float) -> np.ndarray:
+    """Each triangle's level L: the finest grid (cells of s0 2^L) where its box spans at most _MAX_CELLS cells."""
     extent = hi - lo
-    # the finest cells about the size of most triangles; at most 2**20 cells along the part
-    s0 = max(float(np.quantile(extent.max(axis=1), 0.9)), diag * 2.0**-20, 1e-300)
     # a sliver along a flat face stays among small cells, which few triangles share with it
     level = np.full(len(lo), -1, np.int64)
     L = 0
@@ -228,7 +228,7 @@ def _levels(lo: np.ndarray, hi: np.ndarray, diag: float) -> np.ndarray:
     return level
 
 
-def _grid_levels(lo: np.ndarray, hi: np.ndarray, level: np.ndarray, diag: float):
+def _grid_levels(lo: np.ndarray, hi: np.ndarray, level: np.ndarray, s0: float):
     """Per level of the grid hierarchy, what :func:`level_crossings` meets pairs in.
 
     Each triangle goes to its level (:func:`_levels`); there it meets the triangles of its own
@@ -242,8 +242,6 @@ def _grid_levels(lo: np.ndarray, hi: np.ndarray, level: np.ndarray, diag: float)
     """
     from workbench.mesh.crossing_kernel import box_cells
 
-    extent = hi - lo
-    s0 = max(float(np.quantile(extent.max(axis=1), 0.9)), diag * 2.0**-20, 1e-300)
     origin = lo.min(axis=0)
     for L in np.unique(level):
         s = s0 * 2.0 ** int(L)

@@ -46,6 +46,26 @@ def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
 
 
+def zero_area_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Faces of (numerically) zero area: three corners on one line, which no map flattens.
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        Vertex positions.
+    F : (#F, 3) int
+        Triangles.
+
+    Returns
+    -------
+    (k,) int
+        Their indices, ascending.
+    """
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    # relative to the bounding box: a face 1e-12 the size of the part is rounding noise
+    return np.flatnonzero(face_areas(V, F) <= 1e-12 * diag * diag)
+
+
 def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Raise unless ``(V, F)`` is a clean, consistently oriented topological disc.
 
@@ -83,10 +103,7 @@ def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.nda
             f"{name}: {len(unused)} vertices are not used by any face (vertex {_first(unused)}); "
             "remove them (vertex numbers are kept as given, so they cannot be dropped silently)"
         )
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    A = face_areas(V, F)
-    # relative to the bounding box: a face 1e-12 the size of the part is rounding noise
-    flat = np.flatnonzero(A <= 1e-12 * diag * diag)
+    flat = zero_area_faces(V, F)
     if len(flat):
         raise WorkbenchError(f"{name}: {len(flat)} faces have zero area ({_faces(name, flat)})")
 

@@ -87,7 +87,7 @@ def labels_in_view(labels: np.ndarray, print_mm: np.ndarray, px_per_mm: float) -
 
 
 def print_seen_from_view(
-    print_rgb: np.ndarray, print_mm: np.ndarray, px_per_mm: float, view_rgb: np.ndarray
+    print_rgb: np.ndarray, print_mm: np.ndarray, px_per_mm: float, view_rgb: np.ndarray, where=None
 ) -> np.ndarray:
     """The part as its print makes it look from a view: the print wherever the view sees it, the view's image elsewhere.
 
@@ -106,6 +106,9 @@ def print_seen_from_view(
         The print's resolution, pixels per mm.
     view_rgb : (H, W, 3) uint8
         The view's image (kept off the part and off the print).
+    where : (H, W) bool, optional
+        The view pixels that take the print (by default every one on the print; the border
+        pixels beyond it replicated).
 
     Returns
     -------
@@ -115,7 +118,7 @@ def print_seen_from_view(
     # print pixel (i, j) has its centre at ((j + 0.5), (i + 0.5)) / px_per_mm mm
     mx = np.nan_to_num(print_mm[..., 0] * px_per_mm - 0.5, nan=-1.0)
     my = np.nan_to_num(print_mm[..., 1] * px_per_mm - 0.5, nan=-1.0)
-    on = (mx >= -0.5) & (my >= -0.5) & (mx <= cols - 0.5) & (my <= rows - 0.5)
+    on = (mx >= -0.5) & (my >= -0.5) & (mx <= cols - 0.5) & (my <= rows - 0.5) if where is None else where
     seen = cv2.remap(
         np.ascontiguousarray(print_rgb[..., :3]), mx.astype(np.float32), my.astype(np.float32),
         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE,

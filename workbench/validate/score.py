@@ -10,6 +10,7 @@ import numpy as np
 
 from workbench.camera import Camera
 from workbench.raster import depth_buffer
+from workbench.validate.pictures import print_seen_from_view
 from workbench.validate.print_warp import photo_buffers, surface_in_photo
 
 TILE = 64
@@ -197,12 +198,7 @@ def printed_view(surface: ViewSurface, print_rgb: np.ndarray, px_per_mm: float, 
     -------
     (H, W, 3) uint8
     """
-    pm = surface.print_mm
-    # print pixel (i, j) has its centre at ((j + 0.5), (i + 0.5)) / px_per_mm mm
-    mx = np.where(surface.owned, pm[..., 0] * px_per_mm - 0.5, -1e4).astype(np.float32)
-    my = np.where(surface.owned, pm[..., 1] * px_per_mm - 0.5, -1e4).astype(np.float32)
-    out = cv2.remap(np.ascontiguousarray(print_rgb[..., :3]), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return np.where(surface.owned[..., None], out, view_rgb)
+    return print_seen_from_view(print_rgb, surface.print_mm, px_per_mm, view_rgb, where=surface.owned)
 
 
 def _bilinear(field: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:

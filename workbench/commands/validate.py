@@ -488,8 +488,11 @@ def run(args) -> int:
     t_part = time.perf_counter()
     progress.say(f"the part: its {len(entries)} photo(s) together (defects, colour, coverage)")
     maps = detection.part_maps(entries)
+    slides = [e.pop("slide_measure", None) for e in entries]
     # several photos, one part: ink gone or a slide that another photo sees intact is light where it was found
-    dismissed = light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2, grid.X) if grid else []
+    dismissed = (
+        light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2, grid.X, slides) if grid else []
+    )
     # one print, one colour: each print pixel judged in the photo that sees it most squarely
     colour, colour_map = fused_colour(take_colour_maps(entries), photo_names(entries), args.max_delta_e)
     in_part = {}

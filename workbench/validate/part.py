@@ -8,10 +8,17 @@ import numpy as np
 
 from workbench.validate import dense, print_warp
 from workbench.validate.rule import judged_delta_e
+from workbench.validate.slide_evidence import claim_seen_smaller
 
 
 def light_in_one_photo(
-    entries: list[dict], states: list, maps: dict, px_per_mm: float, max_defect_mm2: float, X: np.ndarray | None = None
+    entries: list[dict],
+    states: list,
+    maps: dict,
+    px_per_mm: float,
+    max_defect_mm2: float,
+    X: np.ndarray | None = None,
+    slides: list | None = None,
 ) -> list:
     """Ink gone, or a slide, that another photo of the part sees intact: light in the photo that found it.
 
@@ -25,6 +32,15 @@ def light_in_one_photo(
     as the region's there (``photoK_shift_limit_um`` at most its peak, over at least SHIFT_SHARE
     of the region): a glint on a glossy cow pulled one photo's flow up to 0.44 mm over 17 mm²
     where three others, which state slides from 0.40 to 0.43 mm there, saw the print in place.
+    A slide is light too where another photo *measured* the print there in place: the film's
+    slide is one field on the print, and each photo measures a projection of it (the full vector,
+    or the component across an edge); where another photo measured the same component at the
+    claim's pixels significantly smaller, over at least SHIFT_SHARE of them
+    (:mod:`workbench.validate.slide_evidence`), the slide moved with the camera. Its stated limit
+    there may be coarse for a slide in any direction (a ring's edge tells only the component
+    across it) while its measure across the edge is fine (a glint along the lily's ring pulled a
+    suggested photo's flow 2.97 mm across it, z 122, where the four other photos, stating 6.7 to
+    9 mm for a slide in any direction, measured the ring in place).
     The other photo must see the region from more than MIRROR_DEG away (seen from the surface):
     from nearly the same direction it would show the same reflection, and a disagreement there
     says the two photos are not of one print under one light. The defect stays in its photo's
@@ -54,6 +70,8 @@ def light_in_one_photo(
     X : (H, W, 3) float, optional
         The surface point under each grid pixel, mm: with the photos' ``pose.camera_center_mm``,
         the directions from which each photo saw a region (without it, no photo is overruled).
+    slides : list of SlideMeasure or None, optional
+        Each photo's measure of the slide (``DenseResult.slide``); None: not compared.
 
     Returns
     -------
@@ -92,6 +110,9 @@ def light_in_one_photo(
                     continue  # (a light one photo shows, another from the same direction shows too)
                 if d["kind"] == "shift":
                     finds, need, what = maps[f"photo{b}_shift_limit_um"][box] <= slide_um, SHIFT_SHARE, "a slide"
+                    if (measured := _measured_in_place(a, b, d, entries, states, slides)) is not None:
+                        out.append(measured)
+                        break
                 else:
                     finds = maps[f"photo{b}_dropout"][box].astype(bool) | maps[f"photo{b}_scratch"][box].astype(bool)
                     need, what = DROPOUT_SHARE, "ink gone"
@@ -121,6 +142,45 @@ def light_in_one_photo(
                     )
                     break
     return out
+
+
+def _measured_in_place(a: int, b: int, d: dict, entries: list[dict], states: list, slides: list | None) -> dict | None:
+    """Photo ``b`` measured the slide photo ``a`` found in defect ``d`` significantly smaller: ``a``'s light.
+
+    None when it did not (or either measure is missing). The share is of ``a``'s claim pixels
+    (:func:`workbench.validate.slide_evidence.claim_seen_smaller`), at SHIFT_SHARE at least, where
+    ``b`` measured and found no defect (its state map, ``states[b]``).
+    """
+    from workbench.validate.detection import SHIFT_SHARE
+
+    if not slides or slides[a] is None or slides[b] is None or d.get("id") is None:
+        return None
+    clean = np.isin(states[b], print_warp.MEASURED) & (states[b] != print_warp.DEFECT)
+    share, b_mm = claim_seen_smaller(slides[a], slides[b], int(d["id"]), dense.SIGNIFICANCE_Z, clean)
+    if share < SHIFT_SHARE:
+        return None
+    seen_by, found_in = Path(entries[b]["photo"]).name, Path(entries[a]["photo"]).name
+    peak = float(d.get("peak_mm") or 0.0)
+    return {
+        "photo_index": a,
+        "photo": found_in,
+        "id": d.get("id"),
+        "kind": d["kind"],
+        "area_mm2": d["area_mm2"],
+        "centre_mm": d["centre_mm"],
+        "decided_by": {
+            "hypothesis": "light",
+            "photo": seen_by,
+            "share": round(share, 3),
+            "measured_there_mm": round(b_mm, 3),
+            "found_as": d.get("decided_by"),
+            "words": (
+                f"{seen_by} measured the print in place over {100 * share:.0f} % of where {found_in} has it slid "
+                f"(a slide of {b_mm:.2f} mm there, median, against up to {peak:.2f} mm): a slide of the film moves "
+                f"the print in every photo, so this is light in {found_in}"
+            ),
+        },
+    }
 
 
 def _apart_deg(ea: dict, eb: dict, d: dict, X: np.ndarray | None, px_per_mm: float) -> float | None:

@@ -404,6 +404,8 @@ def _validate_photo(
             "dropout": dr.dropout_found.astype(np.uint8),
             "scratch": dr.scratch_found.astype(np.uint8),
         }
+        # (what the flow measured of the film's slide: the part compares its photos' measures)
+        entry["slide_measure"] = dr.slide
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
     for d in entry["defects"]:
         d["decided_by"] = defect_decision(d, max_defect_mm2)

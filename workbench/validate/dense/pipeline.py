@@ -74,6 +74,7 @@ from workbench.validate.print_warp import (
     rim_band,
 )
 from workbench.validate.shading import fit_shading, shaded, shading_factor
+from workbench.validate.slide_evidence import SlideMeasure
 
 
 def analyse(
@@ -635,7 +636,26 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
             d["photometric"] = j
     # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
     state[(labels > 0) & np.isin(state, (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL))] = DEFECT
-    return _Found(labels, defects, lit)
+    # what the flow measured of the film's slide, for the part's other photos to compare: the
+    # pixel's own measure (the full vector, or the component across the edge) where it has one,
+    # else the window's slide; and where a kept slide's own measure is significant, its claim
+    own = (full | normal) & ~lit
+    wide_only = ~own & wide_ok
+    slide_px = np.full(m.shape, np.nan, np.float32)
+    np.copyto(slide_px, local_shift, where=own[..., None])
+    np.copyto(slide_px, m_wide, where=wide_only[..., None])
+    slide_sigma = np.where(own, sigma_mm, np.where(wide_only, wide_sigma, np.nan)).astype(np.float32)
+    slide_mm = (slide_px * mm_per_px[..., None]).astype(np.float32)
+    across = normal & own
+    shifts = np.zeros(len(defects) + 1, bool)
+    shifts[1:] = [d["kind"] == "shift" for d in defects]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        significant = (np.hypot(slide_mm[..., 0], slide_mm[..., 1]) - tolerance_mm) / slide_sigma > SIGNIFICANCE_Z
+    slide = SlideMeasure(
+        slide_mm, slide_sigma, across, np.where(across[..., None], e1, np.float32(0.0)).astype(np.float32),
+        shifts[labels] & significant, labels.astype(np.int32),
+    )  # fmt: skip
+    return _Found(labels, defects, lit, slide)
 
 
 def _result(
@@ -730,4 +750,5 @@ def _result(
         colour.not_counted,
         in_cone if camera_center is not None else None,
         start.early if start.early.any() else None,
+        found.slide,
     )

@@ -8,6 +8,7 @@ import numpy as np
 
 from workbench.validate.dense.options import TENSOR_SIGMA_PX
 from workbench.validate.print_warp import COLOUR_ONLY, DEFECT, FULL, MEASURED, NORMAL, OFF_PART, STATE_NAMES
+from workbench.validate.slide_evidence import SlideMeasure
 
 
 @dataclass
@@ -77,6 +78,9 @@ class DenseResult:
     placement_px : (rows, cols, 2) float32 or None
         The films' fitted placement (:func:`workbench.validate.placement.placement_field`) where
         the analysis started again from the print placed so, grid px (x, y); None where it did not.
+    slide : SlideMeasure or None
+        What the flow measured of the film's slide, and what the photo's slides claim
+        (:mod:`workbench.validate.slide_evidence`): the part compares it with its other photos.
     """
 
     warped: np.ndarray
@@ -102,6 +106,7 @@ class DenseResult:
     not_counted: list | None = None
     lamp_cone: np.ndarray | None = None
     placement_px: np.ndarray | None = None
+    slide: SlideMeasure | None = None
 
 
 def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> dict:

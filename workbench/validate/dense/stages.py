@@ -8,6 +8,7 @@ import numpy as np
 
 from workbench.validate.dense.flow import FlowStart
 from workbench.validate.print_warp import PrintGrid
+from workbench.validate.slide_evidence import SlideMeasure
 
 
 @dataclass
@@ -272,8 +273,11 @@ class _Found:
     defects : list of dict
     lit : (H, W) bool
         The light known at the end, with the flow's reach around it.
+    slide : SlideMeasure
+        What the flow measured of the film's slide, and what the kept slides claim.
     """
 
     labels: np.ndarray
     defects: list
     lit: np.ndarray
+    slide: SlideMeasure

@@ -120,28 +120,33 @@ def light_in_one_photo(
                 share = float((region & finds & clean).sum()) / n
                 if share >= need:
                     seen_by, found_in = Path(entries[b]["photo"]).name, Path(ea["photo"]).name
-                    out.append(
-                        {
-                            "photo_index": a,
-                            "photo": found_in,
-                            "id": d.get("id"),
-                            "kind": d["kind"],
-                            "area_mm2": d["area_mm2"],
-                            "centre_mm": d["centre_mm"],
-                            "decided_by": {
-                                "hypothesis": "light",
-                                "photo": seen_by,
-                                "share": round(share, 3),
-                                "found_as": d.get("decided_by"),
-                                "words": (
-                                    f"{seen_by} measured {100 * share:.0f} % of it, finds {what} there and found "
-                                    f"none: {what} stays on the print in every photo, so this is light in {found_in}"
-                                ),
-                            },
-                        }
+                    words = (
+                        f"{seen_by} measured {100 * share:.0f} % of it, finds {what} there and found "
+                        f"none: {what} stays on the print in every photo, so this is light in {found_in}"
                     )
+                    out.append(_as_light(a, d, found_in, seen_by, share, words))
                     break
     return out
+
+
+def _as_light(a: int, d: dict, found_in: str, seen_by: str, share: float, words: str, **more) -> dict:
+    """Defect ``d`` of photo ``a`` dismissed for the part as light, with what decided it (``more``: its figures)."""
+    return {
+        "photo_index": a,
+        "photo": found_in,
+        "id": d.get("id"),
+        "kind": d["kind"],
+        "area_mm2": d["area_mm2"],
+        "centre_mm": d["centre_mm"],
+        "decided_by": {
+            "hypothesis": "light",
+            "photo": seen_by,
+            "share": round(share, 3),
+            **more,
+            "found_as": d.get("decided_by"),
+            "words": words,
+        },
+    }
 
 
 def _measured_in_place(a: int, b: int, d: dict, entries: list[dict], states: list, slides: list | None) -> dict | None:
@@ -161,26 +166,12 @@ def _measured_in_place(a: int, b: int, d: dict, entries: list[dict], states: lis
         return None
     seen_by, found_in = Path(entries[b]["photo"]).name, Path(entries[a]["photo"]).name
     peak = float(d.get("peak_mm") or 0.0)
-    return {
-        "photo_index": a,
-        "photo": found_in,
-        "id": d.get("id"),
-        "kind": d["kind"],
-        "area_mm2": d["area_mm2"],
-        "centre_mm": d["centre_mm"],
-        "decided_by": {
-            "hypothesis": "light",
-            "photo": seen_by,
-            "share": round(share, 3),
-            "measured_there_mm": round(b_mm, 3),
-            "found_as": d.get("decided_by"),
-            "words": (
-                f"{seen_by} measured the print in place over {100 * share:.0f} % of where {found_in} has it slid "
-                f"(a slide of {b_mm:.2f} mm there, median, against up to {peak:.2f} mm): a slide of the film moves "
-                f"the print in every photo, so this is light in {found_in}"
-            ),
-        },
-    }
+    words = (
+        f"{seen_by} measured the print in place over {100 * share:.0f} % of where {found_in} has it slid "
+        f"(a slide of {b_mm:.2f} mm there, median, against up to {peak:.2f} mm): a slide of the film moves "
+        f"the print in every photo, so this is light in {found_in}"
+    )
+    return _as_light(a, d, found_in, seen_by, share, words, measured_there_mm=round(b_mm, 3))
 
 
 def _apart_deg(ea: dict, eb: dict, d: dict, X: np.ndarray | None, px_per_mm: float) -> float | None:

@@ -29,8 +29,9 @@ $(DEV_STAMP): $(STAMP)
 	$(PY) -m workbench.launcher $(VENV)/bin/workbench
 	touch $(DEV_STAMP)
 
+# every core, a test file to each (tests/conftest.py starts the longest first)
 test: dev
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
 
 WB := $(VENV)/bin/workbench
 DEMO := out/demo

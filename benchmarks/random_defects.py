@@ -340,7 +340,8 @@ def part_reason(report: dict) -> str:
     photos = report.get("photos", [])
     fails = [e for e in photos if in_part.get(Path(e["photo"]).name, e["verdict"]) == "FAIL"]
     if fails:
-        return f"{Path(fails[0]['photo']).name}: {fails[0]['reason']}"
+        name = Path(fails[0]["photo"]).name
+        return f"{name}: {(part.get('photo_reasons_in_part') or {}).get(name, fails[0]['reason'])}"
     bad = [e for e in photos if e["verdict"] != "PASS"]
     return "; ".join(f"{Path(e['photo']).name}: {e['verdict']}: {e['reason']}" for e in bad)
 

@@ -146,6 +146,35 @@ def test_a_long_first_page_runs_on_rather_than_off_the_page(tmp_path):
     assert all(f"x {1.0 + k:.1f}, y 2.0" in text for k in range(40))
 
 
+def test_why_gives_each_photo_as_the_part_judges_it(tmp_path):
+    # b.jpg failed alone on a slide another photo measured in place (light in b.jpg), and passes in the
+    # part; c.jpg fails in the part on a dropout: "Why" names c.jpg with its reason in the part, not b.jpg
+    light = "1 defect > 4 mm² (largest: shift, 79.2 mm² at (75.3, 6.1) mm on the print)"
+    dropout = "1 defect > 4 mm² (largest: missing, 19.8 mm² at (12.0, 30.0) mm on the print)"
+    report = {
+        "design": {"dir": "design", "design_json_sha256": "0" * 64, "print_sha256": "1" * 64, "job": {"name": "lid"}},
+        "software": {"version": "0"},
+        "camera_profile": {"file": "cam.json", "sha256": "2" * 64},
+        "tolerance_mm": 0.2,
+        "max_defect_mm2": 4.0,
+        "photos": [
+            {"photo": "a.jpg", "verdict": "PASS", "reason": "no defect > 4 mm²", "view": "top", "defects": []},
+            {"photo": "b.jpg", "verdict": "FAIL", "reason": light, "view": "top", "defects": []},
+            {"photo": "c.jpg", "verdict": "FAIL", "reason": dropout + "; " + light, "view": "top", "defects": []},
+        ],
+        "part": {
+            "verdict": "FAIL",
+            "defects": [],
+            "photo_verdicts_in_part": {"b.jpg": "PASS", "c.jpg": "FAIL"},
+            "photo_reasons_in_part": {"b.jpg": "no defect > 4 mm²", "c.jpg": dropout},
+        },
+    }
+    (tmp_path / "r.pdf").write_bytes(qa_report(report, {}))
+    first = page_texts(tmp_path / "r.pdf")[0]
+    assert folded(f"c.jpg: {dropout}") in first and "79.2" not in first
+    assert "b.jpg:" not in first
+
+
 def test_the_actions_name_the_next_photo_and_the_photo_to_retake():
     report = {
         "max_defect_mm2": 4.0,

@@ -512,6 +512,7 @@ def run(args) -> int:
         part["dismissed"] = [{k: v for k, v in x.items() if k != "photo_index"} for x in dismissed]
     if in_part:
         part["photo_verdicts_in_part"] = {Path(entries[k]["photo"]).name: v for k, (v, _) in in_part.items()}
+        part["photo_reasons_in_part"] = {Path(entries[k]["photo"]).name: r for k, (_, r) in in_part.items()}
     if colour_map is not None:
         files[out / "colour_print.png"] = png_bytes(
             pictures.colour_difference(grid.reference, colour_map, grid.px_per_mm, 2 * args.max_delta_e)

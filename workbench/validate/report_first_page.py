@@ -252,8 +252,13 @@ def first_page_story(report: dict, pictures: dict[str, bytes], pages: dict[str, 
     ]
     story += [Paragraph(escape(a), st["action"], bulletText="•") for a in actions(report)]
     story.append(Paragraph("Why", st["head"]))
-    fails = [e for e in photos if e["verdict"] == "FAIL"]
-    whys = [f"{photo_name(e)}: {e['reason']}" for e in fails] or ([part["reason"]] if part.get("reason") else [])
+    # (each photo as the part judges it: without what another photo showed to be light in it, and
+    # with its colour judged over all the photos; its own verdict and reason are on its page)
+    in_part = part.get("photo_verdicts_in_part") or {}
+    why_in_part = part.get("photo_reasons_in_part") or {}
+    fails = [e for e in photos if in_part.get(photo_name(e), e["verdict"]) == "FAIL"]
+    whys = [f"{photo_name(e)}: {why_in_part.get(photo_name(e), e['reason'])}" for e in fails]
+    whys = whys or ([part["reason"]] if part.get("reason") else [])
     whys.append(colour_words(part.get("colour"), report.get("max_delta_e")))
     story += [Paragraph(escape(w), st["body"]) for w in whys + figures_words(report)]
     table = defect_table(report, circled_photo(report), W - 2 * MARGIN_MM * mm)

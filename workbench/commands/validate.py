@@ -493,6 +493,7 @@ def run(args) -> int:
     dismissed = (
         light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2, grid.X, slides) if grid else []
     )
+    del slides  # (up to 16 bytes a grid pixel a photo: not kept through the reports)
     # one print, one colour: each print pixel judged in the photo that sees it most squarely
     colour, colour_map = fused_colour(take_colour_maps(entries), photo_names(entries), args.max_delta_e)
     in_part = {}

@@ -968,7 +968,7 @@ def photo_colour(
         box[i0 : i0 + round(f["height_px"] / grid.factor), j0 : j0 + round(f["width_px"] / grid.factor)] = True
         regions[f"film {f['name']}"] = box
     normal = grid.normal
-    if normal is None:  # (a grid made without the part's normals: its triangles', interpolated alike)
+    if normal is None:  # (a grid made without the part's normals: each triangle's own, the best there is)
         normal = face_normals(np.asarray(design.V, dtype=np.float64), np.asarray(design.F))[np.maximum(grid.face, 0)]
     colour, de_map = measure_colour(
         photo,

@@ -8,7 +8,7 @@ import numpy as np
 
 from workbench.validate import dense, print_warp
 from workbench.validate.rule import judged_delta_e
-from workbench.validate.slide_evidence import claim_seen_smaller
+from workbench.validate.slide_evidence import claim_seen_in_place
 
 
 def light_in_one_photo(
@@ -35,8 +35,9 @@ def light_in_one_photo(
     A slide is light too where another photo *measured* the print there in place: the film's
     slide is one field on the print, and each photo measures a projection of it (the full vector,
     or the component across an edge); where another photo measured the same component at the
-    claim's pixels significantly smaller, over at least SHIFT_SHARE of them
-    (:mod:`workbench.validate.slide_evidence`), the slide moved with the camera. Its stated limit
+    claim's pixels significantly smaller and its own slide there within the tolerance, over at
+    least SHIFT_SHARE of them (:mod:`workbench.validate.slide_evidence`), the slide moved with
+    the camera. Its stated limit
     there may be coarse for a slide in any direction (a ring's edge tells only the component
     across it) while its measure across the edge is fine (a glint along the lily's ring pulled a
     suggested photo's flow 2.97 mm across it, z 122, where the four other photos, stating 6.7 to
@@ -110,7 +111,7 @@ def light_in_one_photo(
                     continue  # (a light one photo shows, another from the same direction shows too)
                 if d["kind"] == "shift":
                     finds, need, what = maps[f"photo{b}_shift_limit_um"][box] <= slide_um, SHIFT_SHARE, "a slide"
-                    if (measured := _measured_in_place(a, b, d, entries, states, slides)) is not None:
+                    if (measured := _measured_in_place(a, b, d, box, entries, states, slides)) is not None:
                         out.append(measured)
                         break
                 else:
@@ -149,19 +150,21 @@ def _as_light(a: int, d: dict, found_in: str, seen_by: str, share: float, words:
     }
 
 
-def _measured_in_place(a: int, b: int, d: dict, entries: list[dict], states: list, slides: list | None) -> dict | None:
-    """Photo ``b`` measured the slide photo ``a`` found in defect ``d`` significantly smaller: ``a``'s light.
+def _measured_in_place(
+    a: int, b: int, d: dict, box: tuple, entries: list[dict], states: list, slides: list | None
+) -> dict | None:
+    """Photo ``b`` measured in place the slide photo ``a`` found in defect ``d``: ``a``'s light.
 
-    None when it did not (or either measure is missing). The share is of ``a``'s claim pixels
-    (:func:`workbench.validate.slide_evidence.claim_seen_smaller`), at SHIFT_SHARE at least, where
-    ``b`` measured and found no defect (its state map, ``states[b]``).
+    None when it did not (or either measure is missing). The share is of ``a``'s claim pixels in
+    the defect's ``box`` (:func:`workbench.validate.slide_evidence.claim_seen_in_place`), at
+    SHIFT_SHARE at least, where ``b`` measured and found no defect (its state map, ``states[b]``).
     """
     from workbench.validate.detection import SHIFT_SHARE
 
     if not slides or slides[a] is None or slides[b] is None or d.get("id") is None:
         return None
     clean = np.isin(states[b], print_warp.MEASURED) & (states[b] != print_warp.DEFECT)
-    share, b_mm = claim_seen_smaller(slides[a], slides[b], int(d["id"]), dense.SIGNIFICANCE_Z, clean)
+    share, b_mm = claim_seen_in_place(slides[a], slides[b], int(d["id"]), dense.SIGNIFICANCE_Z, box, clean)
     if share < SHIFT_SHARE:
         return None
     seen_by, found_in = Path(entries[b]["photo"]).name, Path(entries[a]["photo"]).name

@@ -122,6 +122,19 @@ def test_no_text_is_cut_off_on_any_page(which, request):
         assert folded(e["reason"]) in text
 
 
+def report_of(photos: list[dict], part: dict) -> dict:
+    """A validation.json as the QA report reads it: design, software, camera, rule, ``photos`` and ``part``."""
+    return {
+        "design": {"dir": "design", "design_json_sha256": "0" * 64, "print_sha256": "1" * 64, "job": {"name": "lid"}},
+        "software": {"version": "0"},
+        "camera_profile": {"file": "cam.json", "sha256": "2" * 64},
+        "tolerance_mm": 0.2,
+        "max_defect_mm2": 4.0,
+        "photos": photos,
+        "part": part,
+    }
+
+
 def test_a_long_first_page_runs_on_rather_than_off_the_page(tmp_path):
     # forty defects and a reason of several lines: the table splits onto a second page, nothing leaves the frame
     reason = "misregistration p95 0.412 mm > tolerance 0.2 mm; " * 12
@@ -129,15 +142,8 @@ def test_a_long_first_page_runs_on_rather_than_off_the_page(tmp_path):
         {"kind": "missing", "centre_mm": [1.0 + k, 2.0], "area_mm2": 5.0 + k, "view": "logo", "photos": ["a.jpg"]}
         for k in range(40)
     ]
-    report = {
-        "design": {"dir": "design", "design_json_sha256": "0" * 64, "print_sha256": "1" * 64, "job": {"name": "lid"}},
-        "software": {"version": "0"},
-        "camera_profile": {"file": "cam.json", "sha256": "2" * 64},
-        "tolerance_mm": 0.2,
-        "max_defect_mm2": 4.0,
-        "photos": [{"photo": "a.jpg", "verdict": "FAIL", "reason": reason, "view": "front", "defects": []}],
-        "part": {"verdict": "FAIL", "defects": defects},
-    }
+    photo = {"photo": "a.jpg", "verdict": "FAIL", "reason": reason, "view": "front", "defects": []}
+    report = report_of([photo], {"verdict": "FAIL", "defects": defects})
     (tmp_path / "r.pdf").write_bytes(qa_report(report, {}))
     assert text_outside(tmp_path / "r.pdf") == []
     pages = page_texts(tmp_path / "r.pdf")
@@ -151,24 +157,19 @@ def test_why_gives_each_photo_as_the_part_judges_it(tmp_path):
     # part; c.jpg fails in the part on a dropout: "Why" names c.jpg with its reason in the part, not b.jpg
     light = "1 defect > 4 mm² (largest: shift, 79.2 mm² at (75.3, 6.1) mm on the print)"
     dropout = "1 defect > 4 mm² (largest: missing, 19.8 mm² at (12.0, 30.0) mm on the print)"
-    report = {
-        "design": {"dir": "design", "design_json_sha256": "0" * 64, "print_sha256": "1" * 64, "job": {"name": "lid"}},
-        "software": {"version": "0"},
-        "camera_profile": {"file": "cam.json", "sha256": "2" * 64},
-        "tolerance_mm": 0.2,
-        "max_defect_mm2": 4.0,
-        "photos": [
+    report = report_of(
+        [
             {"photo": "a.jpg", "verdict": "PASS", "reason": "no defect > 4 mm²", "view": "top", "defects": []},
             {"photo": "b.jpg", "verdict": "FAIL", "reason": light, "view": "top", "defects": []},
             {"photo": "c.jpg", "verdict": "FAIL", "reason": dropout + "; " + light, "view": "top", "defects": []},
         ],
-        "part": {
+        {
             "verdict": "FAIL",
             "defects": [],
             "photo_verdicts_in_part": {"b.jpg": "PASS", "c.jpg": "FAIL"},
             "photo_reasons_in_part": {"b.jpg": "no defect > 4 mm²", "c.jpg": dropout},
         },
-    }
+    )
     (tmp_path / "r.pdf").write_bytes(qa_report(report, {}))
     first = page_texts(tmp_path / "r.pdf")[0]
     assert folded(f"c.jpg: {dropout}") in first and "79.2" not in first

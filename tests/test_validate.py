@@ -199,6 +199,7 @@ def test_full_size_realistic_photos(design, tmp_path, offset_mm):
 def test_the_first_page_gives_a_long_reason_in_full(tmp_path):
     # a FAIL whose reason is longer than a line: the first page wraps it, it is not cut off
     import pypdf
+    from test_qa_report import report_of
 
     from workbench.validate.report import qa_report
 
@@ -207,15 +208,7 @@ def test_the_first_page_gives_a_long_reason_in_full(tmp_path):
         "2 defects > 4 mm² (largest: missing, 54.9 mm² at (78.5, 57.1) mm on the print)"
     )
     photo = {"photo": "a.jpg", "verdict": "FAIL", "reason": reason, "view": "front", "defects": []}
-    report = {
-        "design": {"dir": "design", "design_json_sha256": "0" * 64, "print_sha256": "1" * 64, "job": {"name": "lid"}},
-        "software": {"version": "0"},
-        "camera_profile": {"file": "cam.json", "sha256": "2" * 64},
-        "tolerance_mm": 0.2,
-        "max_defect_mm2": 4.0,
-        "photos": [photo],
-        "part": {"verdict": "FAIL", "defects": []},
-    }
+    report = report_of([photo], {"verdict": "FAIL", "defects": []})
     (tmp_path / "r.pdf").write_bytes(qa_report(report, {}))
     first = pypdf.PdfReader(tmp_path / "r.pdf").pages[0].extract_text()
     assert len(reason) > 110 and " ".join(first.split()).count(" ".join(f"a.jpg: {reason}".split())) == 1, first

@@ -64,7 +64,7 @@ def test_a_photo_that_measured_the_edge_in_place_overrules_the_slide(b, seen, wh
     a = measure([1.0, 0.0], 0.02, normal=[1, 0], claim=True)
     got = seen_in_place(a, b, GRID, 3.0)
     assert bool(got[REGION].all()) == seen and not got[:40].any(), why
-    share, median = claim_seen_in_place(a, b, 1, 3.0, REGION, np.ones((H, W), bool))
+    share, median = claim_seen_in_place(a, b, 1, 3.0, REGION, np.ones((40, 40), bool))
     assert share == (1.0 if seen else 0.0)
     if seen:
         assert median == pytest.approx(float(np.hypot(*b.slide_mm[50, 50].astype(float))), abs=1e-3)
@@ -110,11 +110,11 @@ def test_only_the_claim_and_what_both_measured_count():
     a = measure([1.0, 0.0], 0.02, normal=[1, 0], claim=True)
     b = measure([0.0, 0.0], 0.02, normal=[1, 0])
     b.slide_mm[40:60] = np.nan  # b measured half of the region
-    everywhere = np.ones((H, W), bool)
+    everywhere = np.ones((40, 40), bool)  # (over the region's box)
     share, _ = claim_seen_in_place(a, b, 1, 3.0, REGION, everywhere)
     assert share == pytest.approx(0.5)
     clean = everywhere.copy()
-    clean[60:70] = False  # b found a defect over a quarter of it
+    clean[20:30] = False  # b found a defect over a quarter of it (grid rows 60 to 70)
     assert claim_seen_in_place(a, b, 1, 3.0, REGION, clean)[0] == pytest.approx(0.25)
     assert claim_seen_in_place(a, b, 2, 3.0, REGION, everywhere) == (0.0, None)  # no such defect: no claim
     unclaimed = measure([1.0, 0.0], 0.02, normal=[1, 0], claim=False)

@@ -37,11 +37,10 @@ def light_in_one_photo(
     or the component across an edge); where another photo measured the same component at the
     claim's pixels significantly smaller and its own slide there within the tolerance, over at
     least SHIFT_SHARE of them (:mod:`workbench.validate.slide_evidence`), the slide moved with
-    the camera. Its stated limit
-    there may be coarse for a slide in any direction (a ring's edge tells only the component
-    across it) while its measure across the edge is fine (a glint along the lily's ring pulled a
-    suggested photo's flow 2.97 mm across it, z 122, where the four other photos, stating 6.7 to
-    9 mm for a slide in any direction, measured the ring in place).
+    the camera. Its stated limit there may be coarse for a slide in any direction (a ring's edge
+    tells only the component across it) while its measure across the edge is fine (a glint along
+    the lily's ring pulled a suggested photo's flow 2.97 mm across it, z 122, where the four other
+    photos, stating 6.7 to 9 mm for a slide in any direction, measured the ring in place).
     The other photo must see the region from more than MIRROR_DEG away (seen from the surface):
     from nearly the same direction it would show the same reflection, and a disagreement there
     says the two photos are not of one print under one light. The defect stays in its photo's
@@ -109,15 +108,16 @@ def light_in_one_photo(
                     apart := _apart_deg(entries[a], entries[b], d, X, px_per_mm)
                 ) is not None and apart <= dense.MIRROR_DEG:
                     continue  # (a light one photo shows, another from the same direction shows too)
+                # (where the other photo measured and found no defect: only there does it overrule)
+                clean = np.isin(sb[box], print_warp.MEASURED) & (sb[box] != print_warp.DEFECT)
                 if d["kind"] == "shift":
                     finds, need, what = maps[f"photo{b}_shift_limit_um"][box] <= slide_um, SHIFT_SHARE, "a slide"
-                    if (measured := _measured_in_place(a, b, d, box, entries, states, slides)) is not None:
+                    if (measured := _measured_in_place(a, b, d, box, clean, entries, slides)) is not None:
                         out.append(measured)
                         break
                 else:
                     finds = maps[f"photo{b}_dropout"][box].astype(bool) | maps[f"photo{b}_scratch"][box].astype(bool)
                     need, what = DROPOUT_SHARE, "ink gone"
-                clean = np.isin(sb[box], print_warp.MEASURED) & (sb[box] != print_warp.DEFECT)
                 share = float((region & finds & clean).sum()) / n
                 if share >= need:
                     seen_by, found_in = Path(entries[b]["photo"]).name, Path(ea["photo"]).name
@@ -151,19 +151,18 @@ def _as_light(a: int, d: dict, found_in: str, seen_by: str, share: float, words:
 
 
 def _measured_in_place(
-    a: int, b: int, d: dict, box: tuple, entries: list[dict], states: list, slides: list | None
+    a: int, b: int, d: dict, box: tuple, clean: np.ndarray, entries: list[dict], slides: list | None
 ) -> dict | None:
     """Photo ``b`` measured in place the slide photo ``a`` found in defect ``d``: ``a``'s light.
 
     None when it did not (or either measure is missing). The share is of ``a``'s claim pixels in
     the defect's ``box`` (:func:`workbench.validate.slide_evidence.claim_seen_in_place`), at
-    SHIFT_SHARE at least, where ``b`` measured and found no defect (its state map, ``states[b]``).
+    SHIFT_SHARE at least, where ``b`` measured and found no defect (``clean``, over the box).
     """
     from workbench.validate.detection import SHIFT_SHARE
 
     if not slides or slides[a] is None or slides[b] is None or d.get("id") is None:
         return None
-    clean = np.isin(states[b], print_warp.MEASURED) & (states[b] != print_warp.DEFECT)
     share, b_mm = claim_seen_in_place(slides[a], slides[b], int(d["id"]), dense.SIGNIFICANCE_Z, box, clean)
     if share < SHIFT_SHARE:
         return None

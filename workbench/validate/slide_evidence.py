@@ -140,8 +140,8 @@ def claim_seen_in_place(
         The significance (:func:`seen_in_place`).
     box : tuple of slice
         The defect's box on the grid (rows, cols): its claim lies within it.
-    clean : (H, W) bool
-        Where ``b`` measured and found no defect: only there does its measure count.
+    clean : (h, w) bool
+        Over ``box``: where ``b`` measured and found no defect; only there does its measure count.
 
     Returns
     -------
@@ -154,7 +154,7 @@ def claim_seen_in_place(
     n = int(where.sum())
     if n == 0:
         return 0.0, None
-    seen = seen_in_place(a, b, box, z) & where & clean[box]
+    seen = seen_in_place(a, b, box, z) & where & clean
     k = int(seen.sum())
     if k == 0:
         return 0.0, None

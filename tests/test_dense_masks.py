@@ -140,3 +140,43 @@ def test_the_rim_band_follows_the_films_outline_and_the_frame_only():
     assert (out[0:e, 10:] == print_warp.EDGE).all() and (out[:, 100 - e :][: 90 - e] == print_warp.EDGE).all()
     assert (out[35:55, 35:55][state[35:55, 35:55] == print_warp.FULL] == print_warp.FULL).all()
     assert (out[55:75, 55:75][state[55:75, 55:75] == print_warp.FULL] == print_warp.FULL).all()
+
+
+def test_the_smooth_surface_decides_what_faces_the_photo_and_its_contour_is_an_edge():
+    # the square's triangles face the camera, but its smooth normal (what both renderers and a
+    # real part shade by) turns away on the half x > 10 mm: the photo shows the film's back
+    # there (a faceted shell curling under, Mitsuba's glossy cow: 6.9 mm² of "colour" where the
+    # back's grey met the film). That half is turned away, and the photo's pixels within the
+    # band of the contour, where the film's side and its back mix, are EDGE
+    import dataclasses
+
+    V, F, grid, cam, photo = quad_scene(flip=False)
+    on = np.isfinite(grid.X[..., 0])
+    away = on & (grid.X[..., 0] > 10.0)
+    normal = grid.normal.copy()
+    normal[away] = np.array([0.6, 0.0, -0.8], np.float32)  # faces away from a camera 500 mm above
+    # (by its triangles alone, as without a smooth normal: seen, and scored but at the outline)
+    _, before, _, _ = print_warp.warp_to_print(photo, cam, dataclasses.replace(grid, normal=None), V, F)
+    assert (before[away] == print_warp.FULL).mean() > 0.8
+    grid = dataclasses.replace(grid, normal=normal)
+    _, state, scale, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    assert (state[away] == print_warp.OCCLUDED).all()
+    # the contour in the photo: the column where x = 10 mm projects
+    xy, _ = cam.project(grid.X[on])
+    contour_px = cam.project(np.array([[10.0, 0.0, 0.0]]))[0][0, 0]
+    lo, hi = cam.project(V)[0].min(axis=0), cam.project(V)[0].max(axis=0)
+    to_outline = np.minimum(xy - lo, hi - xy).min(axis=1)
+    band = print_warp.DEPTH_STEP_BAND_PX + 2.0 * (0.5 * np.sqrt(scale * scale - 1.0) if scale > 1.5 else 0.0)
+    st, front = state[on], ~away[on]
+    to_contour = contour_px - xy[:, 0]
+    assert (st[front & (to_contour < band - 1.5)] == print_warp.EDGE).all()
+    far = front & (to_contour > band + 2.5) & (to_outline > band + 2.5)
+    assert far.sum() > 1000 and (st[far] == print_warp.FULL).all()
+
+
+def test_the_contour_band_reaches_its_radius_around_the_back_the_photo_shows():
+    xy = np.array([[50.0, 40.0], [51.0, 40.0], [52.0, 40.0]])
+    band = print_warp.contour_band(xy, 3.0, (80, 100))
+    assert band[40, 50:53].all() and band[37, 51] and band[40, 55] and band[43, 51]
+    assert not band[40, 56] and not band[36, 51] and not band[44, 51] and band.sum() < 60
+    assert not print_warp.contour_band(np.zeros((0, 2)), 3.0, (80, 100)).any()

@@ -183,7 +183,11 @@ def warp_to_print(
     pts = grid.X[on]
     ideal = Camera(cam.K, cam.R, cam.t, cam.width, cam.height)
     pdepth = photo_buffers(cam, V, F)[1] if depth is None else depth
-    xy, proj, inside, inside_ideal, shown = surface_in_photo(cam, pts, grid.face[on], V, F, pdepth)
+    # (the surface faces the camera by its smooth normal, as both renderers and a real part
+    # show it: on a faceted mesh, a triangle beside the contour may face the camera while the
+    # surface there has already turned away, and the photo shows the film's back)
+    facing = None if grid.normal is None else facing_camera(pts, grid.normal[on], ideal.center)
+    xy, proj, inside, inside_ideal, shown = surface_in_photo(cam, pts, grid.face[on], V, F, pdepth, facing)
     mapx = np.full((rows, cols), -1e4, dtype=np.float32)
     mapy = np.full((rows, cols), -1e4, dtype=np.float32)
     mapx[on], mapy[on] = proj[:, 0], proj[:, 1]
@@ -206,7 +210,16 @@ def warp_to_print(
     # a fold in front of what lies behind it), the blur spreads the nearer surface's colour
     # over the other: a band there, measured in the photo, is not scored
     pre_blur = 0.5 * np.sqrt(scale * scale - 1.0) if scale > 1.5 else 0.0
-    steps = depth_steps(pdepth, DEPTH_STEP_BAND_PX + 2.0 * pre_blur, float(cam.K[0, 0]))
+    band_px = DEPTH_STEP_BAND_PX + 2.0 * pre_blur
+    steps = depth_steps(pdepth, band_px, float(cam.K[0, 0]))
+    if facing is not None and not facing.all():
+        # and where the smooth surface turns its back while the depth buffer goes on over it
+        # (a shell that curls under: the film's side and its back side meet at the contour with
+        # no step in depth), the photo's pixels mix the two as well: a band as wide as a step's
+        # around the back the photo shows
+        turned = np.flatnonzero(~facing & inside_ideal)
+        back = surface_in_photo(cam, pts[turned], grid.face[on][turned], V, F, pdepth)[4]
+        steps |= contour_band(xy[turned[back]], band_px, steps.shape)
     at = inside_ideal & (st == FULL)
     ix = np.clip(np.rint(xy[at, 0]).astype(np.int64), 0, ideal.width - 1)
     iy = np.clip(np.rint(xy[at, 1]).astype(np.int64), 0, ideal.height - 1)
@@ -222,7 +235,63 @@ def warp_to_print(
     return warped, state, scale, footprint
 
 
-def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth: np.ndarray):
+def facing_camera(X: np.ndarray, normals: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """Surface points whose normal faces a camera centre.
+
+    Parameters
+    ----------
+    X : (n, 3) float
+        Surface points, mm.
+    normals : (n, 3) float
+        Their unit normals (NaN: none, which faces nothing).
+    center : (3,) float
+        Camera centre, mm.
+
+    Returns
+    -------
+    (n,) bool
+        True where the camera lies on the normal's side of the point's tangent plane.
+    """
+    return np.einsum("ij,ij->i", normals, np.asarray(center, np.float64) - X) > 0
+
+
+def contour_band(xy: np.ndarray, radius_px: float, shape: tuple[int, int]) -> np.ndarray:
+    """Photo pixels within ``radius_px`` of points the photo shows turned away (the film's back).
+
+    Parameters
+    ----------
+    xy : (n, 2) float
+        The turned-away points the depth test keeps, photo pixels through the ideal camera.
+        Points a grid pixel apart lie at most the grid's scale in photo pixels apart, which the
+        band (a step's: its width plus twice the pre-blur, about that scale) closes over.
+    radius_px : float
+        Width of the band, photo pixels.
+    shape : (h, w)
+        The photo's size.
+
+    Returns
+    -------
+    (h, w) bool
+    """
+    h, w = shape
+    out = np.zeros((h, w), np.uint8)
+    if not len(xy):
+        return out.astype(bool)
+    ix = np.clip(np.rint(xy[:, 0]).astype(np.int64), 0, w - 1)
+    iy = np.clip(np.rint(xy[:, 1]).astype(np.int64), 0, h - 1)
+    out[iy, ix] = 1
+    r = max(int(np.ceil(radius_px)), 1)
+    # (only the points' bounding box and the band around it can change)
+    y0, y1 = max(int(iy.min()) - r, 0), min(int(iy.max()) + r + 1, h)
+    x0, x1 = max(int(ix.min()) - r, 0), min(int(ix.max()) + r + 1, w)
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    out[y0:y1, x0:x1] = cv2.dilate(out[y0:y1, x0:x1], k)
+    return out.astype(bool)
+
+
+def surface_in_photo(
+    cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth: np.ndarray, facing: np.ndarray | None = None
+):
     """Where surface points fall in a photo, and which of them the photo shows.
 
     Parameters
@@ -237,6 +306,10 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
         The part.
     depth : (h, w) float
         Depth buffer of the part in the undistorted photo camera (:func:`photo_buffers`).
+    facing : (n,) bool, optional
+        Which points face the camera (:func:`facing_camera` of the smooth normal); without
+        it, those on a part of the mesh that faces it
+        (:func:`workbench.views.visibility.surface_faces_facing`).
 
     Returns
     -------
@@ -249,8 +322,8 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
     inside_ideal : (n,) bool
         The same through the ideal camera (where the depth buffer can say what hides them).
     shown : (n,) bool
-        Not hidden by another part of the mesh and on a part of the surface that faces the
-        camera (:func:`workbench.views.visibility.surface_faces_facing`): just behind a fold,
+        Not hidden by another part of the mesh and facing the camera (``facing``, or by
+        :func:`workbench.views.visibility.surface_faces_facing`): just behind a fold,
         the surface that turns its back is within the depth test's tolerance of the surface in
         front of it, while a scan's tiny triangle folded over inside a surface that faces the
         camera is shown by it.
@@ -264,7 +337,7 @@ def surface_in_photo(cam: Camera, X: np.ndarray, faces: np.ndarray, V, F, depth:
     def framed(p):
         return in_front & (p[:, 0] >= 0) & (p[:, 1] >= 0) & (p[:, 0] <= cam.width - 1) & (p[:, 1] <= cam.height - 1)
 
-    shown = seen & surface_faces_facing(V, F, ideal.center)[faces]
+    shown = seen & (surface_faces_facing(V, F, ideal.center)[faces] if facing is None else facing)
     return xy, lens, framed(lens), framed(xy), shown
 
 

@@ -98,6 +98,7 @@ bench: dev
 	$(PY) benchmarks/bench_forming.py --rounds 2
 	$(PY) benchmarks/bench_trend.py
 	$(PY) benchmarks/bench_closed.py
+	$(if $(SCANS),$(PY) benchmarks/films_on_scans.py --meshes $(SCANS) --within-share 0.99 0.98)
 	$(if $(FACE),$(PY) benchmarks/bench_forming.py --job fixtures/face-mask-films/job.toml --scale 1.5 --min-fov-deg 0 --calibration-film --rounds 2)
 	$(PY) -m pytest -q -m slow
 

@@ -339,7 +339,9 @@ def test_a_hole_through_the_box_prints_on_films(tmp_path):
     info = json.loads((out / "design.json").read_text())
     seams, edge = info["surface"]["seams"], info["surface"]["refined"]["max_edge_mm"]
     assert seams["count"] == 1 and 56.0 - 1e-9 <= seams["length_mm"] <= 50.0 + 2 * (3.0 + edge) + 1e-9
-    assert len(info["films"]) >= 1 and all(f["within_material_share"] >= 0.99 for f in info["films"])
+    # the plan keeps 99 % of the surface within the band (a film may keep less of itself where
+    # the plan as a whole stays within its share)
+    assert len(info["films"]) >= 1 and info["within_material"]["share"] >= 0.99
     # every face of the cut surface is on a film: the margin no view owns too
     films_mm2 = sum(f["surface_mm2"] for f in info["films"])
     assert films_mm2 == pytest.approx(info["surface"]["selected_mm2"], rel=1e-9)

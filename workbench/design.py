@@ -30,6 +30,7 @@ from workbench.errors import WorkbenchError
 from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, seams, split_films, submesh
 from workbench.job import Job, Material
 from workbench.job_views import assign_job_views, read_view_images, region_warnings
+from workbench.mesh.caps import flip_caps
 from workbench.mesh.io import MeshName, read_mesh
 from workbench.mesh.selection import read_face_list
 from workbench.mesh.validate import face_areas
@@ -205,7 +206,16 @@ def _film_regions(
         # (a surface cut out of a closed part is printed whole: its margin reaches past what the
         # views own so that the film's rim lies beyond what they see)
         covered = np.ones(len(F), bool) if cover_all else owner_view >= 0
-        fits = split_films(V, F, covered, owner_view, limit, FlattenOptions(min_print_mm=min_print), log=say)
+        fits = split_films(
+            V,
+            F,
+            covered,
+            owner_view,
+            limit,
+            FlattenOptions(min_print_mm=min_print),
+            log=say,
+            within_share=job.object.material.within_share,
+        )
         return [(f"film-{k + 1}", f.faces, f.flat, job.object.material, "free") for k, f in enumerate(fits)]
     graph = face_graph(F)
     claimed = np.zeros(len(F), bool)
@@ -507,6 +517,11 @@ def design(job: Job, log: Callable[[str], None] | None = None, forming_profile: 
     t: dict[str, float] = {}
     t0 = time.perf_counter()
     V, F = read_mesh(job.object.mesh, job.object.units, log=say)
+    # (a scan's triangles with a corner on their opposite edge: no map flattens them, and flipped
+    # with their neighbour the surface is the same)
+    F, caps = flip_caps(V, F)
+    if caps:
+        say(f"{job.object.mesh.name}: {caps} faces of zero area (a corner on the opposite edge) flipped")
     images, decorations = read_view_images(job)
     t["read"] = time.perf_counter() - t0
     say(f"read {job.object.mesh.name}: {len(V)} vertices, {len(F)} faces; {len(images)} view images")

@@ -23,6 +23,10 @@ MIN_STRETCH = 0.8
 MAX_OFF_SHARE = 0.01
 # Smallest film the automatic split makes, in faces: below it a region is not split again.
 MIN_FILM_FACES = 24
+# Pieces the bisection may have at once, per film the plan may end with: bisection cuts far
+# more than it must (a scanned figure's 7 films came from 70 pieces, a bust's 5 from 42) and
+# merge_films joins them again; the bound only keeps a hopeless part from splitting for ever.
+PIECES_PER_FILM = 10
 
 
 def face_graph(F: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
@@ -115,10 +119,13 @@ def disc_region(
             raise WorkbenchError("the region holds no face")
         sizes = np.bincount(labels[region], weights=area[region])
         region = labels == int(np.argmax(sizes))
-        # holes: parts of the rest that do not reach the part's rim are enclosed
+        # holes: parts of the rest that border the region and do not reach the part's rim are
+        # enclosed (a part that does not border it is another body of the mesh: a scan's eyes
+        # and teeth, 39 closed pieces beside an ogre, are not holes in its skin)
         rest = _components(adjacency, ~region)
         open_parts = np.unique(rest[on_rim & ~region])
-        hole = (~region) & ~np.isin(rest, open_parts)
+        bordering = np.unique(rest[adjacency[np.flatnonzero(region)].indices])
+        hole = (~region) & ~np.isin(rest, open_parts) & np.isin(rest, bordering[bordering >= 0])
         if (hole & ~allowed).any():
             if not keep_holes:
                 raise WorkbenchError(f"the region encloses {int((hole & ~allowed).sum())} faces of another film")
@@ -332,9 +339,18 @@ class FilmFit:
 
 
 def probe_film(
-    V: np.ndarray, F: np.ndarray, faces: np.ndarray, max_stretch: float, options: FlattenOptions
+    V: np.ndarray,
+    F: np.ndarray,
+    faces: np.ndarray,
+    max_stretch: float,
+    options: FlattenOptions,
+    max_off_share: float = MAX_OFF_SHARE,
 ) -> tuple[ScaleMode | None, float, str, FlattenResult | None]:
     """The first half of :func:`fit_film`: the free layout, the best scale, its share in the band, no overlap.
+
+    A region passes with at most ``max_off_share`` of its surface outside the band (by
+    default a film's own rule; :func:`join_within_budget` lets a film take more where the
+    plan as a whole stays within its share).
 
     Returns
     -------
@@ -355,7 +371,7 @@ def probe_film(
     except WorkbenchError as exc:
         return None, 0.0, str(exc).split(": ", 1)[-1], None
     s, within = stretch_window(flat.stretch, flat.area_3d, max_stretch)
-    if within < 1 - MAX_OFF_SHARE:
+    if within < 1 - max_off_share:
         return None, within, f"{1 - within:.1%} of it leaves the stretch band", flat
     loop = boundary_loops(flat.F)[0]
     if len(polygon_self_intersections(flat.uv[loop])):
@@ -378,9 +394,16 @@ def final_film(
 
 
 def fit_film(
-    V: np.ndarray, F: np.ndarray, faces: np.ndarray, max_stretch: float, options: FlattenOptions
+    V: np.ndarray,
+    F: np.ndarray,
+    faces: np.ndarray,
+    max_stretch: float,
+    options: FlattenOptions,
+    max_off_share: float = MAX_OFF_SHARE,
 ) -> tuple[FilmFit | None, str, FlattenResult | None]:
     """Flatten a region onto a free outline at the scale that suits its material best.
+
+    It fits with at most ``max_off_share`` of it outside the band (:func:`probe_film`).
 
     Returns
     -------
@@ -391,7 +414,7 @@ def fit_film(
     layout : FlattenResult or None
         The region's free layout (area scale), for the cut that splits it.
     """
-    scale, within, why, flat = probe_film(V, F, faces, max_stretch, options)
+    scale, within, why, flat = probe_film(V, F, faces, max_stretch, options, max_off_share)
     if scale is None:
         return None, why, flat
     fit, why = final_film(V, F, faces, scale, within, options)
@@ -477,6 +500,57 @@ def _with_neighbour(leftover: np.ndarray, queue: list, adjacency: sp.csr_matrix)
     return faces, False
 
 
+def smoothed_owner(owner: np.ndarray, edge_faces: np.ndarray, FE: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """Owners along view borders made straight: a face goes with two of its three neighbours.
+
+    A border between two views' faces zig-zags through single triangles (each face owned by
+    the view that sees it first). Cut along it, a film's free outline has notches one triangle
+    deep, and at a notch the conformal map folds the outline onto itself: a scanned bust's
+    front view lost its film to sub-millimetre self-touches at three such notches. A face of the
+    region whose two neighbours (across two of its edges) share another owner takes that
+    owner, until no face does. Each round changes faces no two of which are neighbours (of two
+    that would, the lower-numbered), so each change takes at least one edge out of the borders
+    and the rounds end (two neighbours changed together swapped owners and came back).
+
+    Parameters
+    ----------
+    owner : (#F,) int
+        Owning view per face, -1 for none.
+    edge_faces : (#E, 2) int
+        The two faces of each edge, -1 for none (:func:`face_graph`).
+    FE : (#F, 3) int
+        Each face's edges (:func:`workbench.mesh.topology.unique_edges`).
+    region : (#F,) bool
+        The faces that may change, and whose owners count.
+
+    Returns
+    -------
+    (#F,) int
+        The owners, those outside ``region`` unchanged.
+    """
+    owner = np.asarray(owner).copy()
+    f = np.arange(len(FE))[:, None]
+    # the face across each edge of each face (-1: none)
+    across = np.where(edge_faces[FE, 0] == f, edge_faces[FE, 1], edge_faces[FE, 0])
+    inside = region[np.maximum(across, 0)] & (across >= 0)
+    todo = np.flatnonzero(region)
+    moving = np.zeros(len(owner), bool)
+    while True:
+        # (a neighbour outside the region, or none, matches nothing: -2, -3 and -4 differ)
+        nb = np.where(inside, owner[np.maximum(across, 0)], np.array([-2, -3, -4]))[todo]
+        a, b, c = nb[:, 0], nb[:, 1], nb[:, 2]
+        pair = np.where(a == b, a, np.where(a == c, a, np.where(b == c, b, -2)))
+        take = (pair >= -1) & (pair != owner[todo])
+        if not take.any():
+            return owner
+        moving[:] = False
+        moving[todo[take]] = True
+        # (not beside a lower-numbered face that changes too)
+        nb_moving = moving[np.maximum(across[todo[take]], 0)] & (across[todo[take]] >= 0)
+        first = ~(nb_moving & (across[todo[take]] < todo[take][:, None])).any(axis=1)
+        owner[todo[take][first]] = pair[take][first]
+
+
 def split_films(
     V: np.ndarray,
     F: np.ndarray,
@@ -486,15 +560,17 @@ def split_films(
     options: FlattenOptions,
     max_films: int = 48,
     log: Callable[[str], None] | None = None,
+    within_share: float = 1.0 - MAX_OFF_SHARE,
 ) -> list[FilmFit]:
     """Partition the decorated surface into disc-shaped films that each stay within the material.
 
     Greedy recursive bisection: a region that does not fit (stretch out of
     [MIN_STRETCH, max_stretch] on more than 1 % of it at its best scale, an outline
     over itself, or crowded) is split: first along the borders between views (a seam
-    there crosses no view's image), then by straight cuts across its flat layout.
-    Bisection cuts more than it must; :func:`merge_films` then joins adjacent films
-    again while their union is a disc that fits, seams inside a view first.
+    there crosses no view's image, made straight first by :func:`smoothed_owner`), then by
+    straight cuts across its flat layout. Bisection cuts more than it must;
+    :func:`merge_films` then joins adjacent films again while their union is a disc that
+    fits, seams inside a view first.
 
     Parameters
     ----------
@@ -511,9 +587,13 @@ def split_films(
     options : FlattenOptions
         Solver settings (outline and scale are chosen here).
     max_films : int
-        Give up beyond this many films.
+        Give up when the plan, joined again, has more films than this (or the split more
+        than PIECES_PER_FILM times as many pieces).
     log : callable, optional
         Progress lines.
+    within_share : float
+        The share of the surface the plan keeps within the band: each film of the split keeps
+        it of itself, and :func:`join_within_budget` joins films while the whole plan does.
 
     Returns
     -------
@@ -542,13 +622,17 @@ def split_films(
             f"{len(flat)} decorated faces have zero area (their three corners on one line; the first at "
             f"({x:.3f}, {y:.3f}, {z:.3f}) mm): no film is flattened over them; remove them from the mesh"
         )
+    off = 1.0 - within_share
+    _, FE, _ = unique_edges(F)
+    owner_view = smoothed_owner(owner_view, graph[2], FE, start)
     done: list[FilmFit] = []
     claimed = np.zeros(len(F), bool)
     queue = [(np.flatnonzero(start), True)]
     attempts = 0
+    pieces = PIECES_PER_FILM * max_films
     while queue:
         attempts += 1
-        if attempts > 4 * max_films:
+        if attempts > 4 * pieces:
             raise WorkbenchError(f"no split into at most {max_films} films keeps max_stretch {max_stretch:g}")
         faces, by_views = queue.pop(0)
         mask = np.zeros(len(F), bool)
@@ -573,14 +657,17 @@ def split_films(
         leftover = mask & ~region  # parts the disc repair dropped: queued again
         if leftover.any():
             queue.append(_with_neighbour(leftover, queue, graph[0]))
-        fit, why, layout = fit_film(V, F, faces, max_stretch, options)
+        fit, why, layout = fit_film(V, F, faces, max_stretch, options, off)
         if fit is not None:
             claimed[faces] = True
             done.append(fit)
             say(f"film {len(done)}: {len(faces)} faces, {100 * fit.within:.1f} % of it within the stretch band")
             continue
-        if len(done) + len(queue) + 2 > max_films:
-            raise WorkbenchError(f"more than {max_films} films would be needed to keep max_stretch {max_stretch:g}")
+        if len(done) + len(queue) + 2 > pieces:
+            raise WorkbenchError(
+                f"more than {max_films} films would be needed to keep max_stretch {max_stretch:g} (the split "
+                f"reached {pieces} pieces, {len(done)} of them films, before joining them again)"
+            )
         views = np.unique(owner_view[faces])
         views = views[views >= 0]
         if by_views and len(views) > 1:
@@ -600,13 +687,20 @@ def split_films(
             )
         say(f"{len(faces)} faces do not fit one film ({why}): split in two")
         queue.extend((h, False) for h in halves)
-    done = _absorb_small_films(V, F, done, graph, area, max_stretch, options, say)
-    done = merge_films(V, F, done, owner_view, max_stretch, options, graph=graph, log=say)
+    done = _absorb_small_films(V, F, done, graph, area, max_stretch, options, say, off)
+    done = merge_films(V, F, done, owner_view, max_stretch, options, graph=graph, log=say, max_off_share=off)
+    budget = off * float(area[start].sum())
+    done = join_within_budget(V, F, done, budget, max_stretch, options, graph=graph, log=say)
+    if len(done) > max_films:
+        raise WorkbenchError(
+            f"more than {max_films} films would be needed to keep max_stretch {max_stretch:g} ({len(done)} after "
+            "joining what could be joined)"
+        )
     done.sort(key=lambda f: int(f.faces[0]))
     return done
 
 
-def _absorb_small_films(V, F, done, graph, area, max_stretch, options, say) -> list[FilmFit]:
+def _absorb_small_films(V, F, done, graph, area, max_stretch, options, say, max_off_share) -> list[FilmFit]:
     """Films of fewer than MIN_FILM_FACES faces (what pinch repairs cut off) join a neighbour that still fits."""
     adjacency = graph[0]
     film_of = np.full(len(F), -1)
@@ -627,7 +721,7 @@ def _absorb_small_films(V, F, done, graph, area, max_stretch, options, say) -> l
                 continue  # together they would ring another film
             if region.sum() != len(faces):
                 continue
-            fit, _, _ = fit_film(V, F, faces, max_stretch, options)
+            fit, _, _ = fit_film(V, F, faces, max_stretch, options, max_off_share)
             if fit is not None:
                 done[j] = fit
                 film_of[faces] = j
@@ -690,6 +784,7 @@ def merge_films(
     options: FlattenOptions,
     graph=None,
     log: Callable[[str], None] | None = None,
+    max_off_share: float = MAX_OFF_SHARE,
 ) -> list[FilmFit]:
     """Join adjacent films whose union is one disc that still fits the material.
 
@@ -721,6 +816,8 @@ def merge_films(
         :func:`face_graph` of ``F``.
     log : callable, optional
         Progress lines.
+    max_off_share : float
+        The share of a joined film that may leave the band (:func:`probe_film`).
 
     Returns
     -------
@@ -750,7 +847,7 @@ def merge_films(
         region[faces] = True
         if not is_disc_region(F, region, graph):
             continue
-        scale, within, _, _ = probe_film(V, F, faces, max_stretch, options)
+        scale, within, _, _ = probe_film(V, F, faces, max_stretch, options, max_off_share)
         if scale is None:
             continue
         say(f"films of {len(current[a].faces)} and {len(current[b].faces)} faces join ({len(faces)} faces)")
@@ -780,6 +877,101 @@ class _Joined:
     scale: ScaleMode
     within: float
     parts: tuple
+
+
+def off_band_mm2(fit: FilmFit) -> float:
+    """The surface of a film outside the material's band, mm²."""
+    return (1.0 - fit.within) * float(fit.flat.area_3d.sum())
+
+
+def join_within_budget(
+    V: np.ndarray,
+    F: np.ndarray,
+    films: list[FilmFit],
+    budget_mm2: float,
+    max_stretch: float,
+    options: FlattenOptions,
+    graph=None,
+    log: Callable[[str], None] | None = None,
+) -> list[FilmFit]:
+    """Fewer films for the share the plan keeps: a film joins a neighbour where the plan stays within its budget.
+
+    :func:`merge_films` joins films that each keep 99 % of themselves within the band; what
+    it leaves are small pieces (a figure's claws and ears: 69 to 400 faces beside films of
+    18,000) that no neighbour takes at that rule, though the surface they would put outside
+    the band is a few mm². The plan's rule is the part's: at most ``budget_mm2`` of all its
+    surface outside the band. So the smallest film first, each tries its neighbours, the
+    largest first: their union must be a disc whose outline clears itself and that prints
+    (:func:`final_film`), and the plan's surface outside the band, with the union's in place
+    of the two's, must stay within the budget. Until no film joins.
+
+    Parameters
+    ----------
+    V, F : arrays
+        The part (a disc), mm.
+    films : list of FilmFit
+        The films, on disjoint faces.
+    budget_mm2 : float
+        The plan's surface outside the band at most, mm².
+    max_stretch : float
+        The material's limit.
+    options : FlattenOptions
+    graph : tuple, optional
+        :func:`face_graph` of ``F``.
+    log : callable, optional
+        Progress lines.
+
+    Returns
+    -------
+    list of FilmFit
+    """
+    say = log or (lambda _m: None)
+    graph = graph if graph is not None else face_graph(F)
+    adjacency = graph[0]
+    films = list(films)
+    spent = sum(off_band_mm2(f) for f in films)
+    tried: set = set()  # (faces of a, faces of b) pairs that did not join: not tried again
+    joined = True
+    while joined and len(films) > 1:
+        joined = False
+        film_of = np.full(len(F), -1)
+        for k, f in enumerate(films):
+            film_of[f.faces] = k
+        for k in sorted(range(len(films)), key=lambda k: (len(films[k].faces), k)):
+            small = films[k]
+            near = film_of[adjacency[small.faces].indices]
+            near = np.unique(near[(near >= 0) & (near != k)])
+            for j in sorted(near, key=lambda j: (-len(films[j].faces), j)):
+                key = (len(small.faces), int(small.faces[0]), len(films[j].faces), int(films[j].faces[0]))
+                if key in tried:
+                    continue
+                tried.add(key)
+                faces = np.union1d(films[j].faces, small.faces)
+                region = np.zeros(len(F), bool)
+                region[faces] = True
+                if not is_disc_region(F, region, graph):
+                    continue
+                scale, within, _, flat = probe_film(V, F, faces, max_stretch, options, max_off_share=1.0)
+                if scale is None:
+                    continue
+                after = spent - off_band_mm2(small) - off_band_mm2(films[j])
+                after += (1.0 - within) * float(flat.area_3d.sum())
+                if after > budget_mm2:
+                    continue
+                fit, _ = final_film(V, F, faces, scale, within, options)
+                if fit is None:
+                    continue
+                say(
+                    f"a film of {len(small.faces)} faces joins its neighbour ({len(faces)} faces, "
+                    f"{100 * within:.1f} % of it within the stretch band)"
+                )
+                spent = after
+                films = [f for i, f in enumerate(films) if i not in (j, k)] + [fit]
+                joined = True
+                break
+            if joined:
+                break
+    return films
 
 
 def _finish(V, F, film, options, say) -> list[FilmFit]:
@@ -862,3 +1054,55 @@ def pack_films(sizes_px: list[tuple[int, int]], gap_px: int) -> tuple[list[tuple
     rows = max(o[0] + s[0] for o, s in zip(offsets, sizes_px, strict=True))
     cols = max(o[1] + s[1] for o, s in zip(offsets, sizes_px, strict=True))
     return offsets, (rows, cols)
+
+
+def outside_band(
+    V: np.ndarray, F: np.ndarray, stretch: np.ndarray, area: np.ndarray, ok: np.ndarray, max_stretch: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The connected regions of a film's surface whose stretch leaves the band [MIN_STRETCH, max_stretch].
+
+    Parameters
+    ----------
+    V : (#V, 3) float
+        The film's mesh, mm on the part.
+    F : (#F, 3) int
+        Its triangles.
+    stretch : (#F,) float
+        Stretch per face, 3D length / print length.
+    area : (#F,) float
+        Surface area per face, mm².
+    ok : (#F,) bool
+        Faces the stretch is known on (not collapsed in the plane).
+    max_stretch : float
+        The material's limit.
+
+    Returns
+    -------
+    labels : (#F,) int
+        Region per face, -1 within the band (or unknown); regions by decreasing area.
+    figures : (#regions, 6) float
+        Per region: area (mm²), the centroid (x, y, z, mm on the part, area-weighted), and the
+        stretch farthest outside the band (log-wise: 2.0 and 0.4 are as far beyond 1.0).
+    """
+    out = ok & ((stretch > max_stretch) | (stretch < MIN_STRETCH))
+    _, FE, _ = unique_edges(F)
+    lab = _components(face_adjacency(FE), out)
+    n = int(lab.max()) + 1
+    if n == 0:
+        return lab, np.zeros((0, 6))
+    idx = np.flatnonzero(out)
+    a = np.bincount(lab[idx], weights=area[idx], minlength=n)
+    c = V[F[idx]].mean(axis=1)
+    centre = np.stack([np.bincount(lab[idx], weights=area[idx] * c[:, k], minlength=n) for k in range(3)], 1)
+    centre /= np.maximum(a, 1e-300)[:, None]
+    # (the worst face per region: the largest |log stretch|, its stretch kept)
+    worst = np.zeros(n)
+    far = np.abs(np.log(stretch[idx]))
+    order = np.lexsort((far, lab[idx]))
+    last = np.r_[lab[idx][order][1:] != lab[idx][order][:-1], True]
+    worst[lab[idx][order][last]] = stretch[idx][order][last]
+    rank = np.lexsort((np.arange(n), -a))
+    relabel = np.empty(n, np.int64)
+    relabel[rank] = np.arange(n)
+    lab[idx] = relabel[lab[idx]]
+    return lab, np.column_stack([a, centre, worst])[rank]

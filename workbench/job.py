@@ -24,6 +24,8 @@ class Material:
 
     name: str = "unspecified"
     max_stretch: float | None = None
+    # films = "auto": the share of the surface the films keep within [0.8, max_stretch]
+    within_share: float = 0.99
 
 
 @dataclass(frozen=True)
@@ -377,8 +379,12 @@ def load_job(path: str | Path) -> Job:
         if not (isinstance(corners, list) and len(corners) == 4 and all(_vertex_index(c) for c in corners)):
             o.fail(f'must be a list of 4 vertex indices or "auto", got {corners!r}', "corners")
         corners = tuple(corners)
-    m = _Reader(path, "object.material", o.get("material", {}), {"name", "max_stretch"})
-    material = Material(name=m.string("name", "unspecified"), max_stretch=m.number("max_stretch", None, lo=0))
+    m = _Reader(path, "object.material", o.get("material", {}), {"name", "max_stretch", "within_share"})
+    material = Material(
+        name=m.string("name", "unspecified"),
+        max_stretch=m.number("max_stretch", None, lo=0),
+        within_share=m.number("within_share", 0.99, lo=0.5, hi=1 + 1e-12),
+    )
     obj = ObjectSpec(
         mesh=o.file("mesh"),
         units=o.string("units", "mm", choices=tuple(UNITS_MM)),

@@ -27,6 +27,7 @@ from workbench.design import (
 from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
+from workbench.films import MIN_STRETCH, outside_band
 from workbench.image_file import exif_orientation
 from workbench.job import load_job
 from workbench.jsonfile import recorded_path
@@ -95,6 +96,74 @@ def film_records(result) -> list[dict]:
     return records
 
 
+# regions outside the material's band listed in design.json (the largest; the rest counted)
+MAX_OUTSIDE_REGIONS = 10
+
+
+def within_material(result, limit: float | None, stated: float | None = None) -> dict | None:
+    """design.json's ``within_material``: the share of the surface the films keep within the material's band,
+    and where the rest lies (its largest regions: film, area, centre on the part, the stretch there).
+
+    ``stated``: the share ``films = "auto"`` was asked to keep (``[object].material.within_share``).
+    None without a material limit.
+    """
+    pieces = (
+        [(f.name, f.flat, f.material.max_stretch) for f in result.films]
+        if result.films
+        else [("film-1", result.flat, limit)]
+    )
+    if any(m is None for _, _, m in pieces):
+        return None
+    total = inside = 0.0
+    found = []
+    for name, flat, m in pieces:
+        ok = ~flat.collapsed
+        labels, figures = outside_band(flat.V, flat.F, flat.stretch, flat.area_3d, ok, m)
+        total += float(flat.area_3d[ok].sum())
+        inside += float(flat.area_3d[ok & (labels < 0)].sum())
+        found += [(name, m, row) for row in figures]
+    found.sort(key=lambda r: -r[2][0])
+    return {
+        "band": [MIN_STRETCH, max(m for _, _, m in pieces)],
+        "share": inside / total if total else 1.0,
+        **({"stated_share": stated} if stated is not None else {}),
+        "outside_mm2": total - inside,
+        "regions": [
+            {
+                "film": name,
+                "area_mm2": round(float(row[0]), 2),
+                "centre_mm": [round(float(v), 2) for v in row[1:4]],
+                "stretch": round(float(row[4]), 3),
+                "beyond": "max_stretch" if row[4] > m else "min_stretch",
+            }
+            for name, m, row in found[:MAX_OUTSIDE_REGIONS]
+        ],
+        "regions_not_listed": max(len(found) - MAX_OUTSIDE_REGIONS, 0),
+        "note": (
+            "the share of the surface whose stretch (3D length / print length) lies within the band "
+            f'[{MIN_STRETCH:g}, max_stretch]; films = "auto" makes the fewest films it finds that keep '
+            "stated_share ([object].material.within_share) of it there. Regions: the connected parts of the "
+            "surface outside the band, largest first: their film, area, centre on the part (mm, area-weighted) "
+            "and the stretch farthest outside the band"
+        ),
+    }
+
+
+def within_material_line(plan: dict) -> str:
+    """The design log's line of :func:`within_material`."""
+    lo, hi = plan["band"]
+    words = f"{100 * plan['share']:.2f} % of the surface within the material's band [{lo:g}, {hi:g}]"
+    if not plan["regions"]:
+        return words
+    r = plan["regions"][0]
+    n = len(plan["regions"]) + plan["regions_not_listed"]
+    x, y, z = r["centre_mm"]
+    return (
+        f"{words}; the rest, {plan['outside_mm2']:.1f} mm², in {n} region{'s' if n != 1 else ''}, the largest "
+        f"{r['area_mm2']:.1f} mm² on {r['film']} at ({x:.1f}, {y:.1f}, {z:.1f}) mm (stretch {r['stretch']:.2f})"
+    )
+
+
 def base_print(comp, px_per_mm: float) -> dict:
     """The uncompensated print a compensation started from (what the profile's field is defined on)."""
     return {
@@ -152,6 +221,7 @@ def run(args) -> int:
     flat_summary = summary(flat)
     limit = job.object.material.max_stretch
     over = None if limit is None else float(flat.area_3d[~flat.collapsed][flat.stretch[~flat.collapsed] > limit].sum())
+    plan = within_material(result, limit, job.object.material.within_share if job.films == "auto" else None)
     # the mesh and the view images, each read once for its hash and (an image) its orientation
     recorded = (job.object.mesh, *(v.image for v in job.views))
     contents = [p.read_bytes() for p in recorded]
@@ -200,6 +270,7 @@ def run(args) -> int:
         # the surface no view owns (faces no view claims): what `workbench suggest-views` proposes views for
         "undecorated_mm2": result.undecorated[0],
         "undecorated_share": result.undecorated[1],
+        **({"within_material": plan} if plan is not None else {}),
         "views": stats,
         "mesh": {**flat_summary["mesh"], "surface_area_mm2": float(flat.area_3d.sum())},
     }
@@ -338,6 +409,8 @@ def run(args) -> int:
         f"undecorated: {100 * left_share:.1f} % of the surface ({left_mm2:.0f} mm²) no view owns"
         + (f"; `workbench suggest-views {args.job}` proposes views for it" if left_mm2 > 0 else "")
     )
+    if plan is not None:
+        log(within_material_line(plan))
     if over:
         log(f"warning: {over:.1f} mm² of the surface stretch beyond the material's limit {limit:g}")
     for w in warnings:

@@ -680,6 +680,17 @@ def split_films(
         # down to single triangles if need be (a triangle always fits: it is flat);
         # films of a few faces then join a neighbour that still fits (see the end)
         halves = None if len(faces) < 2 else split_in_two(faces, layout, centroids[faces], normals[faces], area[faces])
+        if halves is not None:
+            # (a straight cut across the layout leaves a staircase of whole triangles on the
+            # part, whose notches fold a later join's outline over itself: Homer's films could
+            # not be joined, 11 of them, 23 of 46 tries "overlaps itself", 2 to 22 edges apart
+            # along the outline; the cut made straight as the views' borders are, 6)
+            side = np.full(len(F), -1)
+            side[halves[0]], side[halves[1]] = 0, 1
+            side = smoothed_owner(side, graph[2], FE, side >= 0)
+            a, b = np.flatnonzero(side == 0), np.flatnonzero(side == 1)
+            if len(a) and len(b):
+                halves = (a, b)
         if halves is None:
             raise WorkbenchError(
                 f"a region of {len(faces)} faces near vertex {int(F[faces[0], 0])} does not fit one film ({why}) "

@@ -221,6 +221,19 @@ def test_disc_region_takes_no_other_body_of_the_mesh_for_a_hole():
     assert (disc_region(F, wanted, area, graph=face_graph(F)) == sheet).all()
 
 
+def test_split_films_puts_every_decorated_body_on_films():
+    # two sheets apart (a part and a loose piece beside it), both decorated: each on its own
+    # film, every face on one, none on two
+    from workbench.conformal.flatten import FlattenOptions
+
+    V, F = grid_mesh(6)
+    V = np.vstack([V, V + [20.0, 0.0, 0.0]])
+    F = np.vstack([F, F + len(V) // 2])
+    films = split_films(V, F, np.ones(len(F), bool), np.zeros(len(F), np.int64), 1.5, FlattenOptions())
+    covered = np.sort(np.concatenate([f.faces for f in films]))
+    assert len(films) == 2 and np.array_equal(covered, np.arange(len(F)))
+
+
 def test_pack_films_places_prints_without_overlap():
     sizes = [(50, 80), (120, 40), (30, 30), (70, 70), (10, 200)]
     offsets, (rows, cols) = pack_films(sizes, 5)
@@ -704,7 +717,7 @@ def test_outside_band_finds_each_region_its_area_centre_and_worst_stretch():
     ok[b] = False
     labels, figures = outside_band(V, F, stretch, area, ok, 1.5)
     assert len(figures) == 1 and (labels[b] == -1).all()
-    assert outside_band(V, F, np.ones(len(F)), area, ok, 1.5)[1].shape == (0, 6)
+    assert outside_band(V, F, np.ones(len(F)), area, ok, 1.5)[1].shape == (0, 5)
 
 
 @pytest.mark.slow

@@ -53,3 +53,12 @@ def test_a_cap_on_the_rim_and_a_needle_stay():
     V[8] = V[0]
     G, flipped = flip_caps(V, F)
     assert flipped == 0 and (G == F).all() and len(zero_area_faces(V, F))
+
+
+def test_a_flip_that_would_leave_a_cap_again_is_not_made():
+    # the cap (a, b, c), c 0.001 mm from b, its neighbour's corner d 1e-9 mm off the line ab:
+    # the flip's (d, b, c) would have no area either, and the next round would flip it back
+    V = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.999, 0, 0], [1.5, 1e-9, 0]])
+    F = np.array([[0, 1, 2], [1, 0, 3]])
+    G, flipped = flip_caps(V, F)
+    assert flipped == 0 and (G == F).all()

@@ -371,7 +371,8 @@ def probe_film(
     except WorkbenchError as exc:
         return None, 0.0, str(exc).split(": ", 1)[-1], None
     s, within = stretch_window(flat.stretch, flat.area_3d, max_stretch)
-    if within < 1 - max_off_share:
+    # (the share is a ratio of two sums of the same areas: 1e-9 of round-off is no surface)
+    if within < 1 - max_off_share - 1e-9:
         return None, within, f"{1 - within:.1%} of it leaves the stretch band", flat
     loop = boundary_loops(flat.F)[0]
     if len(polygon_self_intersections(flat.uv[loop])):
@@ -565,8 +566,8 @@ def split_films(
     """Partition the decorated surface into disc-shaped films that each stay within the material.
 
     Greedy recursive bisection: a region that does not fit (stretch out of
-    [MIN_STRETCH, max_stretch] on more than 1 % of it at its best scale, an outline
-    over itself, or crowded) is split: first along the borders between views (a seam
+    [MIN_STRETCH, max_stretch] on more than 1 - ``within_share`` of it at its best scale, an
+    outline over itself, or crowded) is split: first along the borders between views (a seam
     there crosses no view's image, made straight first by :func:`smoothed_owner`), then by
     straight cuts across its flat layout. Bisection cuts more than it must;
     :func:`merge_films` then joins adjacent films again while their union is a disc that
@@ -613,7 +614,17 @@ def split_films(
     # a face of zero area (three vertices on one line: a scan's cap) has no map, whatever the
     # film: splitting around it would go on to the film limit and then blame the material
     graph = face_graph(F)
-    start = disc_region(F, decorated, area, graph=graph)
+    # each body of the part that the views decorate starts a region of its own (a scan's loose
+    # eyes and teeth are films too: the largest body alone left them on no film)
+    bodies = _components(graph[0], decorated)
+    if bodies.max() < 0:
+        disc_region(F, decorated, area, graph=graph)  # (it says that no face is decorated)
+    start = np.zeros(len(F), bool)
+    firsts = []
+    for b in range(int(bodies.max()) + 1):
+        region = disc_region(F, bodies == b, area, graph=graph)
+        firsts.append(np.flatnonzero(region))
+        start |= region
     flat = zero_area_faces(V, F)
     flat = flat[start[flat]]
     if len(flat):
@@ -627,7 +638,7 @@ def split_films(
     owner_view = smoothed_owner(owner_view, graph[2], FE, start)
     done: list[FilmFit] = []
     claimed = np.zeros(len(F), bool)
-    queue = [(np.flatnonzero(start), True)]
+    queue = [(faces, True) for faces in firsts]
     attempts = 0
     pieces = PIECES_PER_FILM * max_films
     while queue:
@@ -802,8 +813,8 @@ def merge_films(
     Greedy: the two films with the longest seam inside a view's region (a seam a view's
     image crosses), then the longest seam overall, are tried first; their union must be
     a disc (:func:`is_disc_region`) and fit as :func:`fit_film` asks (within
-    [MIN_STRETCH, max_stretch] on 99 % of it at its best scale, no overlap of its
-    outline, every face printed). A joined film's seams with its neighbours are tried
+    [MIN_STRETCH, max_stretch] on all but ``max_off_share`` of it at its best scale, no
+    overlap of its outline, every face printed). A joined film's seams with its neighbours are tried
     again; a pair that does not fit is tried again only once one of them has grown. The map at
     the final scale (:func:`final_film`, which checks that every face prints) is made
     once per resulting film, not per join: should it crowd, the film falls back to the
@@ -907,7 +918,7 @@ def join_within_budget(
 ) -> list[FilmFit]:
     """Fewer films for the share the plan keeps: a film joins a neighbour where the plan stays within its budget.
 
-    :func:`merge_films` joins films that each keep 99 % of themselves within the band; what
+    :func:`merge_films` joins films that each keep ``within_share`` of themselves within the band; what
     it leaves are small pieces (a figure's claws and ears: 69 to 400 faces beside films of
     18,000) that no neighbour takes at that rule, though the surface they would put outside
     the band is a few mm². The plan's rule is the part's: at most ``budget_mm2`` of all its
@@ -927,6 +938,7 @@ def join_within_budget(
     max_stretch : float
         The material's limit.
     options : FlattenOptions
+        Solver settings (outline and scale are chosen here).
     graph : tuple, optional
         :func:`face_graph` of ``F``.
     log : callable, optional
@@ -935,13 +947,14 @@ def join_within_budget(
     Returns
     -------
     list of FilmFit
+        Fewer films or the same: those not joined, then the joined ones.
     """
     say = log or (lambda _m: None)
     graph = graph if graph is not None else face_graph(F)
     adjacency = graph[0]
     films = list(films)
     spent = sum(off_band_mm2(f) for f in films)
-    tried: set = set()  # (faces of a, faces of b) pairs that did not join: not tried again
+    tried: set = set()  # pairs of films tried: not tried again
     joined = True
     while joined and len(films) > 1:
         joined = False
@@ -953,7 +966,10 @@ def join_within_budget(
             near = film_of[adjacency[small.faces].indices]
             near = np.unique(near[(near >= 0) & (near != k)])
             for j in sorted(near, key=lambda j: (-len(films[j].faces), j)):
-                key = (len(small.faces), int(small.faces[0]), len(films[j].faces), int(films[j].faces[0]))
+                # (a film only grows: its size and first face name it; the pair either way round)
+                key = frozenset(
+                    {(len(small.faces), int(small.faces[0])), (len(films[j].faces), int(films[j].faces[0]))}
+                )
                 if key in tried:
                     continue
                 tried.add(key)
@@ -1091,7 +1107,7 @@ def outside_band(
     -------
     labels : (#F,) int
         Region per face, -1 within the band (or unknown); regions by decreasing area.
-    figures : (#regions, 6) float
+    figures : (#regions, 5) float
         Per region: area (mm²), the centroid (x, y, z, mm on the part, area-weighted), and the
         stretch farthest outside the band (log-wise: 2.0 and 0.4 are as far beyond 1.0).
     """
@@ -1100,7 +1116,7 @@ def outside_band(
     lab = _components(face_adjacency(FE), out)
     n = int(lab.max()) + 1
     if n == 0:
-        return lab, np.zeros((0, 6))
+        return lab, np.zeros((0, 5))
     idx = np.flatnonzero(out)
     a = np.bincount(lab[idx], weights=area[idx], minlength=n)
     c = V[F[idx]].mean(axis=1)

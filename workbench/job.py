@@ -383,7 +383,7 @@ def load_job(path: str | Path) -> Job:
     material = Material(
         name=m.string("name", "unspecified"),
         max_stretch=m.number("max_stretch", None, lo=0),
-        within_share=m.number("within_share", 0.99, lo=0.5, hi=1 + 1e-12),
+        within_share=m.number("within_share", 0.99, lo=0.5, hi=1),
     )
     obj = ObjectSpec(
         mesh=o.file("mesh"),

@@ -102,10 +102,23 @@ MAX_OUTSIDE_REGIONS = 10
 
 def within_material(result, limit: float | None, stated: float | None = None) -> dict | None:
     """design.json's ``within_material``: the share of the surface the films keep within the material's band,
-    and where the rest lies (its largest regions: film, area, centre on the part, the stretch there).
+    and where the rest lies.
 
-    ``stated``: the share ``films = "auto"`` was asked to keep (``[object].material.within_share``).
-    None without a material limit.
+    Parameters
+    ----------
+    result : DesignResult
+        The design (its films, or its one map).
+    limit : float or None
+        The material's max_stretch (3D length / print length) of a design of one film.
+    stated : float, optional
+        The share ``films = "auto"`` was asked to keep (``[object].material.within_share``).
+
+    Returns
+    -------
+    dict or None
+        ``band``, ``share`` (0 to 1), ``stated_share``, ``outside_mm2`` (surface mm²) and
+        ``regions``, the largest regions outside the band (film, area mm², centre mm on the
+        part, the stretch farthest outside, which side); None without a material limit.
     """
     pieces = (
         [(f.name, f.flat, f.material.max_stretch) for f in result.films]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.mesh.topology import unique_edges
-from workbench.mesh.validate import zero_area_faces
+from workbench.mesh.validate import ZERO_AREA, face_areas, zero_area_faces
 
 # a zero-area triangle whose shortest edge is below this share of its longest is a needle (two
 # corners at one point, as far as the flip's new triangles could tell): no flip mends it
@@ -18,9 +18,11 @@ def flip_caps(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, int]:
     A scanner's mesh holds a few caps: corner c on edge ab of triangle (a, b, c). No map
     flattens a triangle without area. The neighbour across ab, (b, a, d), and the cap make a
     quad a, d, b, c whose diagonal ab is flipped to cd: the triangles (a, d, c) and (d, b, c)
-    split (b, a, d) at c, so they cover exactly what the two covered, and neither is flat
-    unless d lies on the line ab too. The faces keep their places in ``F`` (each cap and its
-    neighbour are replaced where they are), the vertices are untouched.
+    split (b, a, d) at c, so they cover exactly what the two covered. The flip is made only
+    where both new triangles have an area by :func:`~workbench.mesh.validate.zero_area_faces`'
+    own measure (d near the line ab, or c near a or b, would leave one flat again, and the next
+    round would flip it back). The faces keep their places in ``F`` (each cap and its neighbour
+    are replaced where they are), the vertices are untouched.
 
     A cap on the surface's boundary, one whose flip would join two vertices already joined
     (the mesh would no longer be a manifold), or one whose neighbour is a cap along the same
@@ -42,6 +44,8 @@ def flip_caps(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, int]:
     """
     F = np.array(F, dtype=np.int64, copy=True)
     flipped = 0
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if len(V) else 0.0
+    flat = ZERO_AREA * diag * diag  # (zero_area_faces' own measure)
     while True:
         caps = zero_area_faces(V, F)
         if not len(caps):
@@ -67,6 +71,8 @@ def flip_caps(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, int]:
             d = int(next(v for v in F[g] if v not in (a, b)))
             if (min(c, d), max(c, d)) in joined or g in is_cap or g in touched:
                 continue
+            if (face_areas(V, np.array([[a, d, c], [d, b, c]])) <= flat).any():
+                continue  # one of the two would be a cap again
             F[f] = (a, d, c)
             F[g] = (d, b, c)
             joined.add((min(c, d), max(c, d)))

@@ -46,6 +46,11 @@ def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
 
 
+# a face of at most this share of the square of the part's diagonal has zero area: relative to
+# the bounding box, a face 1e-12 the size of the part is rounding noise
+ZERO_AREA = 1e-12
+
+
 def zero_area_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Faces of (numerically) zero area: three corners on one line, which no map flattens.
 
@@ -62,8 +67,7 @@ def zero_area_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         Their indices, ascending.
     """
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    # relative to the bounding box: a face 1e-12 the size of the part is rounding noise
-    return np.flatnonzero(face_areas(V, F) <= 1e-12 * diag * diag)
+    return np.flatnonzero(face_areas(V, F) <= ZERO_AREA * diag * diag)
 
 
 def check_disc(V: np.ndarray, F: np.ndarray, name: str = "mesh") -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -258,7 +258,10 @@ def render_photo(design: Path, orbit: tuple, size: str, renderer: str, look: str
         cmd += ["--defect", s]
     cmd += ["-o", str(img), "-q"]
     stamp = img.with_suffix(".cmd")
-    key = json.dumps([hashlib.sha256((design / "design.json").read_bytes()).hexdigest(), *cmd[3:]])
+    # (the design by its content and the render's options, not the paths: a cache copied to
+    # another --out, or a design cache moved, stays valid)
+    options = cmd[cmd.index(str(design)) + 1 : cmd.index("-o")]
+    key = json.dumps([hashlib.sha256((design / "design.json").read_bytes()).hexdigest(), "render", *options])
     if img.is_file() and img.with_suffix(".json").is_file() and stamp.is_file() and stamp.read_text() == key:
         return 0.0, False
     img.parent.mkdir(parents=True, exist_ok=True)

@@ -11,18 +11,10 @@ from test_design import FIXTURES, view_check
 from workbench.cli import main
 from workbench.design import design
 from workbench.export import texture_uv
-from workbench.films import (
-    cut_to_disc,
-    disc_region,
-    face_graph,
-    fit_film,
-    is_disc,
-    is_disc_region,
-    outside_band,
-    pack_films,
-    smoothed_owner,
-    split_films,
-)
+from workbench.films.fit import fit_film, outside_band
+from workbench.films.regions import cut_to_disc, disc_region, face_graph, is_disc, is_disc_region
+from workbench.films.sheet import pack_films
+from workbench.films.split import smoothed_owner, split_films
 from workbench.job import load_job
 from workbench.mesh.io import format_obj
 from workbench.mesh.topology import unique_edges
@@ -293,7 +285,8 @@ def test_films_join_where_the_plans_surface_outside_the_band_stays_within_its_bu
     # 21.6 % of it leaves the band. A budget just below that keeps two films, one just above
     # joins them, and the joined film's surface outside the band is what the budget allowed
     from workbench.conformal.flatten import FlattenOptions
-    from workbench.films import join_within_budget, off_band_mm2
+    from workbench.films.fit import off_band_mm2
+    from workbench.films.joins import join_within_budget
 
     V, F = hemisphere(n=24)
     films = split_films(V, F, np.ones(len(F), bool), np.zeros(len(F), np.int64), 1.3, FlattenOptions())
@@ -480,7 +473,7 @@ def test_face_mask_splits_into_films_within_the_material_and_stays_exact():
 
 
 def test_stretch_window_centres_the_band_on_the_most_surface():
-    from workbench.films import stretch_window
+    from workbench.films.fit import stretch_window
 
     # 90 % of the area between 2.0 and 2.4 (log spread 0.18 < log(1.3 / 0.8) = 0.49), the
     # rest far off: scaled by s, that 90 % sits inside [0.8, 1.3] with equal margins

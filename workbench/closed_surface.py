@@ -10,7 +10,7 @@ import numpy as np
 from workbench.camera import Camera
 from workbench.errors import WorkbenchError
 from workbench.figures import surface_figure
-from workbench.films import submesh
+from workbench.films.regions import submesh
 from workbench.job import Job
 from workbench.job_views import assign_job_views
 from workbench.mesh import cut as surface_cut

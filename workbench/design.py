@@ -27,7 +27,9 @@ from workbench.conformal.layout import signed_areas
 from workbench.design_dir import read_image as read_image  # lives with the design folder's reading
 from workbench.environment import proc_bytes
 from workbench.errors import WorkbenchError
-from workbench.films import cut_to_disc, disc_region, face_graph, is_disc, pack_films, seams, split_films, submesh
+from workbench.films.regions import cut_to_disc, disc_region, face_graph, is_disc, submesh
+from workbench.films.sheet import pack_films, seams
+from workbench.films.split import split_films
 from workbench.job import Job, Material
 from workbench.job_views import assign_job_views, read_view_images, region_warnings
 from workbench.mesh.caps import flip_caps
@@ -83,7 +85,7 @@ class DesignResult:
         sheet, each film's own mesh (seam vertices repeated), what render and
         validate read.
     seams : dict or None
-        With several films, :func:`workbench.films.seams` on the input mesh.
+        With several films, :func:`workbench.films.sheet.seams` on the input mesh.
     undecorated : (mm², share)
         The surface no view owns (:func:`undecorated_surface`), on the mesh the views
         were assigned on.

@@ -27,7 +27,7 @@ from workbench.design import (
 from workbench.errors import WorkbenchError
 from workbench.export import decorated_glb, decorated_obj, png_bytes, texture_uv
 from workbench.figures import stretch_figure, views_figure
-from workbench.films import MIN_STRETCH, outside_band
+from workbench.films.fit import MIN_STRETCH, outside_band
 from workbench.image_file import exif_orientation
 from workbench.job import load_job
 from workbench.jsonfile import recorded_path

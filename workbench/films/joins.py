@@ -226,51 +226,50 @@ def join_within_budget(
     """
     say = log or (lambda _m: None)
     graph = graph if graph is not None else face_graph(F)
-    adjacency = graph[0]
     films = list(films)
     spent = sum(off_band_mm2(f) for f in films)
     tried: set = set()  # pairs of films tried: not tried again
-    joined = True
-    while joined and len(films) > 1:
-        joined = False
-        film_of = np.full(len(F), -1)
-        for k, f in enumerate(films):
-            film_of[f.faces] = k
-        for k in sorted(range(len(films)), key=lambda k: (len(films[k].faces), k)):
-            small = films[k]
-            near = film_of[adjacency[small.faces].indices]
-            near = np.unique(near[(near >= 0) & (near != k)])
-            for j in sorted(near, key=lambda j: (-len(films[j].faces), j)):
-                # (a film only grows: its size and first face name it; the pair either way round)
-                key = frozenset(
-                    {(len(small.faces), int(small.faces[0])), (len(films[j].faces), int(films[j].faces[0]))}
-                )
-                if key in tried:
-                    continue
-                tried.add(key)
-                faces = np.union1d(films[j].faces, small.faces)
-                region = np.zeros(len(F), bool)
-                region[faces] = True
-                if not is_disc_region(F, region, graph):
-                    continue
-                scale, within, _, flat = probe_film(V, F, faces, max_stretch, options, max_off_share=1.0)
-                if scale is None:
-                    continue
-                after = spent - off_band_mm2(small) - off_band_mm2(films[j])
-                after += (1.0 - within) * float(flat.area_3d.sum())
-                if after > budget_mm2:
-                    continue
-                fit, _ = final_film(V, F, faces, scale, within, options)
-                if fit is None:
-                    continue
-                say(
-                    f"a film of {len(small.faces)} faces joins its neighbour ({len(faces)} faces, "
-                    f"{100 * within:.1f} % of it within the stretch band)"
-                )
-                spent = after
-                films = [f for i, f in enumerate(films) if i not in (j, k)] + [fit]
-                joined = True
-                break
-            if joined:
-                break
+    while len(films) > 1:
+        for k, j in _neighbours_smallest_first(films, graph[0], len(F)):
+            small, other = films[k], films[j]
+            # (a film only grows: its size and first face name it; the pair either way round)
+            key = frozenset({(len(f.faces), int(f.faces[0])) for f in (small, other)})
+            if key in tried:
+                continue
+            tried.add(key)
+            faces = np.union1d(other.faces, small.faces)
+            region = np.zeros(len(F), bool)
+            region[faces] = True
+            if not is_disc_region(F, region, graph):
+                continue
+            scale, within, _, flat = probe_film(V, F, faces, max_stretch, options, max_off_share=1.0)
+            if scale is None:
+                continue
+            # the plan's surface outside the band with the union's in place of the two films'
+            after = spent - off_band_mm2(small) - off_band_mm2(other) + (1.0 - within) * float(flat.area_3d.sum())
+            if after > budget_mm2:
+                continue
+            fit, _ = final_film(V, F, faces, scale, within, options)
+            if fit is None:
+                continue
+            say(
+                f"a film of {len(small.faces)} faces joins its neighbour ({len(faces)} faces, "
+                f"{100 * within:.1f} % of it within the stretch band)"
+            )
+            spent = after
+            films = [f for i, f in enumerate(films) if i not in (j, k)] + [fit]
+            break
+        else:
+            return films  # (no pair joins)
     return films
+
+
+def _neighbours_smallest_first(films: list[FilmFit], adjacency, n_faces: int):
+    """Pairs (k, j) of touching films: the smallest film k first, its neighbours j the largest first."""
+    film_of = np.full(n_faces, -1)
+    for k, f in enumerate(films):
+        film_of[f.faces] = k
+    for k in sorted(range(len(films)), key=lambda k: (len(films[k].faces), k)):
+        near = film_of[adjacency[films[k].faces].indices]
+        for j in sorted(np.unique(near[(near >= 0) & (near != k)]), key=lambda j: (-len(films[j].faces), j)):
+            yield k, int(j)

@@ -218,6 +218,10 @@ def warp_to_print(
         # no step in depth), the photo's pixels mix the two as well: a band as wide as a step's
         # around the back the photo shows
         turned = np.flatnonzero(~facing & inside_ideal)
+        # (shown by the depth test and the mesh's own facing test: the back only where a
+        # triangle or its neighbours face the camera too. The depth test alone widens the band:
+        # on Mitsuba's glossy cow it also masks a 79 mm² "slide" where the photo shows the back,
+        # a change for the corpus to measure first)
         back = surface_in_photo(cam, pts[turned], grid.face[on][turned], V, F, pdepth)[4]
         steps |= contour_band(xy[turned[back]], band_px, steps.shape)
     at = inside_ideal & (st == FULL)

@@ -220,7 +220,7 @@ def warp_to_print(
         turned = np.flatnonzero(~facing & inside_ideal)
         # (shown by the depth test and the mesh's own facing test: the back only where a
         # triangle or its neighbours face the camera too. The depth test alone widens the band:
-        # on Mitsuba's glossy cow it also masks a 79 mm² "slide" where the photo shows the back,
+        # on Mitsuba's glossy cow it also masks an 81.5 mm² "slide" where the photo shows the back,
         # a change for the corpus to measure first)
         back = surface_in_photo(cam, pts[turned], grid.face[on][turned], V, F, pdepth)[4]
         steps |= contour_band(xy[turned[back]], band_px, steps.shape)

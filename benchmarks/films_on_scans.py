@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
 import time
@@ -59,8 +60,6 @@ def part_mesh(src: Path, dst: Path) -> int:
 def job_text(mesh: str, within_share: float) -> str:
     views = []
     for name, deg in (("front", 0.0), ("left", -60.0), ("right", 60.0)):
-        import math
-
         x, z = 400.0 * math.sin(math.radians(deg)), 400.0 * math.cos(math.radians(deg))
         views.append(
             f'[[views]]\nname = "{name}"\nimage = "art.jpg"\nposition = [{x:.1f}, 0, {z:.1f}]\n'

@@ -34,12 +34,13 @@ from workbench.validate.coverage import (
     next_photo_words,
     part_coverage,
 )
-from workbench.validate.part import light_in_one_photo, part_summary
+from workbench.validate.part import add_found_together, light_in_one_photo, part_summary
 from workbench.validate.part_colour import fused_colour, photo_names, take_colour_maps
 from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
 from workbench.validate.report_html import interactive_report
 from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, photo_verdict, verdict_rule
+from workbench.validate.slide_fusion import FusionOptions, fused_part_limit, slides_found_together
 
 
 def add_parser(sub) -> None:
@@ -488,12 +489,22 @@ def run(args) -> int:
     t_part = time.perf_counter()
     progress.say(f"the part: its {len(entries)} photo(s) together (defects, colour, coverage)")
     maps = detection.part_maps(entries)
+    centres = [(e.get("pose") or {}).get("camera_center_mm") for e in entries]
+    if maps and grid is not None:
+        # one film, one slide: the photos' measures fused find what each alone may not (where two
+        # of them see it from directions no one lamp serves both)
+        maps["part_shift_limit_um"] = fused_part_limit(maps, grid.X, centres, args.tolerance_mm)
     slides = [e.pop("slide_measure", None) for e in entries]
     # several photos, one part: ink gone or a slide that another photo sees intact is light where it was found
     dismissed = (
         light_in_one_photo(entries, states, maps, grid.px_per_mm, args.max_defect_mm2, grid.X, slides) if grid else []
     )
-    del slides  # (up to 16 bytes a grid pixel a photo: not kept through the reports)
+    # one film, one slide: what no photo alone found significant, their measures fused can
+    fusion = FusionOptions(args.tolerance_mm, args.max_defect_mm2)
+    together, together_light = (
+        slides_found_together(slides, entries, dismissed, grid, fusion, names) if grid else ([], [])
+    )
+    del slides  # (23 bytes a grid pixel a photo: not kept through the reports)
     # one print, one colour: each print pixel judged in the photo that sees it most squarely
     colour, colour_map = fused_colour(take_colour_maps(entries), photo_names(entries), args.max_delta_e)
     in_part = {}
@@ -506,11 +517,16 @@ def run(args) -> int:
         if colour_failed:
             kept.pop("colour")  # (the part's colour is judged over all its photos)
         in_part[k] = photo_verdict(kept, args.tolerance_mm, args.max_defect_mm2, args.max_delta_e)
-    for x in dismissed:
+    for x in dismissed + together_light:
         log(f"{x['photo']}: {x['kind']} of {x['area_mm2']:.1f} mm² is light: {x['decided_by']['words']}")
+    for d in together:
+        log(
+            f"the part: {d['kind']} of {d['area_mm2']:.1f} mm² found by its photos together: {d['decided_by']['words']}"
+        )
     part, combined, part_defects = part_summary(states, grid, names, entries, dismissed, in_part, colour)
-    if dismissed:
-        part["dismissed"] = [{k: v for k, v in x.items() if k != "photo_index"} for x in dismissed]
+    add_found_together(part, together)
+    if dismissed or together_light:
+        part["dismissed"] = [{k: v for k, v in x.items() if k != "photo_index"} for x in dismissed] + together_light
     if in_part:
         part["photo_verdicts_in_part"] = {Path(entries[k]["photo"]).name: v for k, (v, _) in in_part.items()}
         part["photo_reasons_in_part"] = {Path(entries[k]["photo"]).name: r for k, (_, r) in in_part.items()}

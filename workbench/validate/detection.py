@@ -13,10 +13,16 @@ states it cannot find is below its stated limit.
 
 validate writes the maps to ``detection.npz`` beside validation.json (referenced with its
 sha256 under ``detection``; per photo ``photoK_shift_limit_um``, the smallest slide found,
-µm on the surface, 65535 where none is, ``photoK_dropout``, 1 where ink that is gone is
-found, and ``photoK_scratch``, 1 where a scratch is; the part's, best over its photos, as
-``part_*``), the figures to each photo's
-``dense.detection_limit``, and a picture, ``*_detectable_print.png``.
+µm on the surface, 65535 where none is, ``photoK_slide_sigma_um`` and
+``photoK_window_sigma_um``, the stated uncertainties of its own full vector and of its window's
+slide, ``photoK_dropout``, 1 where ink that is gone is found, and
+``photoK_scratch``, 1 where a scratch is; the part's, best over its photos, as ``part_*``), the
+figures to each photo's ``dense.detection_limit``, and a picture, ``*_detectable_print.png``.
+
+A slide of the film is one field on the print, which every photo that measures it measures
+(:mod:`workbench.validate.slide_fusion`): the part's smallest slide found is the best of each
+photo's and of the photos' measures fused, whose uncertainty is that of their inverse-variance
+mean, ``(Σ σ_k⁻²)^-½``.
 """
 
 from __future__ import annotations
@@ -113,6 +119,43 @@ def shift_limit(
     gain = np.broadcast_to(np.asarray(window_gain, np.float32), weak_mm.shape)
     limit[window] = np.minimum(limit[window], (tolerance_mm + z * window_mm[window]) / gain[window])
     return np.where(np.isfinite(limit), limit, np.nan).astype(np.float32)
+
+
+def fused_shift_limit(sigmas_um: list, tolerance_mm: float, z: float, gain: float = 1.0) -> np.ndarray:
+    """The smallest slide of the film found by the photos' measures fused, mm on the surface.
+
+    Independent measures of one vector, each with standard uncertainty σ_k, fuse in their
+    inverse-variance mean, whose uncertainty is ``(Σ σ_k⁻²)^-½``; a slide s is found where
+    ``gain`` s exceeds the tolerance by ``z`` of that (as :func:`shift_limit` states a photo's
+    own: ``gain`` 1 for the pixel's own vectors, the window's gain for the windows' slides).
+
+    Parameters
+    ----------
+    sigmas_um : list of (H, W) uint16
+        Each photo's stated uncertainty of one kind of measure (``photoK_slide_sigma_um``,
+        the pixel's own full vector, or ``photoK_window_sigma_um``, the window's slide), µm;
+        NONE_UM where it measures none.
+    tolerance_mm, z : float
+        The tolerance (mm) and the significance at which the limit is stated (standard
+        uncertainties).
+    gain : float
+        The share of a slide the measure answers.
+
+    Returns
+    -------
+    (H, W) float32
+        mm; NaN where fewer than two photos measure the full vector.
+    """
+    info = np.zeros(sigmas_um[0].shape, np.float64)
+    count = np.zeros(sigmas_um[0].shape, np.int32)
+    for s in sigmas_um:
+        ok = (s != NONE_UM) & (s > 0)
+        info[ok] += 1.0 / (s[ok].astype(np.float64) * 1e-3) ** 2
+        count += ok
+    out = np.full(info.shape, np.nan, np.float32)
+    two = count >= 2
+    out[two] = (tolerance_mm + z / np.sqrt(info[two])) / gain
+    return out
 
 
 def summary(
@@ -213,12 +256,18 @@ def above_limit(
 def part_maps(entries: list[dict]) -> dict:
     """Take each photo's detection maps out of its entry; they and the part's, the best over its photos.
 
+    Parameters
+    ----------
+    entries : list of dict
+        The photos' entries; their ``detection_maps`` are taken out.
+
     Returns
     -------
     dict of name to (H, W) array
-        ``photoK_shift_limit_um``, ``photoK_dropout``, ``photoK_scratch`` per scored photo K, and
-        ``part_*``: the smallest slide any photo finds, ink gone and scratches any photo finds;
-        empty when no photo was scored.
+        ``photoK_shift_limit_um``, ``photoK_slide_sigma_um``, ``photoK_window_sigma_um``,
+        ``photoK_dropout``, ``photoK_scratch`` per scored photo K, and ``part_*``: the smallest slide any photo
+        finds (:func:`workbench.validate.slide_fusion.fused_part_limit` adds their fusion's), ink gone and
+        scratches any photo finds; empty when no photo was scored.
     """
     arrays: dict = {}
     part_limit = part_drop = part_scratch = None
@@ -227,6 +276,10 @@ def part_maps(entries: list[dict]) -> dict:
         if got is None:
             continue
         arrays[f"photo{k}_shift_limit_um"] = got["shift_limit_um"]
+        if "slide_sigma_um" in got:
+            arrays[f"photo{k}_slide_sigma_um"] = got["slide_sigma_um"]
+        if "window_sigma_um" in got:
+            arrays[f"photo{k}_window_sigma_um"] = got["window_sigma_um"]
         arrays[f"photo{k}_dropout"] = got["dropout"]
         arrays[f"photo{k}_scratch"] = got["scratch"]
         part_limit = got["shift_limit_um"] if part_limit is None else np.minimum(part_limit, got["shift_limit_um"])
@@ -254,8 +307,10 @@ def add_to_report(report: dict, arrays: dict, out) -> dict:
         "note": (
             "what each photo can find, per pixel of the print's analysis grid (dense.grid_px_per_mm): "
             f"photoK_shift_limit_um, the smallest slide of the film it finds (µm on the surface, {NONE_UM}: none), "
+            "photoK_slide_sigma_um and photoK_window_sigma_um, the stated uncertainties of its own full vector "
+            "and of the window's slide (µm), "
             "photoK_dropout, 1 where it finds ink that is gone, and photoK_scratch, 1 where it finds a scratch; "
-            "part_*: the best over the photos. Stated for "
+            "part_*: the best over the photos (a slide: also their measures fused). Stated for "
             "a sound part, from the design, the photo's noise, blur and sampling: a defect found nowhere here is "
             "below the stated limit"
         ),

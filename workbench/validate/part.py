@@ -321,6 +321,29 @@ def part_summary(
     return summary, combined, defects
 
 
+def add_found_together(part: dict, together: list[dict]) -> None:
+    """The slides only the part's photos together find, into its summary (in place).
+
+    Each is a defect of the part (``located_by`` ``fused``) and fails it: a slide larger than
+    the verdict's area, beyond the tolerance significantly.
+
+    Parameters
+    ----------
+    part : dict
+        The part's summary (:func:`part_summary`): its ``defects``, ``verdict`` and ``reason``.
+    together : list of dict
+        The slides (:func:`workbench.validate.slide_fusion.slides_found_together`).
+    """
+    if not together:
+        return
+    for d in together:
+        part.setdefault("defects", []).append({**d, "located_by": "fused"})
+    part["defects"].sort(key=lambda d: (-d["area_mm2"], d["centre_mm"]))
+    if part["verdict"] != "FAIL":
+        part["verdict"] = "FAIL"
+        part["reason"] = together[0]["decided_by"]["words"]
+
+
 def _seen(d: dict, e: dict) -> dict:
     """One photo's view of a defect: its kind, centre and area on the print, and how finely the photo samples it."""
     x0, y0, x1, y1 = d["bbox_mm"]

@@ -401,6 +401,8 @@ def _validate_photo(
     if not entry["photo_quality"]["problems"]:
         entry["detection_maps"] = {
             "shift_limit_um": detection.to_stored(dr.shift_limit_mm),
+            "slide_sigma_um": detection.to_stored(dr.shift_sigma_mm),
+            "window_sigma_um": detection.to_stored(dr.window_sigma_mm),
             "dropout": dr.dropout_found.astype(np.uint8),
             "scratch": dr.scratch_found.astype(np.uint8),
         }

@@ -37,7 +37,10 @@ def verdict_rule(
         if min_coverage is None
         else (
             " The part: FAIL when any photo fails (ink gone or a slide that another photo of the part measures "
-            "and sees intact is light in the photo that found it, and does not count) or its colour fails (each "
+            "and sees intact is light in the photo that found it, and does not count), when its photos' measures "
+            "of the film's slide, fused, find a slide that no photo found alone (measured by two photos from "
+            f"more than {2 * dense.MIRROR_DEG:g}° apart, beyond the tolerance by {z:g} of its uncertainty, over more "
+            f"than {max_defect_mm2:g} mm²), or its colour fails (each "
             "print pixel from the photo that sees it most squarely, the mean against the limit; a photo's own "
             "colour then does not fail the part); PASS when its photos pass and "
             f"together can find a slide, ink gone and a scratch on at least {100 * min_coverage:.0f} % of each film "

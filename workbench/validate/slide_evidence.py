@@ -63,6 +63,20 @@ class SlideMeasure:
         elsewhere.
     tolerance_mm : float
         The misregistration tolerance the photo was judged by, mm.
+    wide_mm : (H, W, 2) float16 or None
+        The window's slide (about a millimetre's, :func:`workbench.validate.dense.tensor_weighted_flow`)
+        after the photo's placement, mm, wherever the window's measure is usable (whether or not
+        the pixel has its own); NaN elsewhere. The part fuses it over its photos
+        (:mod:`workbench.validate.slide_fusion`).
+    wide_sigma_mm : (H, W) float16 or None
+        Its standard uncertainty along the window's weaker direction, mm; NaN where none.
+    window_px : float or None
+        The flow's window, Gaussian sigma, grid px: the wide window's is four times it (None:
+        ``dense.TENSOR_SIGMA_PX``).
+    set_aside : (H, W) bool or None
+        The slid regions the photo's own tests took for light (a flow that follows light,
+        shading or blur, not the film: ``shift_not_explained``, ``shift_as_light``), with the
+        flow's reach around them: the photo measured the print moved there, but not the film.
     """
 
     slide_mm: np.ndarray
@@ -72,6 +86,10 @@ class SlideMeasure:
     window: np.ndarray
     claim: np.ndarray
     tolerance_mm: float
+    wide_mm: np.ndarray | None = None
+    wide_sigma_mm: np.ndarray | None = None
+    window_px: float | None = None
+    set_aside: np.ndarray | None = None
 
 
 def seen_in_place(a: SlideMeasure, b: SlideMeasure, box: tuple, z: float) -> np.ndarray:

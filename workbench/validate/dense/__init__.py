@@ -45,6 +45,7 @@ from workbench.validate.dense.light import LIGHT_RULES, mirrors_highlights, not_
 from workbench.validate.dense.lines import thin_told
 from workbench.validate.dense.options import (
     COLOUR_TOL,
+    DETECT_Z,
     FLOW_FLOOR_PX,
     MIN_DEFECT_MM2,
     MIN_EDGE,
@@ -77,6 +78,7 @@ __all__ = [
     "MIN_DEFECT_MM2",
     "MIN_EDGE",
     "MIN_TWO_WAY",
+    "DETECT_Z",
     "MIRROR_DEG",
     "NOISE_FLOOR",
     "NORM_SIGMA_PX",

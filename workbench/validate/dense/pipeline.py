@@ -574,6 +574,7 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
     # blur over faint texture, not the film
     keep = []
     ink_left = np.zeros_like(missing)
+    set_aside = np.zeros_like(missing)  # the slid regions this photo's tests took for light
 
     def in_lamp(region: np.ndarray) -> bool:
         # (most of the region within the lamp's mirror cone; no lamp without a camera centre)
@@ -603,6 +604,7 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
                 # five times its own area, and the region took the flow's kind; 12.6 mm² of a
                 # 20 mm scratch went with a 72 mm² region its flow did not explain)
                 ink_left |= (labels == i + 1) & colour_bad & missing
+                set_aside |= labels == i + 1
                 # (and the QA engineer sees it set aside, and why)
                 decided = {"rule": rule, "words": LIGHT_RULES[rule], "explained_share": round(d["explained_share"], 3)}
                 if "explained_under_light_share" in d:
@@ -643,6 +645,8 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
     # it, and where a kept slide's measure is beyond the tolerance significantly, its claim
     own = (full | normal) & ~lit
     window = ~own & wide_ok
+    reach = int(np.ceil(3 * win))
+    reach_disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)
     slide_px = np.where(own[..., None], local_shift, np.where(window[..., None], m_wide, np.nan))
     slide_mm = slide_px * mm_per_px[..., None]
     slide_sigma = np.where(own, sigma_mm, np.where(window, wide_sigma, np.nan))
@@ -650,7 +654,7 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
     shifts[1:] = [d["kind"] == "shift" for d in defects]
     with np.errstate(invalid="ignore", divide="ignore"):
         significant = (np.hypot(slide_mm[..., 0], slide_mm[..., 1]) - tolerance_mm) / slide_sigma > SIGNIFICANCE_Z
-    # (half precision: a millimetre to a thousandth, a grid of 4 Mpx in 68 MB a photo)
+    # (half precision: a millimetre to a thousandth, a grid of 4 Mpx in 92 MB a photo)
     slide = SlideMeasure(
         slide_mm.astype(np.float16),
         (start.early * mm_per_px[..., None]).astype(np.float16),
@@ -659,6 +663,11 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
         window,
         np.where(shifts[labels] & significant, labels, 0).astype(np.int16),
         float(tolerance_mm),
+        np.where(wide_ok[..., None], m_wide * mm_per_px[..., None], np.nan).astype(np.float16),
+        np.where(wide_ok, wide_sigma, np.nan).astype(np.float16),
+        float(win),
+        # (and the flow's reach around them, where it ramps down: the part fuses none of it)
+        cv2.dilate(set_aside.view(np.uint8), reach_disc).view(bool) if set_aside.any() else set_aside,
     )
     return _Found(labels, defects, lit, slide)
 
@@ -702,8 +711,10 @@ def _result(
     # a defect must cover MIN_DEFECT_MM2 and span a few photo pixels each way (the opening
     # and closing in find_defects work on 3 x 3 grid pixels) to be found
     px_mm = (1.0 / median_res) if median_res else None
-    limit_mm = measures.shift_limit.result()
+    limit_mm, stated_sigma_mm, window_sigma_mm = measures.shift_limit.result()
     limit_mm[lit] = np.nan  # (the flow near light is not the print's: see lit above)
+    stated_sigma_mm[lit] = np.nan
+    window_sigma_mm[lit] = np.nan
     if camera_center is not None:
         in_cone, flat_in_cone = colour.cone.result()
         dropout_found &= ~in_cone
@@ -756,4 +767,6 @@ def _result(
         in_cone if camera_center is not None else None,
         start.early if start.early.any() else None,
         found.slide,
+        stated_sigma_mm,
+        window_sigma_mm,
     )

@@ -81,6 +81,12 @@ class DenseResult:
     slide : SlideMeasure or None
         What the flow measured of the film's slide, and what the photo's slides claim
         (:mod:`workbench.validate.slide_evidence`): the part compares it with its other photos.
+    shift_sigma_mm : (rows, cols) float32 or None
+        The stated uncertainty of the pixel's own full vector, mm on the surface, where the
+        photo measures it (NaN elsewhere): the part fuses it over its photos into its limit.
+    window_sigma_mm : (rows, cols) float32 or None
+        The stated uncertainty of the window's slide where the window measures it and its
+        texture has two directions (NaN elsewhere): fused over the photos likewise.
     """
 
     warped: np.ndarray
@@ -107,6 +113,8 @@ class DenseResult:
     lamp_cone: np.ndarray | None = None
     placement_px: np.ndarray | None = None
     slide: SlideMeasure | None = None
+    shift_sigma_mm: np.ndarray | None = None
+    window_sigma_mm: np.ndarray | None = None
 
 
 def coverage_by_view(state: np.ndarray, owner: np.ndarray, names: list[str]) -> dict:

@@ -7,7 +7,14 @@ import numpy as np
 
 from workbench.validate import detection
 from workbench.validate.dense.flow import _enlarge_flow, dis_flow, structure_tensor, window_gain
-from workbench.validate.dense.options import DETECT_Z, FLOW_FLOOR_PX, NOISE_FLOOR, PHOTO_FLOOR_PX, SIGNIFICANCE_Z
+from workbench.validate.dense.options import (
+    DETECT_Z,
+    FLOW_FLOOR_PX,
+    NOISE_FLOOR,
+    PHOTO_FLOOR_PX,
+    SIGNIFICANCE_Z,
+    WINDOW_GAIN,
+)
 
 
 def agreement(flow_px: np.ndarray, full: np.ndarray, px_per_mm: float, p0, p1, boxes_mm) -> dict:
@@ -203,7 +210,7 @@ def forward_backward(
 
 def stated_shift_limit(
     tolerance_mm, noise, l1, l2, n_eff, floor, mm_per_px, wide_sigma, two_way, measurable, usable, l1_wide, l2_wide
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The detection limit's smallest slide found at each pixel, stated for a sound part (:func:`analyse`).
 
     The photo's noise through the texture it resolves (the mismatch and the flow back, which a
@@ -214,11 +221,23 @@ def stated_shift_limit(
 
     Returns
     -------
-    (H, W) float32
+    limit : (H, W) float32
         mm on the surface; NaN where no slide is found.
+    sigma : (H, W) float32
+        The stated uncertainty of the pixel's own full vector, mm on the surface, where the
+        pixel measures it (``two_way``, within ``usable``); NaN elsewhere. The part fuses it
+        over its photos (:func:`workbench.validate.detection.fused_shift_limit`).
+    window_sigma : (H, W) float32
+        The window's slide's uncertainty ``wide_sigma`` where the window measures it (within
+        ``usable``) and its texture has two directions (it answers WINDOW_GAIN of a slide); NaN
+        elsewhere. The part fuses it too.
     """
     weak_e, _ = detection.expected_flow_sigma(noise, l1, l2, n_eff, floor)
-    return detection.shift_limit(
-        tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_e * mm_per_px, wide_sigma, two_way, measurable, usable,
-        window_gain(l1_wide, l2_wide),
-    )  # fmt: skip
+    weak_mm = weak_e * mm_per_px
+    gain = window_gain(l1_wide, l2_wide)
+    limit = detection.shift_limit(
+        tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_mm, wide_sigma, two_way, measurable, usable, gain
+    )
+    own = np.where(two_way & (weak_mm <= usable), weak_mm, np.nan).astype(np.float32)
+    window = measurable & (wide_sigma <= usable) & (gain == np.float32(WINDOW_GAIN))
+    return limit, own, np.where(window, wide_sigma, np.nan).astype(np.float32)

@@ -59,6 +59,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from scipy import ndimage
 from scipy.special import chdtri
 
 from workbench.validate import detection
@@ -145,14 +146,7 @@ def fuse_slides(slides: list, z: float, usable_mm: float) -> FusedSlide:
     FusedSlide
     """
     own = [None if m is None else (m.slide_mm, m.sigma_mm, _taken(m, ~m.window), m.normal) for m in slides]
-    # one print edge has one normal in every photo (the print's texture is the photos' one), so
-    # components alone fix no vector there: only where a photo measures the whole vector can the
-    # photos' own measures fix it (a print's two-way texture is rare: a few % of its pixels)
-    whole = np.zeros(next(m.sigma_mm.shape for m in slides if m is not None), bool)
-    for m, got in zip(slides, own, strict=True):
-        if m is not None:
-            whole |= _usable(got[0], got[1], got[2]) & ~np.any(m.normal.view(np.uint16) & 0x7FFF, axis=-1)
-    return _fuse(own, z, whole.shape, usable_mm, only=whole)
+    return _fuse(own, z, next(m.sigma_mm.shape for m in slides if m is not None), usable_mm)
 
 
 def fuse_windows(slides: list, z: float, usable_mm: float) -> FusedSlide:
@@ -178,13 +172,16 @@ def fuse_windows(slides: list, z: float, usable_mm: float) -> FusedSlide:
     return _fuse(wide, z, next(m.sigma_mm.shape for m in slides if m is not None), usable_mm)
 
 
-def _fuse(measures: list, z: float, shape: tuple, usable_mm: float, only: np.ndarray | None = None) -> FusedSlide:
+def _fuse(measures: list, z: float, shape: tuple, usable_mm: float) -> FusedSlide:
     """Least squares over the photos' measures ``(vector, sigma, use or None, normal or None)`` on a grid.
 
     The sums run in float32 (the misfit q - bᵀ ŝ loses 1e-7 of q, some 1e-5 of a unit of χ², to
     the cancellation), a photo's weight 0 where it has no measure, over the pixels two photos or
-    more measure within ``only`` ((H, W) bool; None: the whole grid): gathered where ``only``
-    is given, over the whole grid where not (most of it is fused: a gather would only slow it).
+    more measure. Where the measures carry normals (the pixels' own), only where some photo
+    measures the whole vector: one print edge has one normal in every photo (each takes it from
+    the print), so components alone fix no vector; those pixels are few (a print's two-way
+    texture is a few % of it) and are gathered. The windows' measures are whole vectors over
+    most of the grid, which is summed as it is (a gather would only slow it).
 
     Returns
     -------
@@ -192,14 +189,19 @@ def _fuse(measures: list, z: float, shape: tuple, usable_mm: float, only: np.nda
     """
     f32 = np.float32
     photos = np.zeros((len(measures), *shape), bool)
+    whole = np.zeros(shape, bool)
+    with_normals = False
     for k, got in enumerate(measures):
         if got is not None:
             photos[k] = _usable(got[0], got[1], got[2])
-    if only is not None:
-        photos &= only
+            if got[3] is not None:
+                with_normals = True
+                whole |= photos[k] & ~np.any(got[3].view(np.uint16) & 0x7FFF, axis=-1)
+    if with_normals:
+        photos &= whole
     count = photos.sum(axis=0)
     photos[:, count < 2] = False
-    at = None if only is None else np.flatnonzero(count >= 2)
+    at = np.flatnonzero(count >= 2) if with_normals else None
 
     def flat(a: np.ndarray, per: int = 1) -> np.ndarray:
         # the grid's pixels as a column (``per`` numbers each), those fused only
@@ -218,35 +220,35 @@ def _fuse(measures: list, z: float, shape: tuple, usable_mm: float, only: np.nda
             w = np.where(ok, f32(1.0) / np.square(flat(got[1])), f32(0.0))
         sx = np.where(ok, v[:, 0], f32(0.0))
         sy = np.where(ok, v[:, 1], f32(0.0))
-        if got[3] is None:
-            # the whole vector: P = I
-            axx += w
-            ayy += w
-            bx += w * sx
-            by += w * sy
-            q += w * (sx * sx + sy * sy)
-            rank += 2 * ok
-            continue
-        n = flat(got[3], 2)
-        length = np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1])
-        edge = ok & (length > 0)
-        full = ok & ~edge
-        # a component across the edge: P = n nᵀ with n of unit length (stored in half precision,
-        # renormalised), the measure c = n·s (s stored as c n: P s = s to half precision's
-        # rounding, which q - bᵀ ŝ would magnify); the whole vector where there is no edge
-        with np.errstate(invalid="ignore", divide="ignore"):
-            nx = np.where(edge, n[:, 0] / length, f32(0.0))
-            ny = np.where(edge, n[:, 1] / length, f32(0.0))
-        c = nx * sx + ny * sy
-        we = np.where(edge, w, f32(0.0))
-        wf = np.where(full, w, f32(0.0))
-        axx += we * nx * nx + wf
-        ayy += we * ny * ny + wf
-        axy += we * nx * ny
-        bx += we * c * nx + wf * sx
-        by += we * c * ny + wf * sy
-        q += we * c * c + wf * (sx * sx + sy * sy)
-        rank += edge + 2 * full
+        full, wf = ok, w
+        if got[3] is not None:
+            n = flat(got[3], 2)
+            length = np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1])
+            edge = ok & (length > 0)
+            full = ok & ~edge
+            wf = np.where(full, w, f32(0.0))
+            # a component across the edge: P = n nᵀ with n of unit length (stored in half
+            # precision, renormalised), the measure c = n·s (s stored as c n: P s = s to half
+            # precision's rounding, which q - bᵀ ŝ would magnify)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                nx = np.where(edge, n[:, 0] / length, f32(0.0))
+                ny = np.where(edge, n[:, 1] / length, f32(0.0))
+            c = nx * sx + ny * sy
+            we = np.where(edge, w, f32(0.0))
+            axx += we * nx * nx
+            ayy += we * ny * ny
+            axy += we * nx * ny
+            bx += we * c * nx
+            by += we * c * ny
+            q += we * c * c
+            rank += edge
+        # the whole vector: P = I
+        axx += wf
+        ayy += wf
+        bx += wf * sx
+        by += wf * sy
+        q += wf * (sx * sx + sy * sy)
+        rank += 2 * full
     det = axx * ayy - axy * axy
     # A's eigenvalues: half its trace less and plus the root of its discriminant
     root = np.sqrt(0.25 * (axx - ayy) ** 2 + axy * axy)
@@ -594,9 +596,7 @@ def slides_found_together(
     two_windows = MIN_SHIFT_WINDOWS * 4.0 * np.pi * win**2
     found, light = [], []
     H, W = seeds.shape
-    for i in range(1, n + 1):
-        ys, xs = np.nonzero(labels == i)
-        sub = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+    for i, sub in enumerate(ndimage.find_objects(labels), start=1):
         whole = labels[sub] == i
         if (whole & seeds[sub] & claimed[sub]).sum() >= 0.5 * (whole & seeds[sub]).sum():
             continue  # (mostly a photo's own defect, or its light: that one slide, decided already)
@@ -617,12 +617,11 @@ def slides_found_together(
         for k in range(len(entries)):
             for j in range(k + 1, len(entries)):
                 both = took[k] & took[j]
-                apart = seen_apart(rays, k, j)
-                if apart is None or not both.any() or not np.isfinite(point).all():
+                if rays[k] is None or rays[j] is None or not both.any() or not np.isfinite(point).all():
                     continue
                 deg = float(np.degrees(np.arccos(np.clip(float((rays[k] * rays[j]).sum()), -1.0, 1.0))))
                 widest = deg if widest is None else max(widest, deg)
-                if apart:
+                if deg > APART_DEG:
                     apart_px |= both
         ys, xs = np.nonzero(region)
         y0, x0 = sub[0].start, sub[1].start

@@ -9,6 +9,7 @@ import numpy as np
 from workbench.validate import dense, print_warp
 from workbench.validate.rule import judged_delta_e
 from workbench.validate.slide_evidence import claim_seen_in_place
+from workbench.validate.slide_fusion import APART_DEG, angle_deg, camera_rays
 
 
 def light_in_one_photo(
@@ -186,17 +187,10 @@ def _apart_deg(ea: dict, eb: dict, d: dict, X: np.ndarray | None, px_per_mm: flo
     if X is None:
         return None
     cx, cy = (int(np.clip(v * px_per_mm, 0, n - 1)) for v, n in zip(d["centre_mm"], X.shape[1::-1], strict=True))
-    p = X[cy, cx]
-
-    def towards(e):
-        c = np.asarray(((e.get("pose") or {}).get("camera_center_mm")) or [np.nan] * 3, float)
-        v = c - p
-        return v / max(float(np.linalg.norm(v)), 1e-12)
-
-    va, vb = towards(ea), towards(eb)
-    if not (np.isfinite(va).all() and np.isfinite(vb).all()):
+    va, vb = (camera_rays(X[cy, cx], (e.get("pose") or {}).get("camera_center_mm"), np.float64) for e in (ea, eb))
+    if va is None or vb is None or not (np.isfinite(va).all() and np.isfinite(vb).all()):
         return None
-    return float(np.degrees(np.arccos(np.clip(float(va @ vb), -1.0, 1.0))))
+    return angle_deg(va, vb)
 
 
 def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> int | None:
@@ -208,7 +202,7 @@ def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> i
             continue
         if float((region & (sc[box] == print_warp.DEFECT)).sum()) < 0.5 * region.sum():
             continue
-        if (apart := _apart_deg(entries[a], entries[c], d, X, px_per_mm)) is not None and apart > 2 * dense.MIRROR_DEG:
+        if (apart := _apart_deg(entries[a], entries[c], d, X, px_per_mm)) is not None and apart > APART_DEG:
             return c
     return None
 

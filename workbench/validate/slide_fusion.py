@@ -374,7 +374,7 @@ def slid_regions(
     return keep[lab], m
 
 
-def camera_rays(X: np.ndarray, centre) -> np.ndarray | None:
+def camera_rays(X: np.ndarray, centre, dtype=np.float32) -> np.ndarray | None:
     """Unit vectors from surface points towards a camera; None where the camera is not known.
 
     Parameters
@@ -383,16 +383,23 @@ def camera_rays(X: np.ndarray, centre) -> np.ndarray | None:
         Surface points, mm (NaN: none).
     centre : (3,) float or None
         The camera's centre, mm.
+    dtype : numpy dtype
+        The rays' (float32 for a grid of them, float64 for one point's).
 
     Returns
     -------
-    (..., 3) float32 or None
+    (..., 3) array of ``dtype``, or None
     """
     if centre is None or not np.isfinite(np.asarray(centre, np.float64)).all():
         return None
-    v = np.asarray(centre, np.float32) - np.asarray(X, np.float32)
+    v = np.asarray(centre, dtype) - np.asarray(X, dtype)
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / np.sqrt((v * v).sum(axis=-1, keepdims=True))
+
+
+def angle_deg(u: np.ndarray, v: np.ndarray) -> float:
+    """The angle between two unit vectors ((3,) float each), degrees."""
+    return float(np.degrees(np.arccos(np.clip(float((u * v).sum()), -1.0, 1.0))))
 
 
 def seen_apart(rays: list, k: int, j: int) -> np.ndarray | None:
@@ -619,7 +626,7 @@ def slides_found_together(
                 both = took[k] & took[j]
                 if rays[k] is None or rays[j] is None or not both.any() or not np.isfinite(point).all():
                     continue
-                deg = float(np.degrees(np.arccos(np.clip(float((rays[k] * rays[j]).sum()), -1.0, 1.0))))
+                deg = angle_deg(rays[k], rays[j])
                 widest = deg if widest is None else max(widest, deg)
                 if deg > APART_DEG:
                     apart_px |= both

@@ -313,6 +313,8 @@ def _run_part(run: dict, design: Path, args, env) -> dict:
     cmd = [sys.executable, "-m", "workbench", "validate", str(design), *map(str, imgs)]
     cmd += ["--camera", str(imgs[0].with_suffix(".json")), "--tolerance-mm", str(args.tolerance_mm)]
     cmd += ["--jobs", "1", "--out", str(vdir), "-q"]
+    # (the film the look renders: glossy or matte; or one finish for every run)
+    cmd += ["--finish", run["look"] if args.finish == "look" else args.finish]
     t0 = time.perf_counter()
     if fresh or args.revalidate or not (vdir / "validation.json").is_file():
         r = subprocess.run(cmd, env=env, cwd=str(ROOT), capture_output=True, text=True, timeout=3600)
@@ -393,11 +395,13 @@ def judge(report: dict, vdir: Path, truth: list[dict], design: Path, cams: list[
     films = (part.get("coverage") or {}).get("films", [])
     out = {
         "verdict": part.get("verdict"),
+        "max_defect_mm2": report.get("max_defect_mm2", 4.0),
         "reason": part_reason(report),
         "photo_verdicts": {Path(e["photo"]).name: e["verdict"] for e in report.get("photos", [])},
         "coverage": [{c: (f.get(c) or {}).get("share") for c in ("slide", "ink_gone", "scratch")} for f in films],
         "part_defects": [
-            {k: d.get(k) for k in ("kind", "area_mm2", "centre_mm", "photos")} for d in part.get("defects", [])
+            {k: d.get(k) for k in ("kind", "area_mm2", "centre_mm", "photos", "unresolved")}
+            for d in part.get("defects", [])
         ],
         "dismissed": [
             {k: x.get(k) for k in ("photo", "kind", "area_mm2", "centre_mm")} for x in part.get("dismissed", [])
@@ -457,7 +461,9 @@ def judge(report: dict, vdir: Path, truth: list[dict], design: Path, cams: list[
                 continue
             match = d
             break
-        rec["found"] = match is not None
+        # (a region the part's photos could not tell ink gone from light on is open: located, not found)
+        rec["open"] = bool(match is not None and match.get("unresolved"))
+        rec["found"] = match is not None and not rec["open"]
         near = min(defects, key=lambda d: distance_to(t, d["centre_mm"]), default=None)
         if near is not None:
             rec["nearest"] = {
@@ -465,7 +471,7 @@ def judge(report: dict, vdir: Path, truth: list[dict], design: Path, cams: list[
                 "area_mm2": round(near["area_mm2"], 2),
                 "distance_mm": round(distance_to(t, near["centre_mm"]), 2),
             }
-        rec["escape"] = bool(rec["covered"] and not rec["found"])
+        rec["escape"] = bool(rec["covered"] and not rec["found"] and not rec["open"])
         rec["face_on_deg"] = face_on_deg(design, t["centre_mm"], cams)
         if rec["face_on_deg"] is not None:
             rec["face_on_deg"] = round(rec["face_on_deg"], 1)
@@ -523,6 +529,10 @@ def rates(runs: list[dict], dark: bool) -> dict:
             r.get("verdict_before_suggested", r["verdict"]) == "INCOMPLETE" for r in perfect
         ),
         "suggested_photos_added": sum(r.get("suggested_photos_added", 0) for r in ok),
+        "perfect_open": sum(
+            any(d.get("unresolved") and d["area_mm2"] > r.get("max_defect_mm2", 4.0) for d in r["part_defects"])
+            for r in perfect
+        ),
         "perfect_invalid": sum(r["verdict"] == "INVALID" for r in perfect),
         "defect_part_runs": len(defect),
         "defect_part_runs_pass": sum(r["verdict"] == "PASS" for r in defect),
@@ -533,6 +543,7 @@ def rates(runs: list[dict], dark: bool) -> dict:
         "covered": len(covered),
         "found": sum(t["found"] for t in truth),
         "found_of_covered": sum(t["found"] for t in covered),
+        "open": sum(t.get("open", False) for t in truth),
         "escapes": sum(t["escape"] for t in truth),
         "found_not_covered": sum(t["found"] and not t["covered"] for t in truth),
         "errors": len(runs) - len(ok),
@@ -546,6 +557,7 @@ def rates(runs: list[dict], dark: bool) -> dict:
                 "covered": sum(t["covered"] for t in ts),
                 "found": sum(t["found"] for t in ts),
                 "escapes": sum(t["escape"] for t in ts),
+                "open": sum(t.get("open", False) for t in ts),
             }
     if dark:
         face_on = [t for t in truth if t["face_on_deg"] is not None and t["face_on_deg"] <= FACE_ON_DEG]
@@ -581,6 +593,8 @@ def markdown(runs: list[dict], s: dict, command: str, args) -> str:
         f"| perfect part-runs INCOMPLETE | {pct(s['perfect_incomplete'], s['perfect_part_runs'])} |",
         f"| perfect part-runs INCOMPLETE before the suggested photos ({s['suggested_photos_added']} added in all) | "
         f"{pct(s['perfect_incomplete_before_suggested'], s['perfect_part_runs'])} |",
+        f"| perfect part-runs with a region over the verdict's area still open (a defect or light, not told) | "
+        f"{pct(s.get('perfect_open', 0), s['perfect_part_runs'])} |",
         f"| perfect part-runs INVALID | {pct(s['perfect_invalid'], s['perfect_part_runs'])} |",
         f"| defect part-runs that PASS (must be 0) | {pct(s['defect_part_runs_pass'], s['defect_part_runs'])} |",
         f"| defect part-runs INCOMPLETE / INVALID / FAIL | {s['defect_part_runs_incomplete']} / "
@@ -589,11 +603,14 @@ def markdown(runs: list[dict], s: dict, command: str, args) -> str:
         f"| escapes among covered defects (must be 0) | {pct(s['escapes'], s['covered'])} |",
         f"| found among covered | {pct(s['found_of_covered'], s['covered'])} |",
         f"| found, all defects | {pct(s['found'], s['defects'])} |",
+        f"| open (located, no photo told ink gone from light: the part INCOMPLETE) | "
+        f"{pct(s.get('open', 0), s['defects'])} |",
         f"| runs that failed to render/validate | {s['errors']} |",
     ]
     for kind, k in s["per_kind"].items():
         lines.append(
-            f"| {kind}: covered / found / escapes | {k['covered']} / {k['found']} / {k['escapes']} of {k['defects']} |"
+            f"| {kind}: covered / found / escapes / open | {k['covered']} / {k['found']} / {k['escapes']} / "
+            f"{k.get('open', 0)} of {k['defects']} |"
         )
     if "dark_dropouts" in s:
         lines.append(
@@ -664,6 +681,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="2000x1500")
     ap.add_argument("--spp", type=int, default=8, help="Mitsuba samples per pixel (default 8)")
     ap.add_argument("--tolerance-mm", type=float, default=0.2)
+    ap.add_argument(
+        "--finish",
+        choices=("look", "glossy", "matte"),
+        default="look",
+        help="validate --finish: the film each look renders (default), or one for every run",
+    )
     ap.add_argument("--design-cache", type=Path, help="designs in DIR/designs/NAME (default: OUT)")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "random_defects")
     ap.add_argument("--revalidate", action="store_true")

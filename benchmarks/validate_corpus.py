@@ -57,6 +57,13 @@ LOOKS = {
     "lens": ["--realistic", "--distortion=-0.1,0,0,0,0"],
     "glossy-lens": ["--realistic", "--gloss", "0.4", "--distortion=-0.1,0,0,0,0", "--jpeg-quality", "85"],
 }
+
+
+def look_finish(look: str) -> str:
+    """The film's finish a look renders (``validate --finish``): glossy where the renderer is given a gloss."""
+    return "glossy" if "--gloss" in LOOKS[look] else "matte"
+
+
 # defects: (name, kind, size) -> what the renderer is told, given a centre (x, y) in print mm
 DEFECTS = {
     "bubble-12mm-1.0": ("bubble", lambda x, y: f"bubble:{x:.2f},{y:.2f},6,1"),
@@ -447,7 +454,10 @@ def false_defects(truth: list[dict], found: list[dict], max_defect_mm2: float, s
 
 
 def outcome(photo: Photo, entry: dict, truth: list[dict], stated: list[dict] | None = None) -> str:
-    """``pass`` / ``false reject`` / ``invalid`` for a perfect photo; ``found`` / ``fail, not located`` / ``escape``.
+    """``pass`` / ``incomplete`` / ``false reject`` / ``invalid`` for a perfect photo; ``found`` / ``open`` / ...
+
+    A defect photo that is INCOMPLETE with the defect located among its open regions (ink gone
+    or light: the photo cannot tell) is ``open``; one that is INCOMPLETE otherwise counts as a PASS.
 
     A defect photo that PASSes is an ``escape`` when validate states it finds the defect
     there, ``below stated limit`` otherwise; one that FAILs without locating it is ``fail, not
@@ -457,12 +467,16 @@ def outcome(photo: Photo, entry: dict, truth: list[dict], stated: list[dict] | N
     """
     v = entry.get("verdict")
     if photo.defect is None:
-        return "invalid" if v == "INVALID" else "pass" if v == "PASS" else "false reject"
+        return {"INVALID": "invalid", "PASS": "pass", "INCOMPLETE": "incomplete"}.get(v, "false reject")
     below = below_stated_limit(truth, find_detection_limit(entry), stated)
+    still = [d for d in entry.get("defects", []) if d.get("unresolved")]
+    if v == "INCOMPLETE" and still and all(m["located"] for m in match(truth, still, stated)):
+        # (located, as a region the photo cannot tell ink gone from light on: the part's other photos decide)
+        return "open"
     if v == "INVALID":
         # a defect the photo states it finds there, not found: INVALID says "not judged", not FAIL
         return "invalid" if below or stated is None else "invalid, above stated limit"
-    if v == "PASS":
+    if v in ("PASS", "INCOMPLETE"):
         return "below stated limit" if below else "escape"
     if all(m["located"] for m in match(truth, entry.get("defects", []), stated)):
         return "found"
@@ -523,6 +537,7 @@ def run_photo(photo: Photo, out: Path, designs: dict, env_validate: dict, env_re
     vdir = folder / args.validation
     validate = [sys.executable, "-m", "workbench", "validate", str(design), str(img), "--camera", str(truth_file)]
     validate += ["--view", photo.view, "--tolerance-mm", str(TOLERANCE_MM), "--jobs", "1", "--out", str(vdir), "-q"]
+    validate += ["--finish", look_finish(photo.look) if args.finish == "look" else args.finish]
     if not args.report_only and (args.revalidate or not (vdir / "validation.json").is_file()):
         r = subprocess.run(validate, env=env_validate, capture_output=True, text=True, timeout=3600)
         if r.returncode != 0:
@@ -573,9 +588,12 @@ def rates(photos: list[Photo]) -> dict:
         perf = [p for p in photos if p.renderer == r and p.defect is None and p.result.get("outcome") in OUTCOMES]
         fr = sum(p.result["outcome"] == "false reject" for p in perf)
         inv = sum(p.result["outcome"] == "invalid" for p in perf)
+        inc = sum(p.result["outcome"] == "incomplete" for p in perf)
         # whatever the verdict's first reason, how many perfect photos report a defect over the verdict's area
         fd = sum(p.result["false_defects"] > 0 for p in perf)
-        out["perfect"][r] = {"photos": len(perf), "false_rejects": fr, "invalid": inv, "with_false_defects": fd}
+        out["perfect"][r] = {
+            "photos": len(perf), "false_rejects": fr, "incomplete": inc, "invalid": inv, "with_false_defects": fd,
+        }  # fmt: skip
         for d in DEFECTS:
             dp = [p for p in photos if p.renderer == r and p.defect == d and p.result.get("outcome") in OUTCOMES]
             if not dp:
@@ -583,6 +601,7 @@ def rates(photos: list[Photo]) -> dict:
             out["defects"].setdefault(d, {})[r] = {
                 "photos": len(dp),
                 "found": sum(p.result["outcome"] == "found" for p in dp),
+                "open": sum(p.result["outcome"] == "open" for p in dp),
                 "fail_not_located": sum(p.result["outcome"] == "fail, not located" for p in dp),
                 "fail_not_located_below": sum(
                     p.result["outcome"] == "fail, not located, below stated limit" for p in dp
@@ -600,7 +619,9 @@ def rates(photos: list[Photo]) -> dict:
 
 OUTCOMES = (
     "pass",
+    "incomplete",
     "false reject",
+    "open",
     "invalid",
     "found",
     "fail, not located",
@@ -625,25 +646,27 @@ def markdown(photos: list[Photo], summary: dict, command: str) -> str:
         "",
         "## Rates",
         "",
-        "| renderer | perfect photos | false rejects | with a defect > max reported | invalid |",
-        "|---|---:|---:|---:|---:|",
+        "| renderer | perfect photos | false rejects | INCOMPLETE (open regions) | with a defect > max reported "
+        "| invalid |",
+        "|---|---:|---:|---:|---:|---:|",
     ]
     for r, s in summary["perfect"].items():
         lines.append(
-            f"| {r} | {s['photos']} | {pct(s['false_rejects'], s['photos'])} | "
+            f"| {r} | {s['photos']} | {pct(s['false_rejects'], s['photos'])} | {s.get('incomplete', 0)} | "
             f"{pct(s['with_false_defects'], s['photos'])} | {s['invalid']} |"
         )
     lines += [
         "",
-        "| defect | renderer | photos | found | of which with false defects beside it | FAIL, not located "
-        "(of which below the stated limit) | escapes (PASS above the stated limit) | PASS below the stated limit "
-        "| invalid |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        "| defect | renderer | photos | found | open (located, not told from light) | of which with false defects "
+        "beside it | FAIL, not located (of which below the stated limit) | escapes (PASS above the stated limit) | "
+        "PASS below the stated limit | invalid |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for d, per in summary["defects"].items():
         for r, s in per.items():
             lines.append(
-                f"| {d} | {r} | {s['photos']} | {pct(s['found'], s['photos'])} | {s['found_with_false_defects']} | "
+                f"| {d} | {r} | {s['photos']} | {pct(s['found'], s['photos'])} | {s.get('open', 0)} | "
+                f"{s['found_with_false_defects']} | "
                 f"{s['fail_not_located'] + s['fail_not_located_below']} ({s['fail_not_located_below']}) | "
                 f"{pct(s['escapes'], s['photos'])} | {s['below_stated_limit']} | "
                 f"{s['invalid'] + s['invalid_above']} ({s['invalid_above']}) |"
@@ -770,6 +793,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--render-root", type=Path, help="a checkout whose workbench renders (default: this one)")
     ap.add_argument("--spp", type=int, default=16, help="Mitsuba samples per pixel (default 16)")
+    ap.add_argument(
+        "--finish",
+        choices=("look", "glossy", "matte"),
+        default="look",
+        help="validate --finish: the film each look renders (default: glossy where it has a gloss), or one for all",
+    )
     args = ap.parse_args(argv)
     args.out = args.out.resolve()
     env_validate = {**os.environ, "PYTHONPATH": str(ROOT)}

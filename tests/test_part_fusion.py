@@ -249,3 +249,79 @@ def test_what_one_photo_found_apart_stays_apart_and_each_photo_shows_a_defect_on
     assert by_centre[0]["area_mm2_by_photo"] == {"a.png": 28.1, "b.png": 25.9}
     assert by_centre[0]["centre_mm"] == pytest.approx([113.15, 140.3])
     assert by_centre[1]["photos"] == ["a.png"] and by_centre[1]["area_mm2"] == 25.1
+
+
+def test_a_region_one_photo_cannot_tell_from_light_is_open_not_failed():
+    """On a glossy film, ink gone that no test tells from a glint fails nothing and passes nothing."""
+    from workbench.validate.rule import defect_decision, photo_verdict
+
+    d = {
+        "kind": "missing", "area_mm2": 46.7, "significance_z": 25.6, "centre_mm": [86.2, 39.2], "unresolved": True,
+        "photometric": {"hypothesis": "not told", "separation_sigma": 0.35},
+    }  # fmt: skip
+    why = defect_decision(d, 4.0)
+    assert why["hypothesis"] == "ink gone or light" and not why["fails"] and why["open"]
+    assert "(the two 0.35 σ of the photo's noise apart)" in why["words"] and "more than 16° away" in why["words"]
+    entry = {
+        "tiles": 20, "tiles_examined": 20, "ssim": 0.9, "misregistration_mm": {"p95": 0.1}, "defects": [d],
+    }  # fmt: skip
+    verdict, reason = photo_verdict(entry, 0.2, 4.0)
+    assert verdict == "INCOMPLETE" and reason.startswith("1 region > 4 mm² the photo cannot tell a defect from light")
+    assert "no defect > 4 mm²" in reason  # (the open region is not counted among the defects told)
+    # told ink gone beside it: the photo fails
+    told = {"kind": "missing", "area_mm2": 20.0, "significance_z": 9.0, "centre_mm": [10.0, 10.0]}
+    assert photo_verdict({**entry, "defects": [d, told]}, 0.2, 4.0)[0] == "FAIL"
+    # an open region within the accepted area leaves the photo as it was
+    assert photo_verdict({**entry, "defects": [{**d, "area_mm2": 3.0}]}, 0.2, 4.0)[0] == "PASS"
+    # a slide a smooth light explains as well, out of the lamp's cone: open alike
+    slid = {
+        "kind": "shift", "area_mm2": 23.1, "significance_z": 24.8, "centre_mm": [75.5, 97.8], "peak_mm": 0.67,
+        "explained_share": 0.74, "explained_under_light_share": 0.32, "unresolved": True,
+    }  # fmt: skip
+    why = defect_decision(slid, 4.0)
+    assert why["hypothesis"] == "the film slid or light" and not why["fails"] and why["open"]
+    assert "(32 % with the light)" in why["words"]
+    assert photo_verdict({**entry, "defects": [slid]}, 0.2, 4.0)[0] == "INCOMPLETE"
+    assert defect_decision({**slid, "unresolved": False}, 4.0)["fails"]
+
+
+@pytest.mark.parametrize("angle_deg, told", [(30.0, True), (10.0, False)])
+def test_an_open_region_two_photos_find_from_directions_no_lamp_shares_is_ink_gone(angle_deg, told):
+    """A and C both find the region and cannot tell it from light: 30° apart seen from it, no one
+    glint shows in both, and it is ink gone, which fails the part; 10° apart it stays open."""
+    from types import SimpleNamespace
+
+    from workbench.validate.part import decided_in_part, open_told_elsewhere, part_summary
+    from workbench.validate.rule import defect_decision, photo_verdict
+
+    entries, states, maps, X = three_photos(angle_deg)
+    entries, states = [entries[0], entries[2]], [states[0], states[2]]
+    for e in entries:
+        d = e["defects"][0]
+        d.update(id=1, significance_z=20.0, unresolved=True)
+        d["decided_by"] = defect_decision(d, 4.0)
+        e.update(tiles=20, tiles_examined=20, ssim=0.9, misregistration_mm={"p95": 0.1})
+        e["verdict"], e["reason"] = photo_verdict(e, 0.2, 4.0)
+        assert e["verdict"] == "INCOMPLETE"
+    got = open_told_elsewhere(entries, states, PPM, 4.0, X)
+    grid = SimpleNamespace(owner=np.zeros(states[0].shape, np.int32))
+    if not told:
+        assert got == []
+        part, _, defects = part_summary(states, grid, ["top"], entries)
+        assert part["verdict"] == "INCOMPLETE" and defects[0]["unresolved"]
+        return
+    assert [x["photo"] for x in got] == ["a.png", "c.png"]
+    assert got[0]["decided_by"]["hypothesis"] == "ink gone" and got[0]["decided_by"]["apart_deg"] == 30.0
+    assert "c.png found it too, at the same print position, from 30° away" in got[0]["decided_by"]["words"]
+    in_part = {}
+    for x in got:
+        e = entries[x["photo_index"]]
+        kept = {**e, "defects": [decided_in_part(d, x, 4.0) for d in e["defects"]]}
+        assert kept["defects"][0]["decided_by"]["fails"] and "unresolved" not in kept["defects"][0]
+        in_part[x["photo_index"]] = photo_verdict(kept, 0.2, 4.0)
+    part, _, defects = part_summary(states, grid, ["top"], entries, got, in_part)
+    assert part["verdict"] == "FAIL" and "unresolved" not in defects[0]
+    # (the photos' own entries stay as each found it)
+    assert all(e["defects"][0]["unresolved"] for e in entries)
+    # without the surface no angle is known: it stays open
+    assert open_told_elsewhere(entries, states, PPM, 4.0) == []

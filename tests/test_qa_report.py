@@ -102,8 +102,13 @@ def test_a_defect_is_circled_and_tabled_on_page_one(defective):
     report, pdf = defective
     first = page_texts(pdf)[0]
     over = [d for d in report["part"]["defects"] if d["area_mm2"] > report["max_defect_mm2"]]
+    # (a region the one glossy photo cannot tell from a glint is open: to look at again, not to reject)
+    still = [d for d in over if d.get("unresolved")]
+    over = [d for d in over if not d.get("unresolved")]
     assert over, report["part"]["defects"]
     assert f"Reject or rework the part: {len(over)} defect(s) larger than 4 mm²" in first
+    # (the glossy photo's dropout over the checker's dark ink: one photo cannot tell it from a glint)
+    assert still and f"Look at {len(still)} region(s) larger than 4 mm²" in first
     for d in report["part"]["defects"]:
         assert f"x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f}" in first
     assert "defect(s) circled and numbered" in first

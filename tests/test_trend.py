@@ -226,10 +226,12 @@ def test_a_version_1_store_is_migrated(tmp_path, capsys):
     with engine.connect() as conn:
         versions = conn.execute(select(schema_version.c.version).order_by(schema_version.c.version)).scalars().all()
         got = conn.execute(select(validations.c.film_offset_x_mm, validations.c.delta_e00_mean)).all()
+        incomplete = conn.execute(select(validations.c.photos_incomplete)).scalars().all()
         indexes = {i["name"] for i in inspect(conn).get_indexes("validations")}
         assert inspect(conn).has_table("calibrations")
     engine.dispose()
-    assert versions == [1, 2] == list(range(1, LATEST + 1))
+    assert versions == [1, 2, 3] == list(range(1, LATEST + 1))
+    assert incomplete == [0] * 16  # (filled from each record's validation.json: its photos' verdicts)
     assert [g[0] for g in got] == pytest.approx(run.x.tolist()) and [g[1] for g in got] == pytest.approx(run.delta_e)
     assert {"ix_validations_design", "ix_validations_job"} <= indexes
 

@@ -61,6 +61,7 @@ class Args:
     report_only = False
     spp = 16
     validation = "validation"
+    finish = "look"
 
 
 def run(photos: list, out) -> dict:
@@ -83,17 +84,20 @@ def fast(tmp_path_factory):
 def check(photo, may_be_below: bool = True) -> None:
     """A perfect photo PASSes; a defect FAILs, found where it is at its size, unless validate
     states it cannot find it there (``may_be_below``; the issue's acceptance cases at 12 Mpx
-    must be above the stated limit)."""
+    must be above the stated limit). On a glossy film a defect the photo cannot tell from a
+    glint may be open instead (the photo INCOMPLETE, the defect located and sized among its open
+    regions: a second photo decides it), and a perfect photo INCOMPLETE alike, never FAIL."""
     r = photo.result
     assert "verdict" in r, r  # rendered and validated
+    glossy = vc.look_finish(photo.look) == "glossy"
     if photo.defect is None:
-        assert r["verdict"] == "PASS", (r["reason"], r["defects_found"])
+        assert r["verdict"] == "PASS" or (glossy and r["verdict"] == "INCOMPLETE"), (r["reason"], r["defects_found"])
         return
     assert r["stated"] is not None, "validate states no detection maps"
     if vc.below_stated_limit(r["truth"], r["detection_limit"], r["stated"]):
         assert may_be_below, f"{photo.defect}: validate states it cannot find it here: {r['stated']}"
         pytest.skip(f"{photo.defect} is below the detection limit validate states: {r['stated']}")
-    assert r["verdict"] == "FAIL", r["reason"]
+    assert r["verdict"] == "FAIL" or (glossy and r["outcome"] == "open"), r["reason"]
     assert len(r["truth"]) == 1
     m = r["match"][0]
     assert m["found"] is not None, r["defects_found"]
@@ -164,3 +168,29 @@ def test_acceptance_at_12_mpx(bench, photo):
     if photo.id not in bench:
         pytest.skip("Mitsuba: the render command has no --renderer")
     check(bench[photo.id], may_be_below=False)
+
+
+def test_a_glint_one_photo_cannot_tell_from_ink_gone_is_open_on_a_glossy_film(tmp_path):
+    """The snail's shell seen from above, glossy, perfect: a soft glint over dark ink reaches the
+    film's colour without clipping, and no light the photo shows elsewhere tells it from ink that
+    is gone (it failed as 30.8 mm² of "missing", separation 0.6 sigma). Alone, on a glossy film,
+    the photo is INCOMPLETE with that region open and no ink gone stated found under it; said to be
+    matte, the film adds no light, and the region is ink gone."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    photo = vc.Photo("snail", "top", "2000x1500", "glossy", "workbench", seed=218)
+    designs = {"snail": vc.design_part("snail", tmp_path, env)}
+    reports = {}
+    for finish in ("glossy", "matte"):
+        args = type("A", (Args,), {"finish": finish, "validation": f"validation_{finish}"})
+        assert vc.run_photo(photo, tmp_path, designs, env, env, args).result.get("verdict"), photo.result
+        vdir = tmp_path / "photos" / photo.id / args.validation
+        reports[finish] = json.loads((vdir / "validation.json").read_text())
+    glossy, matte = (reports[f]["photos"][0] for f in ("glossy", "matte"))
+    assert glossy["verdict"] == "INCOMPLETE" and reports["glossy"]["part"]["verdict"] == "INCOMPLETE"
+    (shell,) = [d for d in glossy["defects"] if d["area_mm2"] > 4]
+    assert shell["unresolved"] and shell["decided_by"]["hypothesis"] == "ink gone or light"
+    assert not shell["decided_by"]["fails"] and "cannot tell" in reports["glossy"]["part"]["reason"]
+    assert matte["verdict"] == "FAIL"
+    (gone,) = [d for d in matte["defects"] if d["area_mm2"] > 4]
+    assert gone["kind"] == "missing" and gone["decided_by"]["fails"] and "unresolved" not in gone
+    assert gone["centre_mm"] == pytest.approx(shell["centre_mm"])

@@ -32,14 +32,21 @@ from workbench.validate.coverage import (
     CoverageOptions,
     coverage_words,
     next_photo_words,
+    open_next_photo,
     part_coverage,
 )
-from workbench.validate.part import add_found_together, light_in_one_photo, part_summary
+from workbench.validate.part import (
+    add_found_together,
+    decided_in_part,
+    light_in_one_photo,
+    open_told_elsewhere,
+    part_summary,
+)
 from workbench.validate.part_colour import fused_colour, photo_names, take_colour_maps
 from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
 from workbench.validate.report_html import interactive_report
-from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, photo_verdict, verdict_rule
+from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, open_reason, photo_verdict, verdict_rule
 from workbench.validate.slide_fusion import FusionOptions, fused_part_limit, slides_found_together
 
 
@@ -50,7 +57,8 @@ def add_parser(sub) -> None:
         description=(
             "For each photo: pose from the fixture's markers, the photo warped into the designed view through "
             "the mesh, misregistration (px in the view, mm on the surface), similarity, coverage, the film "
-            "placement error that explains it, and a verdict (PASS, FAIL, or INVALID with the reason). Writes "
+            "placement error that explains it, and a verdict (PASS, FAIL, INCOMPLETE or INVALID with the reason). "
+            "Writes "
             "validation.json, per photo the warped photo, an overlay and a heat map, qa_report.pdf, and "
             "qa_report.html (one self-contained page: the part in 3D with its defects and coverage, its photos)."
         ),
@@ -137,6 +145,14 @@ def add_parser(sub) -> None:
             "part's photos together must be able to find it on for a PASS; less is INCOMPLETE, with the "
             f"uncovered regions and the next photo to take (default {MIN_COVERAGE:g}; 0: coverage not required)"
         ),
+    )
+    p.add_argument(
+        "--finish",
+        choices=("glossy", "matte"),
+        default="glossy",
+        help="the film's surface. glossy (default): it may mirror a lamp, and a region a photo cannot tell ink gone "
+        "from a glint on is open, decided by another photo from elsewhere (the part is INCOMPLETE until one does); "
+        "matte: it adds no light that looks like ink gone, and such a region is ink gone",
     )
     p.add_argument(
         "--jobs",
@@ -340,20 +356,23 @@ def usable_profile(path: Path):
 
 
 def _validate_in_worker(job: tuple) -> tuple[dict, dict, np.ndarray | None, dict]:
-    photo, stem, view, tolerance_mm, max_defect_mm2, seat, colour = job
+    photo, stem, view, tolerance_mm, max_defect_mm2, seat, colour, finish = job
     return _timed(
         Path(photo), _WORKER["design"], _WORKER["profile"], view, tolerance_mm, _WORKER["cache"], stem, max_defect_mm2,
-        seat, colour,
+        seat, colour, finish,
     )  # fmt: skip
 
 
-def _timed(path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat=("on", 2.0, None), colour=None):
+def _timed(
+    path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat=("on", 2.0, None), colour=None,
+    finish="glossy",
+):  # fmt: skip
     """:func:`validate_photo`, timed; ``colour``: (max_delta_e, the soft proof's output profile bytes or None)."""
     max_delta_e, proof = colour or (MAX_DELTA_E, None)
     t0 = time.perf_counter()
     entry, pics, state, pages = validate_photo(
         path, design, profile, view, tolerance_mm, cache, stem, max_defect_mm2, seat[0], seat[1], max_delta_e, proof,
-        held=seat[2],
+        held=seat[2], finish=finish,
     )  # fmt: skip
     entry["seconds"] = round(time.perf_counter() - t0, 3)
     return entry, pics, state, pages
@@ -462,13 +481,15 @@ def run(args) -> int:
     proof = read_output_profile(output_profile) if output_profile else None
     stems = output_stems(photos)
     seat = (args.seating, args.max_seating_mm, held)
-    judge = (args.view, args.tolerance_mm, args.max_defect_mm2, seat, (args.max_delta_e, proof))
+    judge = (args.view, args.tolerance_mm, args.max_defect_mm2, seat, (args.max_delta_e, proof), args.finish)
     work = [(p, stem, *judge) for p, stem in zip(photos, stems, strict=True)]
     progress.say(f"{len(work)} photo(s) of {design.dir}, {jobs} at a time")
     if jobs > 1:
         results = validate_in_pool(jobs, work, design, profile, profile_path, cache)
     else:
-        results = (_timed(Path(p), design, profile, v, t, cache, stem, m, st, c) for p, stem, v, t, m, st, c in work)
+        results = (
+            _timed(Path(p), design, profile, v, t, cache, stem, m, st, c, f) for p, stem, v, t, m, st, c, f in work
+        )
     pages: dict = {}
     for photo, (entry, pics, state, shown) in zip(photos, results, strict=True):
         entry["photo"] = recorded_path(photo, out)  # relative to the report's folder, beside its sha256
@@ -507,26 +528,61 @@ def run(args) -> int:
     del slides  # (23 bytes a grid pixel a photo: not kept through the reports)
     # one print, one colour: each print pixel judged in the photo that sees it most squarely
     colour, colour_map = fused_colour(take_colour_maps(entries), photo_names(entries), args.max_delta_e)
+    # an open region (a defect or a glint: the photo could not tell) that another photo from far
+    # enough away found at the same print position stays on the print: a defect
+    told = open_told_elsewhere(entries, states, grid.px_per_mm, args.max_defect_mm2, grid.X, dismissed) if grid else []
     in_part = {}
     for k, e in enumerate(entries):
         gone = {x["id"] for x in dismissed if x["photo_index"] == k}
+        told_here = {x["id"]: x for x in told if x["photo_index"] == k}
         colour_failed = colour is not None and (e.get("colour") or {}).get("verdict") == "FAIL"
-        if not gone and not colour_failed:
+        if not gone and not colour_failed and not told_here:
             continue
-        kept = {**e, "defects": [d for d in e["defects"] if d.get("id") not in gone]}
+        kept = {
+            **e,
+            "defects": [
+                decided_in_part(d, told_here.get(d.get("id")), args.max_defect_mm2)
+                for d in e["defects"]
+                if d.get("id") not in gone
+            ],
+        }
         if colour_failed:
             kept.pop("colour")  # (the part's colour is judged over all its photos)
         in_part[k] = photo_verdict(kept, args.tolerance_mm, args.max_defect_mm2, args.max_delta_e)
     for x in dismissed + together_light:
         log(f"{x['photo']}: {x['kind']} of {x['area_mm2']:.1f} mm² is light: {x['decided_by']['words']}")
+    for x in told:
+        log(
+            f"{x['photo']}: the open region of {x['area_mm2']:.1f} mm² is {x['decided_by']['hypothesis']}: "
+            f"{x['decided_by']['words']}"
+        )
     for d in together:
         log(
             f"the part: {d['kind']} of {d['area_mm2']:.1f} mm² found by its photos together: {d['decided_by']['words']}"
         )
-    part, combined, part_defects = part_summary(states, grid, names, entries, dismissed, in_part, colour)
+    part, combined, part_defects = part_summary(states, grid, names, entries, dismissed + told, in_part, colour)
     add_found_together(part, together)
+    # regions still open over the verdict's area: no photo of the part told a defect from light there
+    still = [
+        d
+        for d in part.get("defects", [])
+        if d.get("unresolved") and d.get("significant") and d["area_mm2"] > args.max_defect_mm2
+    ]
+    if part["verdict"] == "PASS" and still:
+        part["verdict"] = "INCOMPLETE"  # (found by a photo that is INVALID for its texture, say)
+    if part["verdict"] == "INCOMPLETE" and "reason" not in part:
+        if still:
+            part["reason"] = open_reason(still, args.max_defect_mm2)
+        else:
+            part["reason"] = next(
+                in_part.get(k, (e["verdict"], e["reason"]))[1]
+                for k, e in enumerate(entries)
+                if in_part.get(k, (e["verdict"], None))[0] == "INCOMPLETE"
+            )
     if dismissed or together_light:
         part["dismissed"] = [{k: v for k, v in x.items() if k != "photo_index"} for x in dismissed] + together_light
+    if told:
+        part["open_decided"] = [{k: v for k, v in x.items() if k != "photo_index"} for x in told]
     if in_part:
         part["photo_verdicts_in_part"] = {Path(entries[k]["photo"]).name: v for k, (v, _) in in_part.items()}
         part["photo_reasons_in_part"] = {Path(entries[k]["photo"]).name: r for k, (_, r) in in_part.items()}
@@ -551,6 +607,17 @@ def run(args) -> int:
         px = [((e.get("dense") or {}).get("resolution") or {}).get("photo_px_per_mm") for e in entries]
         px = max((v for v in px if v), default=None)
         part["coverage"], uncovered = part_coverage(maps, grid, combined, seen_from, opts, px)
+        if part["verdict"] == "INCOMPLETE" and still and intrinsics is not None:
+            # the photo that decides the open regions: one that sees them from more than 16° away
+            # from every photo that already did (where no one glint shows in both)
+            nxt = open_next_photo(still, combined, grid, seen_from)
+            if nxt is not None:
+                part["coverage"]["next_photo"] = nxt
+                part["reason"] += (
+                    f"; next photo: azimuth {nxt['orbit'][0]:g}°, elevation {nxt['orbit'][1]:g}°, "
+                    f"{nxt['orbit'][2]:g} mm from the part's centre (it sees {100 * nxt['sees_share']:.0f} % of the "
+                    "open regions from a new angle)"
+                )
         if part["verdict"] == "PASS" and not part["coverage"]["complete"]:
             part["verdict"] = "INCOMPLETE"
             advice = next_photo_words(part["coverage"])
@@ -588,7 +655,9 @@ def run(args) -> int:
             if output_profile
             else {"output_profile": None, "note": "the design's sRGB as it is (no --output-profile)"}
         ),
-        "verdict_rule": verdict_rule(args.tolerance_mm, args.max_defect_mm2, args.max_delta_e, args.min_coverage),
+        "verdict_rule": verdict_rule(
+            args.tolerance_mm, args.max_defect_mm2, args.max_delta_e, args.min_coverage, args.finish
+        ),
         "part": part,
         "photos": entries,
     }

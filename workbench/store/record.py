@@ -98,6 +98,7 @@ def validation_rows(report_text: str, out: Path, written: list[Path], rec: Recor
         "photos_pass": verdicts.count("PASS"),
         "photos_fail": verdicts.count("FAIL"),
         "photos_invalid": verdicts.count("INVALID"),
+        "photos_incomplete": verdicts.count("INCOMPLETE"),
         "worst_p95_mm": max(p95s) if p95s else None,
         "defects": len(part_defects),
         "largest_defect_mm2": max((d["area_mm2"] for d in part_defects), default=None),

@@ -58,12 +58,15 @@ validations = Table(
     Column("film_offset_y_mm", Float),
     Column("film_rotation_deg", Float),
     Column("delta_e00_mean", Float),
+    # version 3: photos whose verdict is INCOMPLETE (a region they cannot tell a defect from light on)
+    Column("photos_incomplete", Integer),
     Index("ix_validations_design", "design_json_sha256", "id"),
     Index("ix_validations_job", "job", "id"),
 )
 # the columns and indexes version 2 added to ``validations``
 ADDED_IN_2 = ("film_offset_x_mm", "film_offset_y_mm", "film_rotation_deg", "delta_e00_mean")
 INDEXES_IN_2 = ("ix_validations_design", "ix_validations_job")
+ADDED_IN_3 = ("photos_incomplete",)
 
 photos = Table(
     "photos",
@@ -152,7 +155,7 @@ def _create_version_1(conn) -> None:
         *(
             Column(c.name, c.type, primary_key=c.primary_key, nullable=c.nullable, index=c.index)
             for c in validations.columns
-            if c.name not in ADDED_IN_2
+            if c.name not in ADDED_IN_2 + ADDED_IN_3
         ),
     )
     for table in (photos, defects, files):
@@ -178,10 +181,23 @@ def _create_version_2(conn) -> None:
             conn.execute(update(validations).where(validations.c.id == vid).values(**figures))
 
 
+def _create_version_3(conn) -> None:
+    for name in ADDED_IN_3:
+        column = validations.c[name]
+        conn.exec_driver_sql(f"ALTER TABLE validations ADD COLUMN {name} {column.type.compile(dialect=conn.dialect)}")
+    # the parts recorded before: their INCOMPLETE photos from the validation.json each record keeps
+    rows = conn.execute(select(validations.c.id, validations.c.validation_json)).all()
+    for vid, text in rows:
+        verdicts = [(e or {}).get("verdict") for e in json.loads(text).get("photos") or [] if isinstance(e, dict)]
+        n = verdicts.count("INCOMPLETE")
+        conn.execute(update(validations).where(validations.c.id == vid).values(photos_incomplete=n))
+
+
 # (number, what it does, the step): append a step for every change, never edit one released
 MIGRATIONS: list[tuple[int, str, Callable]] = [
     (1, "validations, their photos, defects and files", _create_version_1),
     (2, "the part's film offset, rotation and mean colour difference; calibration checks", _create_version_2),
+    (3, "the part's photos whose verdict is INCOMPLETE", _create_version_3),
 ]
 LATEST = MIGRATIONS[-1][0]
 

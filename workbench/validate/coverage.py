@@ -351,6 +351,41 @@ def next_photo(
     return {"orbit": [float(best[0]), float(best[1]), round(dist, 1)], "sees_share": round(best_n / len(X), 4)}
 
 
+def open_next_photo(still: list[dict], combined: np.ndarray, grid, seen_from: tuple) -> dict | None:
+    """The next photo for the part's open regions (:func:`next_photo` on their pixels), or None.
+
+    A region a photo cannot tell a defect from light on is decided by a photo from more than
+    twice the lamp's mirror cone away from every photo that saw it (:func:`next_photo` keeps
+    only such views).
+
+    Parameters
+    ----------
+    still : list of dict
+        The part's open defects (``bbox_mm``, print mm).
+    combined : (H, W) uint8
+        The part's state map (their pixels: DEFECT within their boxes).
+    grid : PrintGrid
+        The analysis grid (``X``, ``face``, ``px_per_mm``).
+    seen_from : tuple
+        (V, F, camera centres (k, 3), intrinsics Camera, orbit_camera), as :func:`part_coverage`
+        takes them.
+
+    Returns
+    -------
+    dict or None
+        :func:`next_photo`'s answer with ``for``: "the open regions".
+    """
+    where = np.zeros(combined.shape, bool)
+    for d in still:
+        x0, y0, x1, y1 = (int(round(v * grid.px_per_mm)) for v in d["bbox_mm"])
+        box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
+        where[box] |= combined[box] == print_warp.DEFECT
+    ii, jj = np.nonzero(where & np.isfinite(grid.X[..., 0]))
+    V, F, centres, intrinsics, orbit = seen_from
+    nxt = next_photo(V, F, grid.X[ii, jj], grid.face[ii, jj], centres, intrinsics, orbit)
+    return None if nxt is None else {**nxt, "for": "the open regions"}
+
+
 def part_coverage(
     maps: dict, grid, combined: np.ndarray, photos, opts: CoverageOptions, photos_px_per_mm: float | None = None
 ) -> tuple[dict, dict]:

@@ -7,9 +7,10 @@ from pathlib import Path
 import numpy as np
 
 from workbench.validate import dense, print_warp
-from workbench.validate.rule import judged_delta_e
+from workbench.validate.dense import APART_DEG
+from workbench.validate.rule import defect_decision, judged_delta_e, significant
 from workbench.validate.slide_evidence import claim_seen_in_place
-from workbench.validate.slide_fusion import APART_DEG, angle_deg, camera_rays
+from workbench.validate.slide_fusion import angle_deg, camera_rays
 
 
 def light_in_one_photo(
@@ -133,6 +134,11 @@ def light_in_one_photo(
 
 def _as_light(a: int, d: dict, found_in: str, seen_by: str, share: float, words: str, **more) -> dict:
     """Defect ``d`` of photo ``a`` dismissed for the part as light, with what decided it (``more``: its figures)."""
+    return _decided(a, d, found_in, seen_by, "light", words, share=round(share, 3), **more)
+
+
+def _decided(a: int, d: dict, found_in: str, seen_by: str, hypothesis: str, words: str, **more) -> dict:
+    """Defect ``d`` of photo ``a`` as the part decided it, by photo ``seen_by`` (``more``: the figures that decided)."""
     return {
         "photo_index": a,
         "photo": found_in,
@@ -141,9 +147,8 @@ def _as_light(a: int, d: dict, found_in: str, seen_by: str, share: float, words:
         "area_mm2": d["area_mm2"],
         "centre_mm": d["centre_mm"],
         "decided_by": {
-            "hypothesis": "light",
+            "hypothesis": hypothesis,
             "photo": seen_by,
-            "share": round(share, 3),
             **more,
             "found_as": d.get("decided_by"),
             "words": words,
@@ -207,6 +212,97 @@ def _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) -> i
     return None
 
 
+def open_told_elsewhere(
+    entries: list[dict],
+    states: list,
+    px_per_mm: float,
+    max_defect_mm2: float,
+    X: np.ndarray | None = None,
+    dismissed: list | None = None,
+) -> list[dict]:
+    """Open regions (a defect a photo cannot tell from light) another photo found at the same print position: defects.
+
+    On a glossy film a photo cannot tell ink that is gone from a glint where the ink's colour
+    with light added is the film's, nor a slide from a smooth light (``unresolved``). A glint at
+    one print position in two photos needs one lamp mirrored into both cameras there, and
+    reflection keeps the angle between two rays: cameras more than APART_DEG apart, seen from the
+    surface, cannot share it. Another photo from that far that found a defect over most of the
+    region (:func:`_found_from_elsewhere`) shows that it stays on the print: ink gone (or the film
+    slid), which fails the part like any other.
+
+    Parameters
+    ----------
+    entries : list of dict
+        The photos' entries (``defects`` with ``unresolved``, ``area_mm2``, ``bbox_mm``, ``centre_mm``).
+    states : list of (H, W) uint8 or None
+        Each photo's state map on the print's grid.
+    px_per_mm : float
+        The grid's resolution.
+    max_defect_mm2 : float
+        Only regions over the verdict's area are decided (the others do not fail the part).
+    X : (H, W, 3) float, optional
+        The surface point under each grid pixel, mm (without it, no region is decided).
+    dismissed : list of dict, optional
+        The defects already dismissed as light (:func:`light_in_one_photo`).
+
+    Returns
+    -------
+    list of dict
+        One per region decided: ``photo_index``, ``photo``, ``id``, ``kind``, ``area_mm2``,
+        ``centre_mm`` and ``decided_by`` (``hypothesis`` ink gone or the film slid, the
+        ``photo`` that found it too, ``apart_deg``, ``words``).
+    """
+    gone = {(x["photo_index"], x["id"]) for x in dismissed or []}
+    out = []
+    for a, (ea, sa) in enumerate(zip(entries, states, strict=True)):
+        if sa is None:
+            continue
+        for d in ea.get("defects", []):
+            if not d.get("unresolved") or d["area_mm2"] <= max_defect_mm2 or (a, d.get("id")) in gone:
+                continue
+            x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
+            box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
+            region = sa[box] == print_warp.DEFECT
+            c = _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) if region.any() else None
+            if c is None:
+                continue
+            apart = _apart_deg(ea, entries[c], d, X, px_per_mm)
+            found_in, seen_by = Path(ea["photo"]).name, Path(entries[c]["photo"]).name
+            what = "ink gone" if d["kind"] == "missing" else "the film slid"
+            words = (
+                f"{seen_by} found it too, at the same print position, from {apart:.0f}° away seen from the surface "
+                f"(more than {APART_DEG:g}°: no one lamp is mirrored into both cameras there): it stays on the "
+                f"print, {what}, not a glint in {found_in}"
+            )
+            out.append(_decided(a, d, found_in, seen_by, what, words, apart_deg=round(apart, 1)))
+    return out
+
+
+def decided_in_part(d: dict, told: dict | None, max_defect_mm2: float) -> dict:
+    """A photo's defect as the part decided it: an open region another photo told is a defect.
+
+    Parameters
+    ----------
+    d : dict
+        The photo's defect.
+    told : dict or None
+        Its entry of :func:`open_told_elsewhere`; None: the part leaves it as the photo found it.
+    max_defect_mm2 : float
+        The verdict's area, print mm².
+
+    Returns
+    -------
+    dict
+        ``d`` (as it is), or a copy without ``unresolved``, decided again, with the part's words
+        under ``decided_by.by_part``.
+    """
+    if told is None:
+        return d
+    kept = {k: v for k, v in d.items() if k != "unresolved"}
+    kept["decided_by"] = {**defect_decision(kept, max_defect_mm2), "by_part": told["decided_by"]["words"]}
+    return kept
+
+
 def part_summary(
     states: list,
     grid,
@@ -221,15 +317,19 @@ def part_summary(
     Each print pixel keeps the most telling state any photo gives it (defective over measured
     over masked over unseen); defects are the connected defective regions of that map.
 
+    ``dismissed``: the photos' defects the part decided (:func:`light_in_one_photo`, light: not
+    the part's; :func:`open_told_elsewhere`, ink gone: no longer open).
+
     Returns
     -------
     summary : dict
         verdict (FAIL when any photo fails, by its verdict in the part, ``in_part``, where another
-        photo showed one of its defects to be light or its colour is the part's to judge, or when
-        the part's ``colour`` (:func:`workbench.validate.part_colour.fused_colour`) fails; PASS
-        when every scored photo passes, INVALID when none was scored), coverage of the part's
-        print and of each view's region, defects, ``colour`` (:func:`colour_summary`) and, when
-        its colour fails it, ``reason``.
+        photo showed one of its defects to be light or ink gone or its colour is the part's to
+        judge, or when the part's ``colour`` (:func:`workbench.validate.part_colour.fused_colour`)
+        fails; else INCOMPLETE when a photo is, a region it cannot tell ink gone from light on
+        still open; PASS when every scored photo passes, INVALID when none was scored), coverage
+        of the part's print and of each view's region, defects (``unresolved`` when open),
+        ``colour`` (:func:`colour_summary`) and, when its colour fails it, ``reason``.
     combined : (rows, cols) uint8
         The combined state map.
     defects : list of dict
@@ -238,10 +338,13 @@ def part_summary(
     scored = [s for s in states if s is not None]
     # (a photo's verdict in the part: without what another photo showed to be light in it)
     in_part = in_part or {}
-    gone = {(x["photo_index"], x["id"]) for x in dismissed or []}
+    gone = {(x["photo_index"], x["id"]) for x in dismissed or [] if x["decided_by"]["hypothesis"] == "light"}
+    told = {(x["photo_index"], x["id"]) for x in dismissed or [] if x["decided_by"]["hypothesis"] != "light"}
     verdicts = [in_part.get(k, (e["verdict"], None))[0] for k, e in enumerate(entries)]
     if "FAIL" in verdicts:
         verdict = "FAIL"
+    elif "INCOMPLETE" in verdicts:
+        verdict = "INCOMPLETE"
     elif "PASS" in verdicts:
         verdict = "PASS"
     else:
@@ -264,6 +367,8 @@ def part_summary(
                 continue  # light in this photo: another photo sees the ink (light_in_one_photo)
             x0, y0, x1, y1 = d["bbox_mm"]
             seen = _seen(d, e)
+            seen["open"] = bool(d.get("unresolved")) and (k, d.get("id")) not in told
+            seen["significant"] = significant(d)
             # (into the part defect whose box it overlaps most, among those this photo has not shown
             # yet: what one photo found apart stays apart, two dropouts 14 mm apart whose boxes
             # touched included; what several photos found at one place is one defect)
@@ -294,6 +399,10 @@ def part_summary(
         seen = m.pop("seen")
         best = fused_view(seen)
         m.update(centre_mm=best["centre_mm"], area_mm2=best["area_mm2"], kind=best["kind"])
+        if all(x["open"] for x in seen):
+            # (no photo told it: a defect or light, open; significant where a photo found it so)
+            m["unresolved"] = True
+            m["significant"] = any(x["significant"] for x in seen)
         if len(seen) > 1:
             m["located_by"] = best["photo"]
             m["area_mm2_by_photo"] = {x["photo"]: round(x["area_mm2"], 2) for x in seen}

@@ -155,6 +155,7 @@ def validate_photo(
     max_delta_e: float = MAX_DELTA_E,
     output_profile: bytes | None = None,
     held: dict | None = None,
+    finish: str = "glossy",
 ) -> tuple[dict, dict, np.ndarray | None, dict]:
     """Score one photo; never raises for a bad photo (its verdict says why).
 
@@ -165,6 +166,9 @@ def validate_photo(
     takes the part where the fixture puts it, an ``(R, t)`` pair is a motion measured already.
     ``held``: where the fixture holds the part (``R``, ``t_mm``: a stand that tilts it;
     ``validate --part-rotation-deg``); the seating is measured from there. None: as designed.
+    ``finish``: the film's, ``"glossy"`` or ``"matte"``: ink gone or a slide that no test tells
+    from light is open on a glossy film (``unresolved``: the photo cannot tell it from a glint),
+    a defect on a matte one, which adds no light.
 
     Returns
     -------
@@ -193,7 +197,7 @@ def validate_photo(
     try:
         return _validate_photo(
             path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,
-            max_delta_e, output_profile, entry, side, held,
+            max_delta_e, output_profile, entry, side, held, finish,
         )  # fmt: skip
     finally:
         # (a job still running, the print grid of a photo that is not scored, finishes on its
@@ -203,7 +207,7 @@ def validate_photo(
 
 def _validate_photo(
     path, design, profile, view_name, tolerance_mm, cache, stem, max_defect_mm2, seating, max_seating_mm,
-    max_delta_e, output_profile, entry, side, held=None,
+    max_delta_e, output_profile, entry, side, held=None, finish="glossy",
 ):  # fmt: skip
     """:func:`validate_photo`, with ``side`` the executor of the work that can go beside the photo's own."""
     files: dict = {}
@@ -409,6 +413,14 @@ def _validate_photo(
         # (what the flow measured of the film's slide: the part compares its photos' measures)
         entry["slide_measure"] = dr.slide
     entry["defects"] = defect_entries(dr, grid, design, pose.camera)
+    # ink gone, or a slide, that no test told from light: on a glossy film the photo cannot tell
+    # it from a glint (ink gone's colour is the ink's with light added as well as the film's; a
+    # slide's residual is a smooth light's as well), and it is open. (Its detection maps still
+    # state the defect flagged there: found, or open, and an open region never lets the part pass.)
+    if finish == "glossy":
+        for d in entry["defects"]:
+            if d.get("told") is False:
+                d["unresolved"] = True
     for d in entry["defects"]:
         d["decided_by"] = defect_decision(d, max_defect_mm2)
     # the regions taken for light, and the test that took each

@@ -198,7 +198,7 @@ def coverage_page(c, report: dict, pictures: dict[str, bytes], W: float, H: floa
         y -= 2 * mm
         line = (
             f"Next photo: azimuth {az:g}°, elevation {el:g}°, {dist:g} mm from the part's centre "
-            f"(sees {100 * nxt['sees_share']:.0f} % of what is uncovered from a new angle)"
+            f"(sees {100 * nxt['sees_share']:.0f} % of {nxt.get('for', 'what is uncovered')} from a new angle)"
         )
         y = _wrapped(c, line, y, W, font=("Helvetica-Bold", 9)) + 1.35 * 9 - 4 * mm
         c.setFont("Helvetica", 7)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import io
 from xml.sax.saxutils import escape
 
+from workbench.validate.dense.options import APART_DEG
+
 MARGIN_MM = 20.0  # left and right margins of every page
 TOP_MM = 15.0  # top and bottom margins of a flowed page
 MATCH_MM = 0.5  # a part's defect is a photo's circle when their centres are this close on the print
@@ -39,7 +41,23 @@ def actions(report: dict) -> list[str]:
             )
     moved = bool(out)
     limit = report.get("max_defect_mm2")
-    over = [k + 1 for k, d in enumerate(part.get("defects", [])) if limit is not None and d["area_mm2"] > limit]
+    over = [
+        k + 1
+        for k, d in enumerate(part.get("defects", []))
+        if limit is not None and d["area_mm2"] > limit and not d.get("unresolved")
+    ]
+    still = [
+        k + 1
+        for k, d in enumerate(part.get("defects", []))
+        if limit is not None and d["area_mm2"] > limit and d.get("unresolved") and d.get("significant", True)
+    ]
+    if still:
+        # (a region no photo told ink gone from a glint on: one from elsewhere tells, the next photo says where)
+        out.append(
+            f"Look at {len(still)} region(s) larger than {limit:g} mm² (# {', '.join(map(str, still))} in the defect "
+            "table) in another photo: no photo told ink gone from a glint there; a photo from more than "
+            f"{APART_DEG:g}° away from those that show it decides."
+        )
     if over:
         out.append(
             f"Reject or rework the part: {len(over)} defect(s) larger than {limit:g} mm² "
@@ -184,16 +202,17 @@ def defect_table(report: dict, shown: dict | None, width: float):
     over_rows = []
     for k, d in enumerate(defects):
         over = limit is not None and d["area_mm2"] > limit
-        if over:
+        if over and not d.get("unresolved"):
             over_rows.append(k + 1)
         rows.append(
             [
                 str(k + 1),
-                d["kind"],
+                # (a region no photo told ink gone from light on: open, not failed)
+                "missing or light?" if d.get("unresolved") else d["kind"],
                 f"x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f}",
                 f"{d['area_mm2']:.1f}",
                 d.get("view") or "-",
-                "yes" if over else "no",
+                ("open" if d.get("unresolved") else "yes") if over else "no",
                 circle_number(d, shown),
                 Paragraph(escape(", ".join(d["photos"])), st),
             ]
@@ -240,7 +259,11 @@ def first_page_story(report: dict, pictures: dict[str, bytes], pages: dict[str, 
     verdict = part.get("verdict", "INVALID")
     job = report["design"].get("job") or {}
     photos = report["photos"]
-    counts = ", ".join(f"{sum(e['verdict'] == v for e in photos)} {v}" for v in ("PASS", "FAIL", "INVALID"))
+    counts = ", ".join(
+        f"{n} {v}"
+        for v in ("PASS", "FAIL", "INCOMPLETE", "INVALID")
+        if (n := sum(e["verdict"] == v for e in photos)) or v != "INCOMPLETE"
+    )
     big = ParagraphStyle(
         "verdict", fontName="Helvetica-Bold", fontSize=30, leading=34, textColor=colors.Color(*VERDICT_COLOURS[verdict])
     )

@@ -292,7 +292,8 @@ def page_data(
         defects.append(
             {
                 "number": n + 1,
-                "kind": d["kind"],
+                # (a region no photo told ink gone from light on: open, not failed)
+                "kind": "missing or light? (open)" if d.get("unresolved") else d["kind"],
                 "area_mm2": round(float(d["area_mm2"]), 2),
                 "centre_mm": [round(float(v), 2) for v in d["centre_mm"]],
                 "view": d.get("view"),

@@ -1,4 +1,4 @@
-"""The acceptance rule: from a photo's figures to PASS, FAIL or INVALID, and the rule's text for the report."""
+"""The acceptance rule: a photo's figures to PASS, FAIL, INCOMPLETE or INVALID, and the rule's text for the report."""
 
 from __future__ import annotations
 
@@ -25,13 +25,45 @@ MIN_DENSE_WINDOWS = 4 * MIN_TILES
 # about what a trained eye sees side by side; a wrong ink or profile gives 4 to 9
 MAX_DELTA_E = 3.0
 TOO_LITTLE_TEXTURE = "too little texture to measure misregistration here; add texture or a calibration film"
+# what decides a region one photo cannot tell ink gone from light on (a glossy film's glint)
+OPEN_WORDS = (
+    f"a photo from more than {dense.APART_DEG:g}° away (seen from the surface) tells: a defect stays at its print "
+    "position in both, a glint does not (or --finish matte, if the film adds no light)"
+)
 
 
 def verdict_rule(
-    tolerance_mm: float, max_defect_mm2: float, max_delta_e: float = MAX_DELTA_E, min_coverage: float | None = None
+    tolerance_mm: float,
+    max_defect_mm2: float,
+    max_delta_e: float = MAX_DELTA_E,
+    min_coverage: float | None = None,
+    finish: str = "glossy",
 ) -> dict:
-    """The acceptance rule, as it goes into validation.json and the QA report (``min_coverage``: the part's)."""
+    """The acceptance rule, as it goes into validation.json and the QA report.
+
+    Parameters
+    ----------
+    tolerance_mm, max_defect_mm2, max_delta_e : float
+        The verdict's limits: misregistration (mm), a defect's area (print mm²), mean ΔE00.
+    min_coverage : float, optional
+        The part's coverage needed for a PASS (0 to 1); None: the photos' rule alone.
+    finish : str
+        The film's, ``"glossy"`` or ``"matte"``: what a region no photo tells from light is.
+
+    Returns
+    -------
+    dict
+        ``text`` and the figures it names.
+    """
     z = dense.SIGNIFICANCE_Z
+    if finish == "matte":
+        untold = "elsewhere it is ink gone (the film is matte: it adds no light that looks like ink gone)"
+    else:
+        untold = (
+            "elsewhere it is open (the film is glossy): the photo is INCOMPLETE, and the part decides it, ink gone "
+            f"where another photo from more than {dense.APART_DEG:g}° away finds it at the same print position, "
+            "light where another photo sees the ink intact"
+        )
     part = (
         ""
         if min_coverage is None
@@ -45,12 +77,14 @@ def verdict_rule(
             "colour then does not fail the part); PASS when its photos pass and "
             f"together can find a slide, ink gone and a scratch on at least {100 * min_coverage:.0f} % of each film "
             "where each would show; INCOMPLETE when they pass and cover less (the uncovered regions, why, and the "
-            "next photo are reported). A misregistration the film's fitted placement explains is reported as "
+            "next photo are reported), or when a region over that area no photo tells ink gone from light on "
+            "stays open. A misregistration the film's fitted placement explains is reported as "
             "the placement, with the move that corrects it; local defects are sought in what remains."
         )
     )
     return {
         **({"min_coverage": min_coverage} if min_coverage is not None else {}),
+        "finish": finish,
         "text": (
             f"FAIL when any defect is larger than {max_defect_mm2:g} mm² on the print, or the misregistration "
             f"p95 exceeds {tolerance_mm:g} mm by more than {z:g} times a measurement's uncertainty (from the tiles, "
@@ -77,8 +111,8 @@ def verdict_rule(
             f"region is below {z:g} does not fail the part. A colour region is ink gone or light by a "
             "photometric model (a likelihood ratio with the photo's noise: light keeps the ink's texture or goes "
             "beyond the bare film, ink gone shows the film); one the photo cannot tell is light only where the "
-            "surface mirrors the photo's lamp, and not measured there. Light beyond the bare film, deep shadows, "
-            "surface turned away from the camera, the photo's pixels along the part's outline and its folds, "
+            f"surface mirrors the photo's lamp, and not measured there; {untold}. Light beyond the bare film, deep "
+            "shadows, surface turned away from the camera, the photo's pixels along the part's outline and its folds, "
             "and detail finer than the photo resolves are masked, not scored for misregistration." + part
         ),
         "tolerance_mm": tolerance_mm,
@@ -123,18 +157,39 @@ def defect_decision(defect: dict, max_defect_mm2: float) -> dict:
     Returns
     -------
     dict
-        ``hypothesis`` (the film slid, ink gone, another colour), ``z`` (its significance as a
-        region), ``fails`` (bool), ``words``.
+        ``hypothesis`` (the film slid, ink gone, another colour; for a defect the photo cannot
+        tell from light, ``unresolved``: the film slid or light, ink gone or light), ``z`` (its
+        significance as a region), ``fails`` (bool), ``open`` (True for such a region over the
+        verdict's area, significant: it fails nothing and passes nothing), ``words``.
     """
     # (any figure may be missing or None: a region the colour test found has no slide)
     z, peak, share = (_number(defect.get(k)) for k in ("significance_z", "peak_mm", "explained_share"))
     at_z = f" (z = {z:.1f})" if z is not None else ""
     kind = defect["kind"]
-    if kind == "shift":
+    if kind == "shift" and defect.get("unresolved"):
+        hyp = "the film slid or light"
+        under = _number(defect.get("explained_under_light_share"))
+        what = (
+            "its slide" + (f" (up to {peak:.2f} mm)" if peak is not None else "") + " exceeds the tolerance" + at_z
+            + (f", but a smooth light explains the residual there as well ({100 * under:.0f} % with the light)"
+               if under is not None else "")
+            + ", with no lamp the photo shows mirrored there: on a glossy film this photo cannot tell them"
+        )  # fmt: skip
+    elif kind == "shift":
         hyp = "the film slid"
         what = "its slide" + (f" (up to {peak:.2f} mm)" if peak is not None else "") + " exceeds the tolerance" + at_z
         if share:
             what += f"; the print moved by the flow explains {100 * share:.0f} % of the residual there"
+    elif kind == "missing" and defect.get("unresolved"):
+        hyp = "ink gone or light"
+        sep = _number((defect.get("photometric") or {}).get("separation_sigma"))
+        what = (
+            "the photo steps from the ink towards the bare film's colour there, and light added over the ink "
+            "looks the same"
+            + (f" (the two {sep:.2f} σ of the photo's noise apart)" if sep is not None else "")
+            + ", with no lamp the photo shows mirrored there: on a glossy film this photo cannot tell them"
+            + at_z
+        )
     elif kind == "missing":
         hyp = "ink gone"
         what = "the photo steps from the ink to the bare film's colour there and the light tests took it for no light"
@@ -143,6 +198,9 @@ def defect_decision(defect: dict, max_defect_mm2: float) -> dict:
         hyp = "another colour"
         what = "the colour differs from the design's beyond the colour test's limit" + at_z
     big, sig = defect["area_mm2"] > max_defect_mm2, significant(defect)
+    if big and sig and defect.get("unresolved"):
+        verdict = f"open: {defect['area_mm2']:.1f} mm² > {max_defect_mm2:g} mm², {OPEN_WORDS}"
+        return {"hypothesis": hyp, "z": z, "fails": False, "open": True, "words": f"{what}; {verdict}"}
     if big and sig:
         verdict = f"fails: {defect['area_mm2']:.1f} mm² > {max_defect_mm2:g} mm²"
     elif not big:
@@ -265,7 +323,10 @@ def placement_words(place: dict) -> str:
 def photo_verdict(
     entry: dict, tolerance_mm: float, max_defect_mm2: float, max_delta_e: float = MAX_DELTA_E
 ) -> tuple[str, str]:
-    """PASS or FAIL of one scored photo, and why, from its figures in validation.json.
+    """PASS, FAIL or INCOMPLETE of one scored photo, and why, from its figures in validation.json.
+
+    INCOMPLETE: nothing fails it, and a region over the verdict's area is ``unresolved``: the
+    photo cannot tell ink gone from light there (:func:`defect_decision`).
 
     Parameters
     ----------
@@ -287,7 +348,10 @@ def photo_verdict(
     reason : str
     """
     tiles, examined, sim = entry["tiles"], entry["tiles_examined"], entry["ssim"]
-    big = [d for d in entry["defects"] if d["area_mm2"] > max_defect_mm2 and significant(d)]
+    counted = [d for d in entry["defects"] if d["area_mm2"] > max_defect_mm2 and significant(d)]
+    # (a region the photo cannot tell ink gone from light on fails nothing and passes nothing: open)
+    big = [d for d in counted if not d.get("unresolved")]
+    undecided = [d for d in counted if d.get("unresolved")]
     colour, colour_words = colour_verdict(entry.get("colour"), max_delta_e)
     if "colour" not in entry:
         colour_words = ""
@@ -307,6 +371,11 @@ def photo_verdict(
         found += [colour_words] if colour == "FAIL" else []
         if found:
             return "FAIL", f"{'; '.join(found)}; misregistration not measured: {TOO_LITTLE_TEXTURE}"
+        if undecided:
+            # (nor does a region it cannot tell from light pass, or let the part pass)
+            return "INCOMPLETE", (
+                f"{open_reason(undecided, max_defect_mm2)}; misregistration not measured: {TOO_LITTLE_TEXTURE}"
+            )
         return "INVALID", f"{TOO_LITTLE_TEXTURE} ({tiles} tiles, SSIM {'-' if sim is None else f'{sim:.2f}'})"
     p95 = entry["misregistration_mm"]["p95"]
     src = "" if entry.get("misregistration_source", "tiles") == "tiles" else " (dense field)"
@@ -337,7 +406,9 @@ def photo_verdict(
     few = ""
     if src == "" and tiles < MIN_MATCHED_SHARE * examined:
         few = f" (from the {tiles} of {examined} textured tiles that match the design)"
-    over = [d for d in entry["defects"] if d["area_mm2"] > max_defect_mm2]
+    # (the defects told: the open regions are said apart)
+    told = [d for d in entry["defects"] if not d.get("unresolved")]
+    over = [d for d in told if d["area_mm2"] > max_defect_mm2]
     # (a p95 over the tolerance but within its uncertainty says so: "0.222 <= 0.2" is no reason)
     if p95 <= tolerance_mm:
         within = f"<= tolerance {tolerance_mm} mm"
@@ -348,9 +419,40 @@ def photo_verdict(
             f"> tolerance {tolerance_mm} mm in {beyond} tile{'s' if beyond != 1 else ''} only: "
             "not the part's misregistration"
         )
-    return "PASS", f"misregistration p95{src} {p95:.3f} mm{few} {within}, " + (
-        f"no defect > {max_defect_mm2:g} mm²"
-        if not entry["defects"]
-        else f"{len(entry['defects'])} defect(s), none > {max_defect_mm2:g} mm²"
-        + (f" at significance {dense.SIGNIFICANCE_Z:g} ({len(over)} larger but not significant)" if over else "")
-    ) + (f"; {colour_words}" if colour_words else "")
+    passed = (
+        f"misregistration p95{src} {p95:.3f} mm{few} {within}, "
+        + (
+            f"no defect > {max_defect_mm2:g} mm²"
+            if not told
+            else f"{len(told)} defect(s), none > {max_defect_mm2:g} mm²"
+            + (f" at significance {dense.SIGNIFICANCE_Z:g} ({len(over)} larger but not significant)" if over else "")
+        )
+        + (f"; {colour_words}" if colour_words else "")
+    )
+    if undecided:
+        return "INCOMPLETE", f"{open_reason(undecided, max_defect_mm2)}; {passed}"
+    return "PASS", passed
+
+
+def open_reason(undecided: list[dict], max_defect_mm2: float) -> str:
+    """The verdict's words for the regions over the limit a photo cannot tell a defect from light on.
+
+    Parameters
+    ----------
+    undecided : list of dict
+        The open regions (``area_mm2``, ``centre_mm``, print mm), at least one.
+    max_defect_mm2 : float
+        The verdict's area, print mm².
+
+    Returns
+    -------
+    str
+        How many, the largest with its place, and what decides them.
+    """
+    d = max(undecided, key=lambda x: x["area_mm2"])
+    n = len(undecided)
+    return (
+        f"{n} region{'s' if n > 1 else ''} > {max_defect_mm2:g} mm² the photo cannot tell a defect from light on "
+        f"(largest: {d['area_mm2']:.1f} mm² at ({d['centre_mm'][0]:.1f}, {d['centre_mm'][1]:.1f}) mm on the "
+        f"print): {OPEN_WORDS}"
+    )

@@ -64,9 +64,9 @@ from scipy.special import chdtri
 
 from workbench.validate import detection
 from workbench.validate.dense.options import (
+    APART_DEG,
     DETECT_Z,
     MIN_SHIFT_WINDOWS,
-    MIRROR_DEG,
     SHIFT_CLOSE_MM,
     SIGNIFICANCE_Z,
     TENSOR_SIGMA_PX,
@@ -75,9 +75,6 @@ from workbench.validate.dense.options import (
 from workbench.validate.rule import significant
 from workbench.validate.slide_evidence import SAME_EDGE_DEG
 
-# photos see one print point from directions no one lamp serves both when their cameras, seen
-# from it, lie more than twice the lamp's reach apart (reflection keeps the angle between rays)
-APART_DEG = 2.0 * MIRROR_DEG
 APART_STEP = 8  # grid pixels between the points the stated limit's camera angles are taken at
 
 
@@ -480,8 +477,9 @@ def claimed_by_photos(entries: list[dict], dismissed: list, shape: tuple, px_per
     """Where the photos' own defects already decide the part: those that fail it, and those dismissed as light.
 
     A fused region's pixels there are theirs: a slide a photo found significant over more than
-    the verdict's area fails the part already, and one another photo showed to be light stays
-    light. A photo at fault (``photo_quality.problems``) decides nothing.
+    the verdict's area fails the part already (unless it is open: the photo could not tell it
+    from light), and one another photo showed to be light stays light. A photo at fault
+    (``photo_quality.problems``) decides nothing.
 
     Parameters
     ----------
@@ -507,7 +505,9 @@ def claimed_by_photos(entries: list[dict], dismissed: list, shape: tuple, px_per
         if (e.get("photo_quality") or {}).get("problems"):
             continue
         for d in e.get("defects", []):
-            if (d["area_mm2"] > max_defect_mm2 and significant(d)) or (k, d.get("id")) in gone:
+            # (an open region, which the photo could not tell from light, decides nothing)
+            counted = d["area_mm2"] > max_defect_mm2 and significant(d) and not d.get("unresolved")
+            if counted or (k, d.get("id")) in gone:
                 x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
                 out[max(y0, 0) : y1 + 1, max(x0, 0) : x1 + 1] = True
     return out

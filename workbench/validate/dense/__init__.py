@@ -44,6 +44,7 @@ from workbench.validate.dense.flow import (
 from workbench.validate.dense.light import LIGHT_RULES, mirrors_highlights, not_counted_regions, regions_mostly_in
 from workbench.validate.dense.lines import thin_told
 from workbench.validate.dense.options import (
+    APART_DEG,
     COLOUR_TOL,
     DETECT_Z,
     FLOW_FLOOR_PX,
@@ -80,6 +81,7 @@ __all__ = [
     "MIN_TWO_WAY",
     "DETECT_Z",
     "MIRROR_DEG",
+    "APART_DEG",
     "NOISE_FLOOR",
     "NORM_SIGMA_PX",
     "PHOTO_FLOOR_PX",

@@ -86,6 +86,9 @@ LOST_GAIN = 0.3
 # (measured: highlights on flat pale ink 0.6 to 3.7 deg from the photo's clipped or texture-keeping
 # ones; dropouts 16 to 103 deg)
 MIRROR_DEG = 8.0
+# photos see one print point from directions no one lamp serves both when their cameras, seen
+# from it, lie more than twice the lamp's reach apart (reflection keeps the angle between rays)
+APART_DEG = 2.0 * MIRROR_DEG
 LOST_MIN_CONTRAST = 15.0
 SHADOW = 35.0  # the film's white predicted darker than this is a deep shadow
 MIN_DEFECT_MM2 = 1.0  # smaller regions are noise, not defects

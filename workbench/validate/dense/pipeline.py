@@ -418,6 +418,9 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
         res = np.where(lost, res_lost, res)
         colour = np.where(colour_scored, res, np.nan).astype(np.float32)
     cone = room = None
+    # ink gone that no test told from light: ink gone only where the film adds no light (a matte
+    # film), else open (the photo cannot tell it; the part's other photos may)
+    untold = verdicts.not_told & colour_bad
     if camera_center is not None:
         # thin lines of ink gone are told by the ink along them: a glint keeps the ink's
         # variation, a scratch shows the film; one over uniform ink is not told, and like a
@@ -443,9 +446,11 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
         # (needed only for the result: beside the rest, applied below)
         cone = later.submit(lamp_cone, sure, grid.X, camera_center, rg, grid.px_per_mm)
         # a region the photo cannot tell (ink gone or light) is taken for light only where the
-        # surface mirrors that lamp: elsewhere no light the photo shows can reach the camera from
-        # it, and it stays ink gone
+        # surface mirrors that lamp: elsewhere no light the photo shows reaches the camera from it,
+        # and it stays ink gone by default (``untold``: ink gone on a matte film, open on a glossy
+        # one, whose lamps the photo may show nowhere else)
         not_told = (verdicts.not_told | (told == 3)) & colour_bad & ~glossed & ~told_ink
+        untold = not_told
         mirrored = mirrors_highlights(not_told, sure, grid.X, camera_center)
         why_light["mirrors_highlights"] = mirrored
         glossed |= mirrored
@@ -490,7 +495,7 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     missing = gone
     return _Colour(
         alpha, colour_limit, colour_noise, res_raw, res, colour, colour_bad, missing, inked, dropout_found, thin,
-        thin_found, verdicts, scored, cone, fold, not_counted, room,
+        thin_found, verdicts, scored, cone, fold, not_counted, room, untold & missing,
     )  # fmt: skip
 
 
@@ -599,6 +604,10 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
                 )
                 if d["explained_under_light_share"] < SHIFT_EXPLAINS and in_lamp(labels == i + 1):
                     rule = "shift_as_light"
+                elif d["explained_under_light_share"] < SHIFT_EXPLAINS:
+                    # (out of the lamp's cone: a slide only where the film adds no light; on a
+                    # glossy one, open: the part's other photos may tell)
+                    d["told"] = False
             if rule is not None:
                 # (its ink that is gone is still gone: a scratch drags the flow around it over
                 # five times its own area, and the region took the flow's kind; 12.6 mm² of a
@@ -633,9 +642,16 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
             labels = np.where((labels == 0) & (lab_ink > 0) & (lab_ink <= len(more)), lab_ink + len(defects), labels)
             defects = defects + more
     for i, d in enumerate(defects):
+        if d["kind"] != "missing":
+            continue
         # what the photometric model said of a region of ink gone
-        if d["kind"] == "missing" and (j := photometric.judgement_at(labels == i + 1, verdicts)) is not None:
+        region = labels == i + 1
+        if (j := photometric.judgement_at(region, verdicts)) is not None:
             d["photometric"] = j
+        # told ink gone (by the photometric model, a line's ink), or ink gone by default over most
+        # of its ink that is gone: neither told from light, and no lamp the photo shows mirrored there
+        gone_px = int((region & missing).sum())
+        d["told"] = not (gone_px and int((region & colour.untold).sum()) > 0.5 * gone_px)
     # (only where the photo was scored: a filled hole may hold a highlight, which stays masked)
     state[(labels > 0) & np.isin(state, (COLOUR_ONLY, UNRESOLVED, NORMAL, FULL))] = DEFECT
     # what the flow measured of the film's slide, for the part's other photos to compare: the

@@ -240,6 +240,9 @@ class _Colour:
     room : (H, W) bool or None
         Where ink that is gone would brighten the ink by no more than a glossy film's reflection
         of the room may (:func:`reflection.within_room_reflection`): ink gone is not found there.
+    untold : (H, W) bool
+        Ink that is gone by default: no test told it from light (the photometric model's "not
+        told", a line over uniform ink), and no lamp the photo shows is mirrored there.
     """
 
     alpha: np.ndarray
@@ -260,6 +263,7 @@ class _Colour:
     fold: np.ndarray
     not_counted: list
     room: np.ndarray | None = None
+    untold: np.ndarray | None = None
 
 
 @dataclass

@@ -163,6 +163,27 @@ def test_a_real_dropout_seen_by_two_photos_fails_the_part(tmp_path, renderer):
     assert found and "dismissed" not in report["part"]
     (part,) = [x for x in report["part"]["defects"] if x["kind"] == "missing" and x["area_mm2"] > 4]
     assert np.hypot(part["centre_mm"][0] - 60, part["centre_mm"][1] - 25) <= 1.0
+    # each photo tells it for ink gone, or (the default finish, glossy) leaves it open when white
+    # film on dark ink looks like a glint; then the part decides it from the other photo, 26° away
+    decided = {x["photo"] for x in report["part"].get("open_decided", [])}
+    in_part = report["part"].get("photo_verdicts_in_part", {})
+    for p, e in zip(photos, report["photos"], strict=True):
+        (x,) = [x for x in e["defects"] if x["kind"] == "missing" and x["area_mm2"] > 4]
+        if x.get("unresolved"):
+            assert e["verdict"] == "INCOMPLETE" and p.name in decided and in_part[p.name] == "FAIL"
+        else:
+            assert e["verdict"] == "FAIL" and x["decided_by"]["fails"]
+    assert not part.get("unresolved")
+    if renderer == "workbench":
+        # a matte film (the look has no gloss) adds no light: each photo alone finds the dropout,
+        # its area within 25 % of its 20 mm²
+        for p in photos:
+            one = tmp_path / f"matte-{p.stem}"
+            args = ["validate", str(d), str(p), "--camera", str(p.with_suffix(".json")), "--out", str(one), "-q"]
+            assert main([*args, "--finish", "matte"]) == 0
+            (e,) = json.loads((one / "validation.json").read_text())["photos"]
+            (x,) = [x for x in e["defects"] if x["kind"] == "missing" and x["area_mm2"] > 4]
+            assert e["verdict"] == "FAIL" and abs(x["area_mm2"] / (np.pi * 2.52**2) - 1) <= 0.25
 
 
 def test_every_listed_defect_says_what_decided_it_and_whether_it_fails():

@@ -31,6 +31,7 @@ from workbench.validate.coverage import (
     MIN_COVERAGE,
     CoverageOptions,
     coverage_words,
+    next_photo_line,
     next_photo_words,
     open_next_photo,
     part_coverage,
@@ -46,7 +47,14 @@ from workbench.validate.part_colour import fused_colour, photo_names, take_colou
 from workbench.validate.photo import design_print_grid, print_grid_of, sha256, validate_photo
 from workbench.validate.report import qa_report
 from workbench.validate.report_html import interactive_report
-from workbench.validate.rule import MAX_DEFECT_MM2, MAX_DELTA_E, open_reason, photo_verdict, verdict_rule
+from workbench.validate.rule import (
+    MAX_DEFECT_MM2,
+    MAX_DELTA_E,
+    open_reason,
+    photo_verdict,
+    still_open,
+    verdict_rule,
+)
 from workbench.validate.slide_fusion import FusionOptions, fused_part_limit, slides_found_together
 
 
@@ -563,11 +571,7 @@ def run(args) -> int:
     part, combined, part_defects = part_summary(states, grid, names, entries, dismissed + told, in_part, colour)
     add_found_together(part, together)
     # regions still open over the verdict's area: no photo of the part told a defect from light there
-    still = [
-        d
-        for d in part.get("defects", [])
-        if d.get("unresolved") and d.get("significant") and d["area_mm2"] > args.max_defect_mm2
-    ]
+    still = [d for d in part.get("defects", []) if still_open(d, args.max_defect_mm2)]
     if part["verdict"] == "PASS" and still:
         part["verdict"] = "INCOMPLETE"  # (found by a photo that is INVALID for its texture, say)
     if part["verdict"] == "INCOMPLETE" and "reason" not in part:
@@ -613,11 +617,7 @@ def run(args) -> int:
             nxt = open_next_photo(still, combined, grid, seen_from)
             if nxt is not None:
                 part["coverage"]["next_photo"] = nxt
-                part["reason"] += (
-                    f"; next photo: azimuth {nxt['orbit'][0]:g}°, elevation {nxt['orbit'][1]:g}°, "
-                    f"{nxt['orbit'][2]:g} mm from the part's centre (it sees {100 * nxt['sees_share']:.0f} % of the "
-                    "open regions from a new angle)"
-                )
+                part["reason"] += f"; {next_photo_line(nxt)}"
         if part["verdict"] == "PASS" and not part["coverage"]["complete"]:
             part["verdict"] = "INCOMPLETE"
             advice = next_photo_words(part["coverage"])

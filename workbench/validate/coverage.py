@@ -377,8 +377,7 @@ def open_next_photo(still: list[dict], combined: np.ndarray, grid, seen_from: tu
     """
     where = np.zeros(combined.shape, bool)
     for d in still:
-        x0, y0, x1, y1 = (int(round(v * grid.px_per_mm)) for v in d["bbox_mm"])
-        box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
+        box = print_warp.box_slices(d["bbox_mm"], grid.px_per_mm)
         where[box] |= combined[box] == print_warp.DEFECT
     ii, jj = np.nonzero(where & np.isfinite(grid.X[..., 0]))
     V, F, centres, intrinsics, orbit = seen_from
@@ -525,16 +524,21 @@ def coverage_words(films: list[dict], opts: CoverageOptions) -> str:
     return f"the photos find {', '.join(short)} (at least {100 * opts.min_coverage:.0f} % needed)"
 
 
+def next_photo_line(nxt: dict) -> str:
+    """The next photo (:func:`next_photo`, with ``for`` when it is for the open regions) in words."""
+    az, el, dist = nxt["orbit"]
+    return (
+        f"next photo: azimuth {az:g}°, elevation {el:g}°, {dist:g} mm from the part's centre (it sees "
+        f"{100 * nxt['sees_share']:.0f} % of {nxt.get('for', 'what is uncovered')} from a new angle)"
+    )
+
+
 def next_photo_words(cov: dict) -> str:
     """The advice for the next photo, from the part's coverage (:func:`part_coverage`)."""
     words = []
     nxt = cov.get("next_photo")
     if nxt:
-        az, el, dist = nxt["orbit"]
-        words.append(
-            f"next photo: azimuth {az:g}°, elevation {el:g}°, {dist:g} mm from the part's centre (it sees "
-            f"{100 * nxt['sees_share']:.0f} % of what is uncovered from a new angle)"
-        )
+        words.append(next_photo_line(nxt))
     measured = (cov.get("uncovered") or {}).get("measured_share")
     if measured:
         words.append(

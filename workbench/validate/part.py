@@ -95,8 +95,7 @@ def light_in_one_photo(
             slide_um = 1000.0 * float(d.get("peak_mm") or 0.0)
             if d["area_mm2"] <= max_defect_mm2 or not (d["kind"] == "missing" or (d["kind"] == "shift" and slide_um)):
                 continue
-            x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
-            box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
+            box = print_warp.box_slices(d["bbox_mm"], px_per_mm)
             region = sa[box] == print_warp.DEFECT
             n = int(region.sum())
             if n == 0:
@@ -260,8 +259,7 @@ def open_told_elsewhere(
         for d in ea.get("defects", []):
             if not d.get("unresolved") or d["area_mm2"] <= max_defect_mm2 or (a, d.get("id")) in gone:
                 continue
-            x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
-            box = (slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1))
+            box = print_warp.box_slices(d["bbox_mm"], px_per_mm)
             region = sa[box] == print_warp.DEFECT
             c = _found_from_elsewhere(a, d, region, box, entries, states, X, px_per_mm) if region.any() else None
             if c is None:

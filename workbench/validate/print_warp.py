@@ -239,6 +239,25 @@ def warp_to_print(
     return warped, state, scale, footprint
 
 
+def box_slices(bbox_mm, px_per_mm: float) -> tuple[slice, slice]:
+    """A box on the print as the grid's rows and columns, its far edges included.
+
+    Parameters
+    ----------
+    bbox_mm : (4,) float
+        ``x0, y0, x1, y1``, print mm (y down), as a defect's ``bbox_mm``.
+    px_per_mm : float
+        The grid's resolution.
+
+    Returns
+    -------
+    (slice, slice)
+        Rows and columns, clipped at 0 (the far edges clip as numpy clips a slice).
+    """
+    x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in bbox_mm)
+    return slice(max(y0, 0), y1 + 1), slice(max(x0, 0), x1 + 1)
+
+
 def facing_camera(X: np.ndarray, normals: np.ndarray, center: np.ndarray) -> np.ndarray:
     """Surface points whose normal faces a camera centre.
 

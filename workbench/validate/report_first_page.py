@@ -6,6 +6,7 @@ import io
 from xml.sax.saxutils import escape
 
 from workbench.validate.dense.options import APART_DEG
+from workbench.validate.rule import still_open
 
 MARGIN_MM = 20.0  # left and right margins of every page
 TOP_MM = 15.0  # top and bottom margins of a flowed page
@@ -46,11 +47,7 @@ def actions(report: dict) -> list[str]:
         for k, d in enumerate(part.get("defects", []))
         if limit is not None and d["area_mm2"] > limit and not d.get("unresolved")
     ]
-    still = [
-        k + 1
-        for k, d in enumerate(part.get("defects", []))
-        if limit is not None and d["area_mm2"] > limit and d.get("unresolved") and d.get("significant", True)
-    ]
+    still = [k + 1 for k, d in enumerate(part.get("defects", [])) if limit is not None and still_open(d, limit)]
     if still:
         # (a region no photo told ink gone from a glint on: one from elsewhere tells, the next photo says where)
         out.append(

@@ -434,6 +434,15 @@ def photo_verdict(
     return "PASS", passed
 
 
+def still_open(defect: dict, max_defect_mm2: float) -> bool:
+    """Whether a part's defect is still open and counts for its verdict.
+
+    No photo told it from light (``unresolved``), a photo found it significant
+    (``significant``), and it is larger than ``max_defect_mm2`` (print mm²).
+    """
+    return bool(defect.get("unresolved")) and bool(defect.get("significant")) and defect["area_mm2"] > max_defect_mm2
+
+
 def open_reason(undecided: list[dict], max_defect_mm2: float) -> str:
     """The verdict's words for the regions over the limit a photo cannot tell a defect from light on.
 

@@ -62,7 +62,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.special import chdtri
 
-from workbench.validate import detection
+from workbench.validate import detection, print_warp
 from workbench.validate.dense.options import (
     APART_DEG,
     DETECT_Z,
@@ -508,8 +508,7 @@ def claimed_by_photos(entries: list[dict], dismissed: list, shape: tuple, px_per
             # (an open region, which the photo could not tell from light, decides nothing)
             counted = d["area_mm2"] > max_defect_mm2 and significant(d) and not d.get("unresolved")
             if counted or (k, d.get("id")) in gone:
-                x0, y0, x1, y1 = (int(round(v * px_per_mm)) for v in d["bbox_mm"])
-                out[max(y0, 0) : y1 + 1, max(x0, 0) : x1 + 1] = True
+                out[print_warp.box_slices(d["bbox_mm"], px_per_mm)] = True
     return out
 
 

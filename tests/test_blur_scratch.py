@@ -110,9 +110,40 @@ def test_no_step_to_the_film_is_sought_where_the_film_comes_out_darker_than_the_
     blur = np.ones((H, W), np.float32)
     res = np.abs(photo - pred).max(axis=2)
     weight = (~truth).astype(np.float32)
-    found = colour_residuals(photo, pred, film, res, weight, scored, fp, 4.0, blur)[9]
+    found = colour_residuals(photo, pred, film, res, weight, scored, fp, 4.0, blur, pred)[9]
     assert found[truth].mean() > 0.9
     # the same line darker than the ink, with the film the ink around tells at 150
     dark = 2.0 * pred - photo
-    found = colour_residuals(dark, pred, np.full_like(film, 150.0), res, weight, scored, fp, 4.0, blur)[9]
+    found = colour_residuals(dark, pred, np.full_like(film, 150.0), res, weight, scored, fp, 4.0, blur, pred)[9]
     assert not found.any()
+
+
+def test_ink_is_gone_only_where_the_design_lays_it_down():
+    # where a photo's white is clipped, the exposure fit takes its gain from the ink beside it and
+    # may put the design's white below the film the ink around tells (a perfect face: 225 against
+    # 254). A brighter line there steps "towards the film" in the model, but the design lays no ink
+    # on it: nothing is gone. The same line over ink the design does lay down is a scratch.
+    from workbench.validate.dense.exposure import colour_residuals
+
+    photo, pred, film, _, truth = _scratched(1.0, 11, ink=180.0, film=235.0)
+    H, W = truth.shape
+    scored = np.ones((H, W), bool)
+    fp = np.ones((H, W), np.float32)
+    blur = np.ones((H, W), np.float32)
+    res = np.abs(photo - pred).max(axis=2)
+    weight = (~truth).astype(np.float32)
+    white = np.full((H, W, 3), 255.0, np.float32)
+    on_ink = colour_residuals(photo, pred, film, res, weight, scored, fp, 4.0, blur, pred)
+    on_white = colour_residuals(photo, pred, film, res, weight, scored, fp, 4.0, blur, white)
+    gone, inked, thin = 5, 7, 9
+    assert on_ink[gone][truth].mean() > 0.9 and on_ink[thin][truth].mean() > 0.9
+    assert not on_white[gone].any() and not on_white[inked].any() and not on_white[thin].any()
+    # and broad ink loss is sought where the design's own step to the film exceeds twice the colour
+    # test's tolerance (as the part's coverage counts it), whatever the model's step
+    from workbench.validate.dense.options import COLOUR_TOL
+
+    pale = np.full((H, W, 3), 255.0 - 2 * COLOUR_TOL + 1.0, np.float32)
+    dark = np.full((H, W, 3), 255.0 - 2 * COLOUR_TOL - 1.0, np.float32)
+    ink100 = np.full_like(pred, 100.0)  # the model's step to the film: 135 grey levels
+    assert not colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, pale)[inked].any()
+    assert colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, dark)[inked].all()

@@ -302,3 +302,50 @@ def test_a_slide_is_told_from_a_smooth_light_by_the_texture_it_moves():
     photo = shifted(ref, 2.0, 0.0) + np.random.default_rng(4).normal(0, 1.0, ref.shape).astype(np.float32)
     m, r, p = dense.dense_flow(ref, photo, np.ones(ref.shape, bool), normalised=True)
     assert dense.shift_explained(r, p, m, region, under_light=True) > 0.9
+
+
+def _window_slides(kappa2: float, noise: float, n_eff: float, seed: int = 0):
+    """Window slides drawn with the covariance the model states: (σ_n² / N + κ²) T⁻¹ at each window."""
+    from workbench.validate.dense.flow import tensor_components
+
+    gray = texture((300, 300), seed=seed, sigma=3.0, contrast=40.0)
+    a, b, c = (x.astype(np.float64) for x in tensor_components(gray, 12.0))
+    det = a * c - b * b
+    var = noise * noise / n_eff + kappa2
+    # a square root of var T⁻¹ = var / det [[c, -b], [-b, a]]: its Cholesky factor
+    l11 = np.sqrt(var * c / det)
+    l21 = -var * b / det / l11
+    l22 = np.sqrt(var * a / det - l21 * l21)
+    z = np.random.default_rng(seed + 1).normal(size=(2,) + gray.shape)
+    slide = np.stack([l11 * z[0], l21 * z[0] + l22 * z[1]], axis=-1).astype(np.float32)
+    return slide, gray
+
+
+@pytest.mark.parametrize("kappa2", [0.0, 0.02, 0.2])
+def test_the_windows_mismatch_is_what_their_slides_err_by_beyond_the_noise(kappa2):
+    from workbench.validate.dense.uncertainty import window_mismatch
+
+    noise, n_eff = 1.0, 200.0
+    slide, gray = _window_slides(kappa2, noise, n_eff)
+    where = np.ones(gray.shape, bool)
+    got = window_mismatch(slide, gray, 12.0, where, noise, n_eff)
+    # the median of 90,000 draws of χ² (2): within 2 % of its value, on the noise's 0.005 too
+    assert got == pytest.approx(kappa2, rel=0.03, abs=0.03 * noise * noise / n_eff)
+
+
+def test_a_defect_among_the_windows_moves_the_mismatch_as_a_median_does():
+    # a slide of 2 px over a tenth of the windows (a bubble, a tenth of the photo): the median of
+    # the rest's χ² (2) moves to its quantile 0.5 / 0.9, -2 ln(1 - 0.5556) = 1.622 against 2 ln 2
+    # = 1.386: 17 % more, not the defect's own size (its windows' form alone is 30 to 300 times)
+    from workbench.validate.dense.uncertainty import window_mismatch
+
+    noise, n_eff, kappa2 = 1.0, 200.0, 0.02
+    slide, gray = _window_slides(kappa2, noise, n_eff, seed=3)
+    where = np.ones(gray.shape, bool)
+    clean = window_mismatch(slide, gray, 12.0, where, noise, n_eff)
+    slid = slide.copy()
+    slid[:30, :] += np.float32(2.0)
+    got = window_mismatch(slid, gray, 12.0, where, noise, n_eff)
+    total = kappa2 + noise * noise / n_eff
+    assert (got + noise * noise / n_eff) / total == pytest.approx(1.622 / 1.386, rel=0.05)
+    assert got > clean

@@ -124,7 +124,7 @@ def window_ratio(num: np.ndarray, den: np.ndarray, weight: np.ndarray, sigma: fl
     return (cv2.resize(ratio, (W, H), interpolation=cv2.INTER_LINEAR) if q > 1 else ratio).reshape(H, W, -1)
 
 
-def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur):
+def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur, design):
     """The colour test of :func:`analyse` before highlights are told from ink: residuals, limits, ink gone.
 
     Apart so that it can run beside the flow's uncertainty (it needs none of it).
@@ -147,6 +147,9 @@ def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur):
         The grid's resolution (the scratch test's width).
     blur : (H, W) float32
         The photo's blur at each pixel, Gaussian sigma, grid px (what a scratch keeps of its step).
+    design : (H, W, 3) float32
+        The print moved by the flow and blurred like the photo, before its exposure, grey levels
+        (255: no ink, the bare film).
 
     Returns
     -------
@@ -162,7 +165,8 @@ def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur):
         Pixels stepped towards the bare film beyond the limit (a scratch's too), and pixels
         beyond it.
     inked : (H, W) bool
-        Scored pixels whose ink differs from the bare film.
+        Scored pixels that carry ink (the design below the film's white) whose model differs
+        from the bare film's.
     dropout_found : (H, W) bool
         Where ink that is gone would be found (the detection limit's map).
     thin, thin_found : (H, W) bool
@@ -183,7 +187,15 @@ def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur):
     # the bare film's, as a share of the whole step (0 to 1; blur spreads it, its sum keeps the area)
     step = film_pred - pred
     step2 = _csum(step * step)
-    inked = colour_scored & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
+    # ink can be gone only where the design lays some down, by its own step to the bare film (the
+    # print's white): a pixel the design leaves white is the film already, whatever the model's
+    # exposure makes of it (where a flat render's white was clipped, the fit's gain came from the
+    # ink beside it and put the design's white at 225 against the film's 254: a line of "ink gone"
+    # of 7.2 mm² over no ink at all on a perfect face). Broad ink loss is sought where that step
+    # exceeds twice the colour test's tolerance, as the part's coverage counts it
+    # (:func:`workbench.validate.coverage.where_defects_show`)
+    ink_step = _cmax(np.float32(255.0) - design)
+    inked = colour_scored & (ink_step > 2 * COLOUR_TOL) & (_cmax(np.abs(step)) > 2 * COLOUR_TOL)
     with np.errstate(invalid="ignore", divide="ignore"):
         alpha = np.where(inked, _csum((pho - pred) * step) / step2, 0.0)
     alpha = np.clip(np.nan_to_num(alpha), 0.0, 1.0).astype(np.float32)
@@ -219,9 +231,14 @@ def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur):
     thin, thin_found, thin_alpha = thin_ink_loss(
         pho, pred, film_pred, colour_scored, px_per_mm, thin_limit, blur, colour_noise
     )
+    # (a scratch, where the design's own step to the film is more than the scratch test asks of
+    # the photo's)
+    ink = ink_step > thin_limit
+    thin &= ink
+    thin_found &= ink
     gone |= thin
     # (its share of the ink gone, against its surroundings: over pale ink the plain share is not taken)
-    alpha = np.maximum(alpha, thin_alpha)
+    alpha = np.maximum(alpha, np.where(ink, thin_alpha, np.float32(0.0)))
     colour_bad = (colour_scored & (res > colour_limit)) | gone
     return (
         alpha, colour_limit, colour_noise, res_raw, res, gone, colour_bad, inked, dropout_found, thin, thin_found,

@@ -69,6 +69,30 @@ def masked_normalise(gray: np.ndarray, w: np.ndarray, sigma: float) -> np.ndarra
     return d / np.maximum(s, 6.0)
 
 
+def tensor_components(gray: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The smoothed structure tensor's components <gx²>, <gx gy>, <gy²>; (H, W) float32 each, grey levels² per px².
+
+    Parameters
+    ----------
+    gray : (H, W) float32
+        Grey levels.
+    sigma : float
+        Gaussian window, pixels.
+    """
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
+    H, W = gray.shape
+    q = 4 if sigma >= 8 else 1  # a wide window: sums at a quarter of the resolution, interpolated back
+
+    def win(p):
+        if q == 1:
+            return cv2.GaussianBlur(p, (0, 0), sigma)
+        small = cv2.GaussianBlur(cv2.resize(p, (W // q, H // q), interpolation=cv2.INTER_AREA), (0, 0), sigma / q)
+        return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
+
+    return win(gx * gx), win(gx * gy), win(gy * gy)
+
+
 def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     """Eigenvalues and dominant direction of the smoothed structure tensor.
 
@@ -88,18 +112,7 @@ def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
     e1 : (H, W, 2) float32 or None
         Unit eigenvector of ``l1``: the direction across the dominant edge.
     """
-    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
-    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
-    H, W = gray.shape
-    q = 4 if sigma >= 8 else 1  # a wide window: sums at a quarter of the resolution, interpolated back
-
-    def win(p):
-        if q == 1:
-            return cv2.GaussianBlur(p, (0, 0), sigma)
-        small = cv2.GaussianBlur(cv2.resize(p, (W // q, H // q), interpolation=cv2.INTER_AREA), (0, 0), sigma / q)
-        return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
-
-    a, b, c = win(gx * gx), win(gx * gy), win(gy * gy)
+    a, b, c = tensor_components(gray, sigma)
     half_tr = (a + c) / 2
     disc = np.sqrt(((a - c) / 2) ** 2 + b * b)
     l1, l2 = half_tr + disc, np.maximum(half_tr - disc, 0)

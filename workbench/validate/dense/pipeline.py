@@ -57,6 +57,7 @@ from workbench.validate.dense.uncertainty import (
     forward_backward,
     noise_correlation,
     stated_shift_limit,
+    window_mismatch,
 )
 from workbench.validate.placement import placement_field
 from workbench.validate.print_warp import (
@@ -137,7 +138,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # nothing of the flow's uncertainty: beside it; and after it a window's slide (below)
     colour_test = later.submit(
         colour_residuals, pho, model.pred, light.film_lit.film, model.res, model.weight, light.scored, fp,
-        grid.px_per_mm, model.local_blur,
+        grid.px_per_mm, model.local_blur, model.moved,
     )  # fmt: skip
     measures = _flow_measures(on, start, model, light)
     colour = _light_or_ink(on, start, model, light, measures, colour_test.result())
@@ -330,10 +331,17 @@ def _flow_measures(on: _Frame, start: _Start, model: _Model, light: _SureLight) 
     stated = scored.copy()  # (before light is told from ink: that depends on the defect)
     measurable = stated & ~unresolved
     # a window of about a millimetre's slide (below): its uncertainty is the photo's noise
-    # through the window's weaker direction, and the floor, none of it raised by a defect
+    # through the window's weaker direction, what the photo's windows err by beyond it at
+    # their texture (κ², their median over the photo: :func:`window_mismatch`), and the
+    # floor, none of it raised by a defect
+    n_wide = effective_samples(4 * win, corr)
+    windows = measurable & ~lit_now & (l2_wide > 0)
+    n_typical = float(np.median(n_wide[windows])) if np.ndim(n_wide) and windows.any() else float(np.max(n_wide))
+    kappa2 = window_mismatch(slide.result(), rgb_, 4 * win, windows, noise, n_typical)
     with np.errstate(divide="ignore", invalid="ignore"):
-        wide_sigma = np.sqrt(noise * noise / (effective_samples(4 * win, corr) * l2_wide) + floor * floor) * mm_per_px
-    wide_sigma = np.nan_to_num(wide_sigma, nan=np.inf).astype(np.float32)
+        wide_sigma = np.sqrt((noise * noise / n_wide + kappa2) / l2_wide + floor * floor) * mm_per_px
+    with np.errstate(over="ignore"):  # (beyond float32's range where the window has no texture: inf, as it is)
+        wide_sigma = np.nan_to_num(wide_sigma, nan=np.inf).astype(np.float32)
     # the detection limit, stated for a sound part (needed only for the result: beside the rest)
     shift_limit = later.submit(
         stated_shift_limit, tolerance_mm, noise, l1, l2, effective_samples(win, corr), floor, mm_per_px, wide_sigma,

@@ -81,16 +81,17 @@ def tensor_components(gray: np.ndarray, sigma: float) -> tuple[np.ndarray, np.nd
     """
     gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
-    H, W = gray.shape
-    q = 4 if sigma >= 8 else 1  # a wide window: sums at a quarter of the resolution, interpolated back
+    return window_mean(gx * gx, sigma), window_mean(gx * gy, sigma), window_mean(gy * gy, sigma)
 
-    def win(p):
-        if q == 1:
-            return cv2.GaussianBlur(p, (0, 0), sigma)
-        small = cv2.GaussianBlur(cv2.resize(p, (W // q, H // q), interpolation=cv2.INTER_AREA), (0, 0), sigma / q)
-        return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
 
-    return win(gx * gx), win(gx * gy), win(gy * gy)
+def window_mean(p: np.ndarray, sigma: float) -> np.ndarray:
+    """``p`` (H, W) under a Gaussian window of ``sigma`` px (8 px or more: summed at a quarter of the resolution)."""
+    H, W = p.shape[:2]
+    if sigma < 8:
+        return cv2.GaussianBlur(p, (0, 0), sigma)
+    q = 4
+    small = cv2.GaussianBlur(cv2.resize(p, (W // q, H // q), interpolation=cv2.INTER_AREA), (0, 0), sigma / q)
+    return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
 
 
 def structure_tensor(gray: np.ndarray, sigma: float, direction: bool = True):
@@ -156,14 +157,9 @@ def tensor_weighted_flow(
         gx, gy = gx * weight, gy * weight
     xx, xy, yy = gx * gx, gx * gy, gy * gy
     mx, my = flow[..., 0], flow[..., 1]
-    H, W = gray.shape
-    q = 4 if sigma >= 8 else 1  # a wide window at a quarter of the resolution (as structure_tensor)
 
     def win(p):
-        if q == 1:
-            return cv2.GaussianBlur(p, (0, 0), sigma)
-        small = cv2.GaussianBlur(cv2.resize(p, (W // q, H // q), interpolation=cv2.INTER_AREA), (0, 0), sigma / q)
-        return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
+        return window_mean(p, sigma)
 
     a, b, c = win(xx), win(xy), win(yy)
     nx, ny = win(xx * mx + xy * my), win(xy * mx + yy * my)

@@ -147,3 +147,5 @@ def test_ink_is_gone_only_where_the_design_lays_it_down():
     ink100 = np.full_like(pred, 100.0)  # the model's step to the film: 135 grey levels
     assert not colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, pale)[inked].any()
     assert colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, dark)[inked].all()
+    # (and a model's step of 135 grey levels over a design that lays no ink is no ink)
+    assert not colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, white)[inked].any()

@@ -189,8 +189,8 @@ def test_a_glint_one_photo_cannot_tell_from_ink_gone_is_open_on_a_glossy_film(tm
 
 def test_a_perfect_photo_of_artwork_stretched_into_streaks_shows_no_slide(tmp_path):
     """The lily's top, --realistic (seed 37 of the full corpus): its windows' slides over the faint
-    streaks the design stretched err by several times what the photo's noise alone states (a window
-    3.5 of that beyond the tolerance on the median, 14 % of them beyond 3): judged on the noise, a
+    streaks the design stretched err by several times what the photo's noise alone states (3.5
+    times on the median, 14 % of them 3 of it past the tolerance): judged on the noise, a
     41.4 mm² slide at (98.8, 14.2) mm, z 18.9, failed the perfect part. With what the photo's own
     windows err by (:func:`workbench.validate.dense.uncertainty.window_mismatch`) it passes."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

@@ -2,12 +2,13 @@
 
 A photo finds a defect only where it measures what the defect changes. A film that slid
 (a bubble) changes the misregistration, which the flow measures where the print has texture
-the photo resolves, to a standard uncertainty set by the photo's noise through that texture;
-ink that is gone changes the colour, which the colour test sees where the step from the ink
-to the bare film exceeds the test's limit. Both are known from the design, the photo's
-noise, its blur and its sampling of the print alone, so the limit is stated for a sound
-part: the terms a defect itself raises where it is (the model's mismatch, the flow back's
-disagreement) are left out, and so are the masks that depend on the defect (light that is
+the photo resolves, to a standard uncertainty set by the photo's noise through that texture
+(and, for a window's slide, by what the photo's windows err by beyond it over the whole photo:
+a median, which a defect does not move); ink that is gone changes the colour, which the
+colour test sees where the step from the ink to the bare film exceeds the test's limit. Both
+are known from the design, the photo's noise, its blur and its sampling of the print, so the
+limit is stated for a sound part: the terms a defect itself raises where it is (the pixel's
+own mismatch, the flow back's disagreement) are left out, and so are the masks that depend on the defect (light that is
 told from ink). A defect the photo states it can find and does not find is an escape; one it
 states it cannot find is below its stated limit.
 

@@ -165,12 +165,13 @@ def colour_residuals(pho, pred, film, res, weight, scored, fp, px_per_mm, blur, 
         Pixels stepped towards the bare film beyond the limit (a scratch's too), and pixels
         beyond it.
     inked : (H, W) bool
-        Scored pixels that carry ink (the design below the film's white) whose model differs
-        from the bare film's.
+        Scored pixels where both the design's own step to the film's white and the model's
+        step to the bare film exceed twice COLOUR_TOL: where broad ink loss is sought.
     dropout_found : (H, W) bool
         Where ink that is gone would be found (the detection limit's map).
     thin, thin_found : (H, W) bool
-        A scratch's ink gone, and where a scratch would be found (:func:`thin_ink_loss`).
+        A scratch's ink gone, and where a scratch would be found (:func:`thin_ink_loss`),
+        both only where the design's step to the film exceeds the scratch test's limit.
     """
     colour_scored = scored
     # ink missing: the photo matches the bare film's colour, the design does not. The film as the

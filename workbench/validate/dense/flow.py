@@ -69,8 +69,20 @@ def masked_normalise(gray: np.ndarray, w: np.ndarray, sigma: float) -> np.ndarra
     return d / np.maximum(s, 6.0)
 
 
+# a window's texture has two directions where its tensor's determinant is more than this share
+# of its trace squared (λ2 / λ1 above about 1e-3): there its slide is the whole vector, elsewhere
+# the component across the edge (:func:`tensor_weighted_flow`)
+TWO_DIRECTIONS = 1e-3
+
+
+def two_directions(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Where a window's structure tensor [[a, b], [b, c]] (:func:`tensor_components`) has two directions; bool."""
+    tr = a + c
+    return a * c - b * b > TWO_DIRECTIONS * tr * tr
+
+
 def tensor_components(gray: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The smoothed structure tensor's components <gx²>, <gx gy>, <gy²>; (H, W) float32 each, grey levels² per px².
+    """The smoothed structure tensor's components <gx²>, <gx gy>, <gy²>.
 
     Parameters
     ----------
@@ -78,6 +90,11 @@ def tensor_components(gray: np.ndarray, sigma: float) -> tuple[np.ndarray, np.nd
         Grey levels.
     sigma : float
         Gaussian window, pixels.
+
+    Returns
+    -------
+    a, b, c : (H, W) float32
+        <gx²>, <gx gy>, <gy²> under the window, grey levels² per px² (Sobel gradients over 8).
     """
     gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8
@@ -85,7 +102,19 @@ def tensor_components(gray: np.ndarray, sigma: float) -> tuple[np.ndarray, np.nd
 
 
 def window_mean(p: np.ndarray, sigma: float) -> np.ndarray:
-    """``p`` (H, W) under a Gaussian window of ``sigma`` px (8 px or more: summed at a quarter of the resolution)."""
+    """An image under a Gaussian window.
+
+    Parameters
+    ----------
+    p : (H, W) float32
+    sigma : float
+        The window's sigma, px. A wide one (8 px or more) is summed at a quarter of the
+        resolution (a sixteenth of the pixels) and interpolated back.
+
+    Returns
+    -------
+    (H, W) float32
+    """
     H, W = p.shape[:2]
     if sigma < 8:
         return cv2.GaussianBlur(p, (0, 0), sigma)
@@ -157,15 +186,11 @@ def tensor_weighted_flow(
         gx, gy = gx * weight, gy * weight
     xx, xy, yy = gx * gx, gx * gy, gy * gy
     mx, my = flow[..., 0], flow[..., 1]
-
-    def win(p):
-        return window_mean(p, sigma)
-
-    a, b, c = win(xx), win(xy), win(yy)
-    nx, ny = win(xx * mx + xy * my), win(xy * mx + yy * my)
+    a, b, c = window_mean(xx, sigma), window_mean(xy, sigma), window_mean(yy, sigma)
+    nx, ny = window_mean(xx * mx + xy * my, sigma), window_mean(xy * mx + yy * my, sigma)
     det = a * c - b * b
     tr = a + c
-    two_way = det > 1e-3 * tr * tr
+    two_way = two_directions(a, b, c)
     # (one direction: the tensor is about λ e eᵀ with e ∝ its larger column, λ its trace)
     ex, ey = np.where(a >= c, a, b), np.where(a >= c, b, c)
     with np.errstate(divide="ignore", invalid="ignore"):

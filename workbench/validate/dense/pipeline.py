@@ -186,9 +186,10 @@ def _placed_flow(on: _Frame, state: np.ndarray) -> _Start:
         state = rim_band(state)
         state[(state == OFF_PART) & on_film.astype(bool)] = EDGE
         fs = flow_start(shaded(ref, shade), pho, warped, state, scale, later)
+        held = np.zeros_like(early)
     else:
-        early = np.zeros_like(early)
-    return _Start(fs, state, ref, early, shade)
+        held, early = early, np.zeros_like(early)
+    return _Start(fs, state, ref, early, shade, held)
 
 
 def _photo_model(on: _Frame, start: _Start) -> _Model:
@@ -332,12 +333,12 @@ def _flow_measures(on: _Frame, start: _Start, model: _Model, light: _SureLight) 
     measurable = stated & ~unresolved
     # a window of about a millimetre's slide (below): its uncertainty is the photo's noise
     # through the window's weaker direction, what the photo's windows err by beyond it at
-    # their texture (κ², their median over the photo: :func:`window_mismatch`), and the
-    # floor, none of it raised by a defect
+    # their texture (κ², their median over the photo, less the placement every window shares:
+    # :func:`window_mismatch`), and the floor, none of it raised by a defect
     n_wide = effective_samples(4 * win, corr)
     windows = measurable & ~lit_now & (l2_wide > 0)
     n_typical = float(np.median(n_wide[windows])) if np.ndim(n_wide) and windows.any() else float(np.max(n_wide))
-    kappa2 = window_mismatch(slide.result(), rgb_, 4 * win, windows, noise, n_typical)
+    kappa2 = window_mismatch(slide.result() - start.held, rgb_, 4 * win, windows, noise, n_typical)
     with np.errstate(divide="ignore", invalid="ignore"):
         wide_sigma = np.sqrt((noise * noise / n_wide + kappa2) / l2_wide + floor * floor) * mm_per_px
     with np.errstate(over="ignore"):  # (beyond float32's range where the window has no texture: inf, as it is)
@@ -521,8 +522,9 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
     thin, verdicts, scored = colour.thin, colour.verdicts, colour.scored
     # a slide over a window of about a millimetre: the least-squares vector its pixels' texture
     # supports (each pixel's flow through its gradients: :func:`tensor_weighted_flow`), with the
-    # window's own uncertainty (the photo's noise through its weaker direction, and the
-    # floor, which no window averages away). Along an edge a pixel knows only the component
+    # window's own uncertainty (``wide_sigma``: the photo's noise through its weaker direction,
+    # what the photo's windows err by beyond it, and the floor, which no window averages away).
+    # Along an edge a pixel knows only the component
     # across it, which a slide parallel to it leaves 0 (a bubble cut into stripes), and DIS's
     # own vector there is its guess (it drifted 13 px over a photograph's soft background); a
     # window whose edges turn knows the whole slide. Usable where its uncertainty is, as a

@@ -66,6 +66,10 @@ class _Start:
     shade : (H, W, 3) float32
         The shading of the surface's normal relative to its median (:func:`shading_factor`),
         linear light; 1 without a model. The flow compares the photo with the print so shaded.
+    held : (H, W, 2) float32
+        The placement the flow still holds, grid px: the fitted placement where it was too small
+        to place the print by (``early`` 0), else 0. Every window shares it: it is no window's
+        error (:func:`window_mismatch`).
     """
 
     fs: FlowStart
@@ -73,6 +77,7 @@ class _Start:
     ref: np.ndarray
     early: np.ndarray
     shade: np.ndarray
+    held: np.ndarray
 
 
 @dataclass

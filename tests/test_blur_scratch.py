@@ -97,24 +97,38 @@ def test_a_scratch_is_found_wherever_the_map_states_it(sigma):
         assert stated == 1.0 and share >= 0.9
 
 
-def test_no_step_to_the_film_is_sought_where_the_film_comes_out_darker_than_the_ink():
-    # ink only absorbs: where the film the ink around tells is darker than the model of the ink
-    # itself (two accounts of the light that disagree at a shadow's edge), a dark line in the photo
-    # is no step towards the film; where the film is brighter, the same line brightened is a scratch
+def _colour_test(seed: int):
+    """A scratch 1 px blurred over ink of 180, the film at 235, and the colour test on it.
+
+    Returns the truth (H, W) bool and ``test(photo, pred, film, design)``: :func:`colour_residuals`
+    with the scratch's own residual, weights (the scratch left out of the noise) and a flat blur.
+    """
     from workbench.validate.dense.exposure import colour_residuals
 
-    photo, pred, film, _, truth = _scratched(1.0, 7, ink=180.0, film=235.0)
+    photo, pred, film, _, truth = _scratched(1.0, seed, ink=180.0, film=235.0)
     H, W = truth.shape
     scored = np.ones((H, W), bool)
     fp = np.ones((H, W), np.float32)
     blur = np.ones((H, W), np.float32)
     res = np.abs(photo - pred).max(axis=2)
     weight = (~truth).astype(np.float32)
-    found = colour_residuals(photo, pred, film, res, weight, scored, fp, 4.0, blur, pred)[9]
+
+    def test(pho, model, film_, design):
+        return colour_residuals(pho, model, film_, res, weight, scored, fp, 4.0, blur, design)
+
+    return (photo, pred, film, truth), test
+
+
+def test_no_step_to_the_film_is_sought_where_the_film_comes_out_darker_than_the_ink():
+    # ink only absorbs: where the film the ink around tells is darker than the model of the ink
+    # itself (two accounts of the light that disagree at a shadow's edge), a dark line in the photo
+    # is no step towards the film; where the film is brighter, the same line brightened is a scratch
+    (photo, pred, film, truth), test = _colour_test(7)
+    found = test(photo, pred, film, pred)[9]
     assert found[truth].mean() > 0.9
     # the same line darker than the ink, with the film the ink around tells at 150
     dark = 2.0 * pred - photo
-    found = colour_residuals(dark, pred, np.full_like(film, 150.0), res, weight, scored, fp, 4.0, blur, pred)[9]
+    found = test(dark, pred, np.full_like(film, 150.0), pred)[9]
     assert not found.any()
 
 
@@ -123,29 +137,21 @@ def test_ink_is_gone_only_where_the_design_lays_it_down():
     # may put the design's white below the film the ink around tells (a perfect face: 225 against
     # 254). A brighter line there steps "towards the film" in the model, but the design lays no ink
     # on it: nothing is gone. The same line over ink the design does lay down is a scratch.
-    from workbench.validate.dense.exposure import colour_residuals
+    from workbench.validate.dense.options import COLOUR_TOL
 
-    photo, pred, film, _, truth = _scratched(1.0, 11, ink=180.0, film=235.0)
-    H, W = truth.shape
-    scored = np.ones((H, W), bool)
-    fp = np.ones((H, W), np.float32)
-    blur = np.ones((H, W), np.float32)
-    res = np.abs(photo - pred).max(axis=2)
-    weight = (~truth).astype(np.float32)
-    white = np.full((H, W, 3), 255.0, np.float32)
-    on_ink = colour_residuals(photo, pred, film, res, weight, scored, fp, 4.0, blur, pred)
-    on_white = colour_residuals(photo, pred, film, res, weight, scored, fp, 4.0, blur, white)
+    (photo, pred, film, truth), test = _colour_test(11)
+    white = np.full_like(pred, 255.0)
+    on_ink = test(photo, pred, film, pred)
+    on_white = test(photo, pred, film, white)
     gone, inked, thin = 5, 7, 9
     assert on_ink[gone][truth].mean() > 0.9 and on_ink[thin][truth].mean() > 0.9
     assert not on_white[gone].any() and not on_white[inked].any() and not on_white[thin].any()
     # and broad ink loss is sought where the design's own step to the film exceeds twice the colour
     # test's tolerance (as the part's coverage counts it), whatever the model's step
-    from workbench.validate.dense.options import COLOUR_TOL
-
-    pale = np.full((H, W, 3), 255.0 - 2 * COLOUR_TOL + 1.0, np.float32)
-    dark = np.full((H, W, 3), 255.0 - 2 * COLOUR_TOL - 1.0, np.float32)
+    pale = np.full_like(pred, 255.0 - 2 * COLOUR_TOL + 1.0)
+    dark = np.full_like(pred, 255.0 - 2 * COLOUR_TOL - 1.0)
     ink100 = np.full_like(pred, 100.0)  # the model's step to the film: 135 grey levels
-    assert not colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, pale)[inked].any()
-    assert colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, dark)[inked].all()
+    assert not test(ink100, ink100, film, pale)[inked].any()
+    assert test(ink100, ink100, film, dark)[inked].all()
     # (and a model's step of 135 grey levels over a design that lays no ink is no ink)
-    assert not colour_residuals(ink100, ink100, film, res, weight, scored, fp, 4.0, blur, white)[inked].any()
+    assert not test(ink100, ink100, film, white)[inked].any()

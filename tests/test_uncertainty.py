@@ -369,13 +369,13 @@ def _kappa2_of(design, photo_path, monkeypatch) -> float:
     from workbench.design_dir import read_image
     from workbench.validate import print_warp
     from workbench.validate.dense import pipeline
+    from workbench.validate.photo import design_print_grid
     from workbench.validate.pose import estimate_pose
 
     image = read_image(photo_path, "photo")
     prof = load_camera_profile(photo_path.with_suffix(".json"))
     cam = estimate_pose(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY), design.fixture, prof.K, prof.dist).camera
-    p = design.info["print"]
-    grid = print_warp.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
+    grid = design_print_grid(design)
     on_print, state, scale, footprint = print_warp.warp_to_print(image, cam, grid, design.V, design.F)
     got = []
     real = pipeline.window_mismatch

@@ -108,6 +108,22 @@ def test_uncovered_regions_say_where_and_why():
     assert out["smaller"] == 1 and out["area_mm2"] == pytest.approx(52.1)  # (rounded to 0.1 mm²)
 
 
+def test_an_uncovered_ring_is_named_by_a_point_on_it():
+    # a film's outline band uncovered all round: its centroid is the film's middle, where it is not
+    H, W = 200, 300
+    ring = np.zeros((H, W), bool)
+    ring[20:180, 30:270] = True
+    ring[26:174, 36:264] = False
+    unc = {c: ring if c == "ink_gone" else np.zeros((H, W), bool) for c in coverage.CLASSES}
+    combined = np.full((H, W), print_warp.EDGE, np.uint8)
+    (r,) = coverage.uncovered_regions(unc, combined, PPM, coverage.CoverageOptions())["regions"]
+    x, y = (int(v * PPM - 0.5) for v in r["centre_mm"])
+    assert ring[y, x]
+    # on a long side's middle, the band nearest the centroid, at least half its largest depth
+    # (3 px) from its edges: rows 21 to 24 of the top band 20 to 25 (or their mirror below)
+    assert abs(x - 149.5) <= 1 and (21 <= y <= 24 or 175 <= y <= 178)
+
+
 def test_the_next_photo_sees_what_is_uncovered_from_elsewhere():
     # a 100 x 100 mm plate at z = 0 seen from straight above: the next photo must see its
     # uncovered points at a scorable angle, from at least twice the mirror cone away

@@ -218,9 +218,9 @@ def uncovered_regions(uncovered: dict, combined: np.ndarray, px_per_mm: float, o
     -------
     dict
         ``regions``: the largest MAX_REGIONS regions of at least ``max_defect_mm2`` (each:
-        ``centre_mm``, ``bbox_mm``, ``area_mm2``, ``classes`` it leaves uncovered, ``why``: the
-        state that most of it has in the best photo and its share), ``smaller``: how many more,
-        ``area_mm2``: all of it.
+        ``centre_mm``, a point in it (:func:`region_point`), ``bbox_mm``, ``area_mm2``,
+        ``classes`` it leaves uncovered, ``why``: the state that most of it has in the best photo
+        and its share), ``smaller``: how many more, ``area_mm2``: all of it.
     """
     anyc = np.zeros(combined.shape, bool)
     for m in uncovered.values():
@@ -246,12 +246,10 @@ def uncovered_regions(uncovered: dict, combined: np.ndarray, px_per_mm: float, o
             if s in print_warp.MEASURED
             else print_warp.STATE_NAMES[s]
         )
+        cx, cy = region_point(inside, float(cents[i, 0]) - x, float(cents[i, 1]) - y)
         regions.append(
             {
-                "centre_mm": [
-                    round(float(cents[i, 0] + 0.5) / px_per_mm, 2),
-                    round(float(cents[i, 1] + 0.5) / px_per_mm, 2),
-                ],
+                "centre_mm": [round((cx + x + 0.5) / px_per_mm, 2), round((cy + y + 0.5) / px_per_mm, 2)],
                 "bbox_mm": [round(v / px_per_mm, 2) for v in (x, y, x + w, y + h)],
                 "area_mm2": round(area, 1),
                 "classes": [c for c in CLASSES if (uncovered[c][box] & inside).any()],
@@ -260,6 +258,37 @@ def uncovered_regions(uncovered: dict, combined: np.ndarray, px_per_mm: float, o
             }
         )
     return {"regions": regions, "smaller": smaller, "area_mm2": round(float(anyc.sum()) * mm2, 1)}
+
+
+def region_point(inside: np.ndarray, cx: float, cy: float) -> tuple[float, float]:
+    """A point of a region to name it by: its centroid where that lies in it, else the nearest well inside it.
+
+    A ring (a film's outline band, uncovered all round) has its centroid outside it, where a
+    technician would look in vain; the point then is the region's pixel nearest the centroid
+    among those at least half the region's largest distance from its edge.
+
+    Parameters
+    ----------
+    inside : (h, w) bool
+        The region in its bounding box.
+    cx, cy : float
+        Its centroid, box px.
+
+    Returns
+    -------
+    (x, y) : float
+        Box px (pixel centres at integers).
+    """
+    h, w = inside.shape
+    ix, iy = int(round(cx)), int(round(cy))
+    if 0 <= ix < w and 0 <= iy < h and inside[iy, ix]:
+        return cx, cy
+    # (distances to the edge, the box's border counting as outside)
+    pad = np.pad(inside, 1).astype(np.uint8)
+    depth = cv2.distanceTransform(pad, cv2.DIST_L2, 3)[1:-1, 1:-1]
+    yy, xx = np.nonzero(depth >= 0.5 * depth.max())
+    k = int(np.argmin((xx - cx) ** 2 + (yy - cy) ** 2))
+    return float(xx[k]), float(yy[k])
 
 
 def next_photo(

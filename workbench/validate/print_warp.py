@@ -66,9 +66,10 @@ class PrintGrid:
         The print on this grid.
     face : (rows, cols) int
         Triangle under each pixel (-1: off the part).
-    fold : (rows, cols) bool or None
-        Where the surface folds (:func:`grid_folds`), made on first use: it is the surface's, the
-        same for every photo of the part (a quarter of a second on a 1.4 Mpx grid).
+    crease_deg : (rows, cols) float32 or None
+        How far the surface's own normal turns from its mean around each pixel, degrees
+        (:func:`workbench.validate.dense.light.grid_creases`), made on first use: it is the
+        surface's, the same for every photo of the part (a quarter of a second on a 1.4 Mpx grid).
     film : (rows, cols) int16 or None
         With several films, the film (0-based) under each pixel (-1: off the part); None for
         a design of one film. Each film is placed on its own (:func:`placement_field`).
@@ -84,7 +85,7 @@ class PrintGrid:
     surface_per_print: np.ndarray
     reference: np.ndarray
     face: np.ndarray
-    fold: np.ndarray | None = None
+    crease_deg: np.ndarray | None = None
     film: np.ndarray | None = None
     normal: np.ndarray | None = None
 

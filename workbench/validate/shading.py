@@ -209,6 +209,24 @@ def shading_factor(normal: np.ndarray, coef: np.ndarray | None) -> np.ndarray:
     return np.where(E >= 0.01, E, np.where(np.isnan(E), np.float32(1.0), np.float32(0.01))).reshape(H, W, 3)
 
 
+def irradiance(normal: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """The light E(n) per channel at unit normals, as :func:`fit_shading` fitted it (not relative to a median).
+
+    Parameters
+    ----------
+    normal : (n, 3) float
+        Unit normals.
+    coef : (3, 9) float
+        :func:`fit_shading`'s coefficients.
+
+    Returns
+    -------
+    (n, 3) float32
+        Linear light, in the photo's units over the design's albedo.
+    """
+    return sh_basis(np.asarray(normal), np.float32) @ np.asarray(coef, np.float32).T
+
+
 def shaded(design: np.ndarray, factor: np.ndarray) -> np.ndarray:
     """The design as the shading shows it: its linear light times the factor, back in grey levels.
 

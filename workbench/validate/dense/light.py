@@ -6,18 +6,149 @@ import cv2
 import numpy as np
 
 from workbench.validate import photometric
+from workbench.validate.dense.exposure import _residual
 from workbench.validate.dense.options import CREASE_DEG, LOST_MIN_CONTRAST, MAX_NOT_COUNTED, MIRROR_DEG, SCRATCH_MM
 from workbench.validate.print_warp import PrintGrid, _csum
+from workbench.validate.shading import irradiance
+
+
+def grid_creases(grid: PrintGrid) -> np.ndarray:
+    """How far the surface's normal turns from its mean around each grid pixel (:func:`crease_band`), degrees.
+
+    (rows, cols) float32, made once per grid and kept on it (NaN off the part).
+    """
+    if grid.crease_deg is None:
+        grid.crease_deg = crease_band(grid.X, grid.px_per_mm)
+    return grid.crease_deg
 
 
 def grid_folds(grid: PrintGrid) -> np.ndarray:
-    """Where the surface under the grid folds (:func:`crease_band` at CREASE_DEG or more); (rows, cols) bool.
+    """Where the surface under the grid folds (:func:`crease_band` at CREASE_DEG or more); (rows, cols) bool."""
+    return np.nan_to_num(grid_creases(grid)) >= CREASE_DEG
 
-    Made once per grid and kept on it.
+
+def facet_normals(X: np.ndarray, ii: np.ndarray, jj: np.ndarray) -> np.ndarray:
+    """The surface's own normal at grid pixels, from its derivatives on the grid: dX/dcol × dX/drow.
+
+    Central differences (one-sided at the grid's border), as :func:`crease_band` takes them; on a
+    mesh, the normal of the triangle under the pixel (of both, blended, astride an edge).
+
+    Parameters
+    ----------
+    X : (H, W, 3) float
+        Surface point under each grid pixel, mm (NaN off the part).
+    ii, jj : (n,) int
+        The pixels.
+
+    Returns
+    -------
+    (n, 3) float32
+        Unit normals (NaN where a neighbour is off the part).
     """
-    if grid.fold is None:
-        grid.fold = crease_band(grid.X, grid.px_per_mm) >= CREASE_DEG
-    return grid.fold
+    H, W = X.shape[:2]
+    du = X[ii, np.minimum(jj + 1, W - 1)] - X[ii, np.maximum(jj - 1, 0)]
+    dv = X[np.minimum(ii + 1, H - 1), jj] - X[np.maximum(ii - 1, 0), jj]
+    n = np.cross(du, dv).astype(np.float32)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def light_range(
+    normal: np.ndarray, X: np.ndarray, coef: np.ndarray, where: np.ndarray, reach_px: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The least and the largest light the surface around each pixel receives, relative to the light the model gives it.
+
+    A photo's pixel shows the surface within its blur: where the surface folds, its light there
+    is a blend of what its points receive, by their own normals (a real part's facets) or by the
+    smooth normals both renderers shade with, which turn fast across a fold; the model shades the
+    pixel by its smooth normal alone. The light the pixel shows lies between the least and the
+    largest of those, per channel.
+
+    Parameters
+    ----------
+    normal : (H, W, 3) float32
+        The smooth normal under each grid pixel (NaN off the part).
+    X : (H, W, 3) float
+        The surface point under each grid pixel, mm.
+    coef : (3, 9) float
+        The photo's light (:func:`workbench.validate.shading.fit_shading`).
+    where : (H, W) bool
+        The pixels asked about.
+    reach_px : int
+        How far the photo's pixel reaches over the surface, grid px (its blur).
+
+    Returns
+    -------
+    lo, hi : (n, 3) float32
+        At ``where``'s pixels (in :func:`numpy.nonzero`'s order): the least (at most 1) and the
+        largest (at least 1) light around, over the model's (where the model's is below a
+        hundredth of the largest around, over that hundredth).
+    """
+    H, W = where.shape
+    kernel = np.ones((2 * reach_px + 1, 2 * reach_px + 1), np.uint8)
+    near = cv2.dilate(where.astype(np.uint8), kernel).astype(bool) & np.isfinite(normal[..., 0])
+    ni, nj = np.nonzero(near)
+    smooth = irradiance(normal[ni, nj], coef)
+    own = irradiance(facet_normals(X, ni, nj), coef)
+    ok = np.isfinite(own).all(axis=1)
+    least = np.where(ok[:, None], np.minimum(smooth, own), smooth)
+    most = np.where(ok[:, None], np.maximum(smooth, own), smooth)
+    ii, jj = np.nonzero(where)
+    lo = np.empty((len(ii), 3), np.float32)
+    hi = np.empty((len(ii), 3), np.float32)
+    # (per channel through one image: the window's least and largest are an erosion and a dilation)
+    buf = np.empty((H, W), np.float32)
+    big = np.float32(3e38)
+    for c in range(3):
+        buf.fill(big)
+        buf[ni, nj] = least[:, c]
+        lo[:, c] = cv2.erode(buf, kernel)[ii, jj]
+        buf.fill(-big)
+        buf[ni, nj] = most[:, c]
+        hi[:, c] = cv2.dilate(buf, kernel)[ii, jj]
+    base = irradiance(normal[ii, jj], coef)
+    base = np.maximum(base, np.float32(0.01) * np.maximum(hi, np.float32(1e-12)))
+    return np.clip(lo / base, 0.0, 1.0), np.maximum(hi / base, np.float32(1.0))
+
+
+# the gains tried on the path from the least light around a pixel to the largest (geometric, both
+# ends included): the model's grey levels vary smoothly along it, and four steps of a quarter of
+# its logarithm leave the least residual within a few grey levels of the true least on the
+# corpus's folds (tests/test_fold_light.py's ridge: exact at the steps)
+FOLD_STEPS = 5
+
+
+def least_residual_under_light(target, light, gain, offset, lo, hi) -> np.ndarray:
+    """The least residual between ``target`` and the model of the photo under a light ``lo`` to ``hi`` times its own.
+
+    The model is ``gain · grey(light · g) + offset`` (the exposure fit of the print as the
+    shading shows it: ``light`` the print's linear light times the shading); g runs over the
+    geometric path from ``lo`` to ``hi`` per channel, in FOLD_STEPS steps.
+
+    Parameters
+    ----------
+    target : (n, 3) float32
+        Grey levels: what the model is to explain.
+    light : (n, 3) float32
+        The print's linear light times the model's shading.
+    gain, offset : (n, 3) float32
+        The exposure fit's gain over the shaded print and its offset (grey levels).
+    lo, hi : (n, 3) float32
+        The least and the largest light, relative to the model's (:func:`light_range`).
+
+    Returns
+    -------
+    (n,) float32
+        Grey levels, the largest channel's (:func:`workbench.validate.dense.exposure._residual`).
+    """
+    llo = np.log(np.maximum(lo, 1e-6))
+    lhi = np.log(np.maximum(hi, 1e-6))
+    target = target.astype(np.float32)
+    best = np.full(len(target), np.inf, np.float32)
+    for t in np.linspace(0.0, 1.0, FOLD_STEPS):
+        g = np.exp((1.0 - t) * llo + t * lhi).astype(np.float32)
+        model = gain * photometric.grey_levels(light * g) + offset
+        best = np.minimum(best, _residual(target, model.astype(np.float32)))
+    return best
 
 
 # each test that takes a region for light, in the words validation.json gives it

@@ -28,6 +28,8 @@ from workbench.validate.dense.light import (
     along_fold,
     grid_folds,
     lamp_cone,
+    least_residual_under_light,
+    light_range,
     mirrors_highlights,
     not_counted_regions,
     regions_mostly_in,
@@ -35,6 +37,7 @@ from workbench.validate.dense.light import (
 from workbench.validate.dense.lines import thin_told
 from workbench.validate.dense.options import (
     COLOUR_TOL,
+    DETECT_Z,
     EXPOSURE_SIGMA_PX,
     LOST_MIN_CONTRAST,
     MIN_DEFECT_MM2,
@@ -158,10 +161,11 @@ def _placed_flow(on: _Frame, state: np.ndarray) -> _Start:
     # the lamp's light: the photo's shading there went from 0.25 to 0.97 of the print across a
     # window whose fitted gain stayed at 0.40, and the lit side read as ink gone. (Fitted on the
     # print before the flow: a global fit of nine numbers does not feel a millimetre's slide.)
-    shade = np.ones_like(ref)
+    shade, light = np.ones_like(ref), None
     if grid.normal is not None:
         sat = _cmin(warped) >= SATURATED
-        shade = shading_factor(grid.normal, fit_shading(pho, ref, grid.normal, (state == FULL) & ~sat))
+        light = fit_shading(pho, ref, grid.normal, (state == FULL) & ~sat)
+        shade = shading_factor(grid.normal, light)
     fs = flow_start(shaded(ref, shade), pho, warped, state, scale, later)
     H, W = state.shape
     # placement is not a defect: each film's placement (an affine field over the film, fitted to
@@ -189,7 +193,7 @@ def _placed_flow(on: _Frame, state: np.ndarray) -> _Start:
         held = np.zeros_like(early)
     else:
         held, early = early, np.zeros_like(early)
-    return _Start(fs, state, ref, early, shade, held)
+    return _Start(fs, state, ref, early, shade, held, light)
 
 
 def _photo_model(on: _Frame, start: _Start) -> _Model:
@@ -480,12 +484,16 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     # light along a fold: where the surface folds, its two sides face the light differently and a
     # ridge catches it in a line, sharper than the exposure fit follows and, over uniform ink, as
     # bright as film (perfect photos of the scanned lion: lines of 5 to 14 mm² along folds whose
-    # normals turn 14 to 22° from their mean). A colour region that lies along one is light; ink
-    # gone there is not told from it in one photo, and the stated limit says so (below)
-    fold = grid_folds(grid)
+    # normals turn 14 to 22° from their mean). A colour region half of which the light a fold
+    # gives the pixels on and beside it explains is light (:func:`_fold_light`); ink gone is not
+    # found where that light may pass for it, and the stated limit says so (below)
     # (never a region the model tells for ink gone)
     folded = colour_bad & ~glossed & ~told_gone
-    along = along_fold(folded & ~told_ink if camera_center is not None else folded, fold)
+    folded = folded & ~told_ink if camera_center is not None else folded
+    fold_lit, fold, fold_line = _fold_light(
+        on, start, model, film_lit.film, colour_limit, colour_noise, folded, dropout_found | thin_found
+    )
+    along = along_fold(folded, fold_lit)
     glossed |= along
     colour_bad &= ~glossed
     gone &= ~glossed
@@ -504,8 +512,81 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     missing = gone
     return _Colour(
         alpha, colour_limit, colour_noise, res_raw, res, colour, colour_bad, missing, inked, dropout_found, thin,
-        thin_found, verdicts, scored, cone, fold, not_counted, room, untold & missing,
+        thin_found, verdicts, scored, cone, fold, not_counted, room, untold & missing, fold_line,
     )  # fmt: skip
+
+
+def _fold_light(
+    on: _Frame,
+    start: _Start,
+    model: _Model,
+    film: np.ndarray,
+    colour_limit: np.ndarray,
+    noise: float,
+    asked: np.ndarray,
+    sought: np.ndarray,
+):
+    """Where a fold's light explains the photo, and where it could pass for ink that is gone or for a scratch.
+
+    On a fold and within its blur of one, a photo's pixel shows light between the least and the
+    largest that the surface within its blur receives (:func:`light_range`, from the photo's own
+    fitted light), while the model shades it by its smooth normal alone. The photo is explained
+    by the fold's light where some light in that range brings the model within the colour test's
+    limit. Ink that is gone shows the film under that light too: the film at its least light
+    against the ink at any light in the range; where even these come within the limit at which
+    ink gone is found (the scratch test's, for a scratch), the fold's light may pass for it, and
+    it is not found there. Over ink dark enough that no light around brightens it to the film, a
+    fold hides nothing. Without a model of the light the fold may be anything, and all three are
+    the fold and its blur's reach.
+
+    Parameters
+    ----------
+    film : (H, W, 3) float32
+        The bare film as the photo shows it under the model's light, grey levels.
+    colour_limit : (H, W) float32
+        The colour test's limit, grey levels.
+    noise : float
+        The residual's noise, grey levels.
+    asked, sought : (H, W) bool
+        Where the photo is to be explained (the colour test's regions), and where ink that is
+        gone or a scratch would be found: the only pixels computed.
+
+    Returns
+    -------
+    explains, may_be_film, may_be_line : (H, W) bool
+        On the fold and within the photo's blur of it only (and of ``asked``, ``sought``).
+    """
+    grid = on.grid
+    # (the photo's pixel reaches over about twice its blur's sigma: within that of a fold, it
+    # shows the fold's light too)
+    reach = max(1, int(np.ceil(2.0 * model.blur)))
+    box = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
+    fold = cv2.dilate(grid_folds(grid).view(np.uint8), box).view(bool) & np.isfinite(grid.X[..., 0])
+    if start.light is None or grid.normal is None:
+        return fold, fold, fold
+    fold &= np.isfinite(grid.normal[..., 0]) & (asked | sought)
+    ii, jj = np.nonzero(fold)
+    lo, hi = light_range(grid.normal, grid.X, start.light, fold, reach)
+    shade = start.shade[ii, jj]
+    # the print's light under the model's shading, and the exposure fit's own gain over it (the
+    # model's is the print's, at the film's white)
+    lit = photometric.linear(model.moved[ii, jj]) * shade
+    gain = model.gain[ii, jj] * (np.float32(255.0) / photometric.grey_levels(shade))
+    offset, limit = model.offset[ii, jj], colour_limit[ii, jj]
+    explains, may_be_film, may_be_line = (np.zeros(fold.shape, bool) for _ in range(3))
+    a = asked[ii, jj]
+    explains[ii[a], jj[a]] = (
+        least_residual_under_light(on.pho[ii[a], jj[a]], lit[a], gain[a], offset[a], lo[a], hi[a]) <= limit[a]
+    )
+    # (the film as the ink around shows it, at least the model: ink only absorbs)
+    f = sought[ii, jj]
+    film_lo = shaded(np.clip(film[ii[f], jj[f]], model.pred[ii[f], jj[f]], np.float32(255.0)), lo[f])
+    to_film = least_residual_under_light(film_lo, lit[f], gain[f], offset[f], lo[f], hi[f])
+    # (at the limit ink gone is found at, :func:`colour_residuals`'s; a scratch's is that less
+    # COLOUR_TOL, the tolerance for what is broad)
+    may_be_film[ii[f], jj[f]] = to_film <= limit[f] + DETECT_Z * noise
+    may_be_line[ii[f], jj[f]] = to_film <= limit[f] - COLOUR_TOL + DETECT_Z * noise
+    return explains, may_be_film, may_be_line
 
 
 def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) -> _Found:
@@ -750,7 +831,7 @@ def _result(
         dropout_found &= ~colour.room
         thin_found &= ~colour.room
     dropout_found &= ~fold
-    thin_found &= ~fold
+    thin_found &= ~colour.fold_line
     ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
     limit = {
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),

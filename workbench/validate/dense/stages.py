@@ -70,6 +70,8 @@ class _Start:
         The placement the flow still holds, grid px: the fitted placement where it was too small
         to place the print by (``early`` 0), else 0. Every window shares it: it is no window's
         error (:func:`window_mismatch`).
+    light : (3, 9) float or None
+        The photo's light as a function of the normal (:func:`fit_shading`); None without a model.
     """
 
     fs: FlowStart
@@ -78,6 +80,7 @@ class _Start:
     early: np.ndarray
     shade: np.ndarray
     held: np.ndarray
+    light: np.ndarray | None = None
 
 
 @dataclass
@@ -239,7 +242,8 @@ class _Colour:
     cone : Future or None
         The lamp's mirror cone (:func:`lamp_cone`), with a camera centre.
     fold : (H, W) bool
-        Where the surface folds (:func:`grid_folds`).
+        Where the surface folds and its light may pass for ink that is gone (:func:`_fold_light`):
+        ink gone is not found there.
     not_counted : list of dict
         The regions taken for light (:func:`not_counted_regions`).
     room : (H, W) bool or None
@@ -248,6 +252,8 @@ class _Colour:
     untold : (H, W) bool
         Ink that is gone by default: no test told it from light (the photometric model's "not
         told", a line over uniform ink), and no lamp the photo shows is mirrored there.
+    fold_line : (H, W) bool or None
+        Where a fold's light may pass for a scratch: a scratch is not found there.
     """
 
     alpha: np.ndarray
@@ -269,6 +275,7 @@ class _Colour:
     not_counted: list
     room: np.ndarray | None = None
     untold: np.ndarray | None = None
+    fold_line: np.ndarray | None = None
 
 
 @dataclass

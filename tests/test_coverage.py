@@ -117,7 +117,7 @@ def test_an_uncovered_ring_is_named_by_a_point_on_it():
     unc = {c: ring if c == "ink_gone" else np.zeros((H, W), bool) for c in coverage.CLASSES}
     combined = np.full((H, W), print_warp.EDGE, np.uint8)
     (r,) = coverage.uncovered_regions(unc, combined, PPM, coverage.CoverageOptions())["regions"]
-    x, y = (int(v * PPM - 0.5) for v in r["centre_mm"])
+    x, y = (int(round(v * PPM - 0.5)) for v in r["centre_mm"])
     assert ring[y, x]
     # on a long side's middle, the band nearest the centroid, at least half its largest depth
     # (3 px) from its edges: rows 21 to 24 of the top band 20 to 25 (or their mirror below)

@@ -7,7 +7,14 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 
-from workbench.validate.dense.light import grid_folds, least_residual_under_light, light_range
+from workbench.validate.dense.light import (
+    MAX_FOLD_STEPS,
+    fold_steps,
+    grid_folds,
+    least_residual_under_light,
+    light_range,
+)
+from workbench.validate.dense.options import DETECT_Z
 from workbench.validate.dense.pipeline import _fold_light
 from workbench.validate.photometric import grey_levels, linear
 from workbench.validate.print_warp import PrintGrid
@@ -64,10 +71,10 @@ def test_the_least_residual_under_light_finds_the_light_in_its_range_and_stops_a
     # a light on the path's steps is matched exactly; one beyond its end is matched at the end
     for g in (0.7, np.sqrt(0.7 * 1.6), 1.6):
         target = gain * shaded(moved, shade * np.float32(g)) + offset
-        assert least_residual_under_light(target, light, gain, offset, lo, hi).max() < 1e-3
+        assert least_residual_under_light(target, light, gain, offset, lo, hi, 3).max() < 1e-3
     far = gain * shaded(moved, shade * np.float32(2.5)) + offset
     at_end = np.abs(far - (gain * shaded(moved, shade * np.float32(1.6)) + offset)).max(axis=-1)
-    np.testing.assert_allclose(least_residual_under_light(far, light, gain, offset, lo, hi), at_end, rtol=1e-5)
+    np.testing.assert_allclose(least_residual_under_light(far, light, gain, offset, lo, hi, 3), at_end, rtol=1e-5)
 
 
 def _folded_photo(ink: float):
@@ -79,7 +86,9 @@ def _folded_photo(ink: float):
     """
     ppm, size = 8.0, 80
     x = (np.arange(size) + 0.5) / ppm
-    xx, yy = np.meshgrid(x, x)
+    # (laid out as print_grid lays a print: its rows run down, the flat layout's y up, so that the
+    # grid's own derivatives give a normal into the part)
+    xx, yy = np.meshgrid(x, x[::-1])
     tilt = np.radians(20.0)
     z = np.tan(tilt) * np.minimum(xx, 10.0 - xx)
     X = np.dstack([xx, yy, z]).astype(np.float32)
@@ -100,34 +109,54 @@ def _folded_photo(ink: float):
     on = SimpleNamespace(grid=grid, pho=photo)
     start = SimpleNamespace(light=coef, shade=shade)
     model = SimpleNamespace(
-        gain=grey_levels(shade) / np.float32(255.0), offset=np.zeros_like(pred), moved=print_rgb, pred=pred, blur=1.0
+        gain=grey_levels(shade) / np.float32(255.0),
+        offset=np.zeros_like(pred),
+        moved=print_rgb,
+        pred=pred,
+        blur=1.0,
+        local_blur=np.ones((size, size), np.float32),
     )
     film = shaded(np.full_like(print_rgb, 255.0), shade)
     return on, start, model, film, np.abs(photo - pred).max(axis=-1)
 
 
 def test_a_folds_light_explains_the_photo_and_hides_ink_gone_only_where_it_could_reach_the_film():
-    limit = np.full((80, 80), 45.0, np.float32)
-    for ink, hides in ((225.0, True), (60.0, False)):
+    for ink, hides in ((245.0, True), (60.0, False)):
         on, start, model, film, off = _folded_photo(ink)
-        explains, may_be_film, may_be_line = _fold_light(on, start, model, film, limit, 2.0, ALL, ALL)
-        fold = np.nan_to_num(on.grid.crease_deg) >= 10.0
+        fold = np.nan_to_num(grid_folds(on.grid)) > 0
+        # (a colour test's limit half of what the smooth model misses on the fold at most, so that
+        # only the fold's light explains the photo there, and below the ink's step to the film
+        # under the model's light, so that only the fold's light lets it pass for the film)
+        noise = 0.5
+        step = np.abs(film - model.pred).max(axis=-1)[fold].min() - DETECT_Z * noise
+        limit = np.full((80, 80), 0.5 * min(off[fold].max(), step), np.float32)
+        explains, may_be_film, may_be_line = _fold_light(on, start, model, film, limit, noise, ALL, ALL)
         # (the two pixels astride the ridge take both facets' mean: their own turn is 9°)
         assert fold[:, 36:39].all() and fold[:, 41:44].all() and not fold[:, :20].any()
-        # the smooth model misses the facets' light along the ridge, and the fold's light explains it
-        assert off[fold].max() > 5.0
-        # (and the photo's pixels within its blur's reach of the fold, which show its light too)
+        # the fold's light explains the photo on the fold (and within its blur's reach: it shows
+        # its light too), nowhere else
         near = cv2.dilate(fold.view(np.uint8), np.ones((5, 5), np.uint8)) > 0
         assert explains[fold].all() and not explains[~near].any()
-        # pale ink lit from the fold's bright side passes for the film under its dark side: ink gone is
-        # not found there; dark ink is nowhere near, and a fold hides neither ink gone nor a scratch on it
-        assert may_be_film[fold].all() == hides and (may_be_film[fold].any() == hides)
+        # pale ink lit from the fold's bright side passes for the film under its dark side: ink gone
+        # is not found there; dark ink is nowhere near, and a fold hides neither ink gone nor a
+        # scratch on it
+        assert may_be_film[fold].all() == hides and may_be_film[fold].any() == hides
         assert not may_be_film[~near].any() and not may_be_line[~near].any()
         if not hides:
             assert not may_be_line.any()
     # without a model of the light, the fold may be anything
     on, start, model, film, _ = _folded_photo(60.0)
     start.light = None
+    limit = np.full((80, 80), 8.0, np.float32)
     # (and the photo's pixels within its blur's reach of it, twice its sigma: 2 grid px here)
     near = cv2.dilate(grid_folds(on.grid).view(np.uint8), np.ones((5, 5), np.uint8)) > 0
     assert all((m == near).all() for m in _fold_light(on, start, model, film, limit, 2.0, ALL, ALL))
+
+
+def test_as_many_gains_as_keep_half_a_step_within_the_noise():
+    lo, hi = np.full((4, 3), 0.8, np.float32), np.full((4, 3), 1.25, np.float32)
+    n = fold_steps(lo, hi, 2.0)
+    # a step in the gain's logarithm of ln(1.25 / 0.8) / (n - 1) moves white by 255 / 2.2 of it
+    assert 255 / 2.2 * np.log(1.25 / 0.8) / (n - 1) / 2 <= 2.0 < 255 / 2.2 * np.log(1.25 / 0.8) / (n - 2) / 2
+    assert fold_steps(lo[:0], hi[:0], 2.0) == 2
+    assert fold_steps(np.zeros((1, 3)), np.ones((1, 3)), 0.5) == MAX_FOLD_STEPS

@@ -15,7 +15,14 @@ from workbench.validate.shading import irradiance
 def grid_creases(grid: PrintGrid) -> np.ndarray:
     """How far the surface's normal turns from its mean around each grid pixel (:func:`crease_band`), degrees.
 
-    (rows, cols) float32, made once per grid and kept on it (NaN off the part).
+    Parameters
+    ----------
+    grid : PrintGrid
+
+    Returns
+    -------
+    (rows, cols) float32
+        Degrees, made once per grid and kept on it (``grid.crease_deg``; NaN off the part).
     """
     if grid.crease_deg is None:
         grid.crease_deg = crease_band(grid.X, grid.px_per_mm)
@@ -27,11 +34,14 @@ def grid_folds(grid: PrintGrid) -> np.ndarray:
     return np.nan_to_num(grid_creases(grid)) >= CREASE_DEG
 
 
-def facet_normals(X: np.ndarray, ii: np.ndarray, jj: np.ndarray) -> np.ndarray:
-    """The surface's own normal at grid pixels, from its derivatives on the grid: dX/dcol × dX/drow.
+def facet_normals(X: np.ndarray, ii: np.ndarray, jj: np.ndarray, side: np.ndarray) -> np.ndarray:
+    """The surface's own normal at grid pixels, from its derivatives on the grid, on the side of ``side``.
 
-    Central differences (one-sided at the grid's border), as :func:`crease_band` takes them; on a
-    mesh, the normal of the triangle under the pixel (of both, blended, astride an edge).
+    dX/dcol × dX/drow by central differences (one-sided at the grid's border), as
+    :func:`crease_band` takes them: on a mesh, the normal of the triangle under the pixel (of
+    both, blended, astride an edge). Its sign is the grid's orientation's (the print's rows run
+    down, the flat layout's y up: on a print grid it points into the part), so it is turned to
+    the side of the given normals.
 
     Parameters
     ----------
@@ -39,6 +49,8 @@ def facet_normals(X: np.ndarray, ii: np.ndarray, jj: np.ndarray) -> np.ndarray:
         Surface point under each grid pixel, mm (NaN off the part).
     ii, jj : (n,) int
         The pixels.
+    side : (n, 3) float
+        Normals whose side the result takes (the smooth normals: out of the part).
 
     Returns
     -------
@@ -49,7 +61,9 @@ def facet_normals(X: np.ndarray, ii: np.ndarray, jj: np.ndarray) -> np.ndarray:
     du = X[ii, np.minimum(jj + 1, W - 1)] - X[ii, np.maximum(jj - 1, 0)]
     dv = X[np.minimum(ii + 1, H - 1), jj] - X[np.maximum(ii - 1, 0), jj]
     n = np.cross(du, dv).astype(np.float32)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where((n * side).sum(axis=1, keepdims=True) < 0, -n, n)
 
 
 def light_range(
@@ -88,7 +102,7 @@ def light_range(
     near = cv2.dilate(where.astype(np.uint8), kernel).astype(bool) & np.isfinite(normal[..., 0])
     ni, nj = np.nonzero(near)
     smooth = irradiance(normal[ni, nj], coef)
-    own = irradiance(facet_normals(X, ni, nj), coef)
+    own = irradiance(facet_normals(X, ni, nj, normal[ni, nj]), coef)
     ok = np.isfinite(own).all(axis=1)
     least = np.where(ok[:, None], np.minimum(smooth, own), smooth)
     most = np.where(ok[:, None], np.maximum(smooth, own), smooth)
@@ -105,24 +119,42 @@ def light_range(
         buf.fill(-big)
         buf[ni, nj] = most[:, c]
         hi[:, c] = cv2.dilate(buf, kernel)[ii, jj]
+    # (a light below a hundredth of the largest around is that hundredth, as the shading's own
+    # factor is floored: :func:`workbench.validate.shading.shading_factor`)
     base = irradiance(normal[ii, jj], coef)
     base = np.maximum(base, np.float32(0.01) * np.maximum(hi, np.float32(1e-12)))
     return np.clip(lo / base, 0.0, 1.0), np.maximum(hi / base, np.float32(1.0))
 
 
 # the gains tried on the path from the least light around a pixel to the largest (geometric, both
-# ends included): the model's grey levels vary smoothly along it, and four steps of a quarter of
-# its logarithm leave the least residual within a few grey levels of the true least on the
-# corpus's folds (tests/test_fold_light.py's ridge: exact at the steps)
-FOLD_STEPS = 5
+# ends included). A grey level v is about 255 (lin)^(1/2.2), so a gain's step of Δ in its
+# logarithm moves the model by about v Δ / 2.2, and the least residual over the steps exceeds the
+# true least by at most half of that: the steps are as many as keep that within the residual's
+# noise at the film's white (v = 255), at least two and at most MAX_FOLD_STEPS
+MAX_FOLD_STEPS = 64
 
 
-def least_residual_under_light(target, light, gain, offset, lo, hi) -> np.ndarray:
+def fold_steps(lo: np.ndarray, hi: np.ndarray, noise: float) -> int:
+    """How many gains :func:`least_residual_under_light` tries: half a step at the film's white within ``noise``."""
+    span = float(np.log(np.maximum(hi, 1e-6) / np.maximum(lo, 1e-6)).max()) if len(lo) else 0.0
+    need = 255.0 * span / (2.2 * 2.0 * max(noise, 1e-3))
+    return int(min(max(np.ceil(need) + 1, 2), MAX_FOLD_STEPS))
+
+
+def least_residual_under_light(
+    target: np.ndarray,
+    light: np.ndarray,
+    gain: np.ndarray,
+    offset: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    steps: int,
+) -> np.ndarray:
     """The least residual between ``target`` and the model of the photo under a light ``lo`` to ``hi`` times its own.
 
     The model is ``gain · grey(light · g) + offset`` (the exposure fit of the print as the
     shading shows it: ``light`` the print's linear light times the shading); g runs over the
-    geometric path from ``lo`` to ``hi`` per channel, in FOLD_STEPS steps.
+    geometric path from ``lo`` to ``hi`` per channel, in ``steps`` steps (:func:`fold_steps`).
 
     Parameters
     ----------
@@ -134,6 +166,8 @@ def least_residual_under_light(target, light, gain, offset, lo, hi) -> np.ndarra
         The exposure fit's gain over the shaded print and its offset (grey levels).
     lo, hi : (n, 3) float32
         The least and the largest light, relative to the model's (:func:`light_range`).
+    steps : int
+        Gains tried, both ends included.
 
     Returns
     -------
@@ -144,7 +178,7 @@ def least_residual_under_light(target, light, gain, offset, lo, hi) -> np.ndarra
     lhi = np.log(np.maximum(hi, 1e-6))
     target = target.astype(np.float32)
     best = np.full(len(target), np.inf, np.float32)
-    for t in np.linspace(0.0, 1.0, FOLD_STEPS):
+    for t in np.linspace(0.0, 1.0, max(2, steps)):
         g = np.exp((1.0 - t) * llo + t * lhi).astype(np.float32)
         model = gain * photometric.grey_levels(light * g) + offset
         best = np.minimum(best, _residual(target, model.astype(np.float32)))

@@ -26,6 +26,7 @@ from workbench.validate.dense.flow import dis_flow, flow_start, median_flow, ten
 from workbench.validate.dense.light import (
     LIGHT_RULES,
     along_fold,
+    fold_steps,
     grid_folds,
     lamp_cone,
     least_residual_under_light,
@@ -112,7 +113,6 @@ def analyse(
     camera_center : (3,) float, optional
         The photo's camera centre, mm in the mesh frame: a colour region that mirrors the
         lamp like the photo's own highlights is one of them (:func:`mirrors_highlights`).
-
     Returns
     -------
     DenseResult
@@ -490,10 +490,13 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     # (never a region the model tells for ink gone)
     folded = colour_bad & ~glossed & ~told_gone
     folded = folded & ~told_ink if camera_center is not None else folded
-    fold_lit, fold, fold_line = _fold_light(
+    explained, fold, fold_line = _fold_light(
         on, start, model, film_lit.film, colour_limit, colour_noise, folded, dropout_found | thin_found
     )
-    along = along_fold(folded, fold_lit)
+    # (light only where the stated maps find nothing either: a scratch's pixels where a scratch is
+    # not found, the rest where ink gone is not; the region's other pixels stay what they are)
+    fold_lit = explained & np.where(thin, fold_line, fold)
+    along = along_fold(folded, fold_lit) & fold_lit
     glossed |= along
     colour_bad &= ~glossed
     gone &= ~glossed
@@ -549,7 +552,7 @@ def _fold_light(
         The residual's noise, grey levels.
     asked, sought : (H, W) bool
         Where the photo is to be explained (the colour test's regions), and where ink that is
-        gone or a scratch would be found: the only pixels computed.
+        gone or a scratch would be found: the only pixels computed (the maps on both).
 
     Returns
     -------
@@ -557,16 +560,21 @@ def _fold_light(
         On the fold and within the photo's blur of it only (and of ``asked``, ``sought``).
     """
     grid = on.grid
-    # (the photo's pixel reaches over about twice its blur's sigma: within that of a fold, it
-    # shows the fold's light too)
-    reach = max(1, int(np.ceil(2.0 * model.blur)))
+    crease = grid_folds(grid)
+    # (a photo pixel reaches over about twice its blur's sigma: within that of a fold it shows the
+    # fold's light too. The blur on the grid grows where the photo sees the surface at a slant or
+    # from farther: its 90th percentile over the fold, not its median over the photo)
+    over = crease & np.isfinite(model.local_blur)
+    blur = float(np.percentile(model.local_blur[over], 90)) if over.any() else model.blur
+    reach = max(1, int(np.ceil(2.0 * blur)))
     box = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
-    fold = cv2.dilate(grid_folds(grid).view(np.uint8), box).view(bool) & np.isfinite(grid.X[..., 0])
+    fold = cv2.dilate(crease.view(np.uint8), box).view(bool) & np.isfinite(grid.X[..., 0])
     if start.light is None or grid.normal is None:
         return fold, fold, fold
     fold &= np.isfinite(grid.normal[..., 0]) & (asked | sought)
     ii, jj = np.nonzero(fold)
     lo, hi = light_range(grid.normal, grid.X, start.light, fold, reach)
+    steps = fold_steps(lo, hi, noise)
     shade = start.shade[ii, jj]
     # the print's light under the model's shading, and the exposure fit's own gain over it (the
     # model's is the print's, at the film's white)
@@ -576,16 +584,15 @@ def _fold_light(
     explains, may_be_film, may_be_line = (np.zeros(fold.shape, bool) for _ in range(3))
     a = asked[ii, jj]
     explains[ii[a], jj[a]] = (
-        least_residual_under_light(on.pho[ii[a], jj[a]], lit[a], gain[a], offset[a], lo[a], hi[a]) <= limit[a]
+        least_residual_under_light(on.pho[ii[a], jj[a]], lit[a], gain[a], offset[a], lo[a], hi[a], steps) <= limit[a]
     )
     # (the film as the ink around shows it, at least the model: ink only absorbs)
-    f = sought[ii, jj]
-    film_lo = shaded(np.clip(film[ii[f], jj[f]], model.pred[ii[f], jj[f]], np.float32(255.0)), lo[f])
-    to_film = least_residual_under_light(film_lo, lit[f], gain[f], offset[f], lo[f], hi[f])
+    film_lo = shaded(np.clip(film[ii, jj], model.pred[ii, jj], np.float32(255.0)), lo)
+    to_film = least_residual_under_light(film_lo, lit, gain, offset, lo, hi, steps)
     # (at the limit ink gone is found at, :func:`colour_residuals`'s; a scratch's is that less
     # COLOUR_TOL, the tolerance for what is broad)
-    may_be_film[ii[f], jj[f]] = to_film <= limit[f] + DETECT_Z * noise
-    may_be_line[ii[f], jj[f]] = to_film <= limit[f] - COLOUR_TOL + DETECT_Z * noise
+    may_be_film[ii, jj] = to_film <= limit + DETECT_Z * noise
+    may_be_line[ii, jj] = to_film <= limit - COLOUR_TOL + DETECT_Z * noise
     return explains, may_be_film, may_be_line
 
 
@@ -783,7 +790,7 @@ def _result(
     on: _Frame, start: _Start, model: _Model, measures: _Measures, colour: _Colour, found: _Found
 ) -> DenseResult:
     """The result: the maps, the defects, how finely the photo samples the print and what it can find."""
-    grid, warped, fp, camera_center = on.grid, on.warped, on.fp, on.camera_center
+    grid, warped, fp = on.grid, on.warped, on.fp
     tolerance_mm, mm_per_px = on.tolerance_mm, on.mm_per_px
     state, win = start.state, start.fs.win
     blur, local_blur = model.blur, model.local_blur
@@ -822,7 +829,8 @@ def _result(
     limit_mm[lit] = np.nan  # (the flow near light is not the print's: see lit above)
     stated_sigma_mm[lit] = np.nan
     window_sigma_mm[lit] = np.nan
-    if camera_center is not None:
+    in_cone = None
+    if colour.cone is not None:
         in_cone, flat_in_cone = colour.cone.result()
         dropout_found &= ~in_cone
         thin_found &= ~flat_in_cone
@@ -871,7 +879,7 @@ def _result(
         np.where(normal[..., None], e1, np.float32(0.0)).astype(np.float32),
         thin_found & stated,
         colour.not_counted,
-        in_cone if camera_center is not None else None,
+        in_cone,
         start.early if start.early.any() else None,
         found.slide,
         stated_sigma_mm,

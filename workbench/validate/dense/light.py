@@ -120,25 +120,21 @@ def light_range(
         buf[ni, nj] = most[:, c]
         hi[:, c] = cv2.dilate(buf, kernel)[ii, jj]
     # (a light below a hundredth of the largest around is that hundredth, as the shading's own
-    # factor is floored: :func:`workbench.validate.shading.shading_factor`)
-    base = irradiance(normal[ii, jj], coef)
-    base = np.maximum(base, np.float32(0.01) * np.maximum(hi, np.float32(1e-12)))
-    return np.clip(lo / base, 0.0, 1.0), np.maximum(hi / base, np.float32(1.0))
+    # factor is floored: :func:`workbench.validate.shading.shading_factor`; the least light too)
+    floor = np.float32(0.01) * np.maximum(hi, np.float32(1e-12))
+    base = np.maximum(irradiance(normal[ii, jj], coef), floor)
+    return np.clip(np.maximum(lo, floor) / base, 0.0, 1.0), np.maximum(hi / base, np.float32(1.0))
 
 
-# the gains tried on the path from the least light around a pixel to the largest (geometric, both
-# ends included). A grey level v is about 255 (lin)^(1/2.2), so a gain's step of Δ in its
-# logarithm moves the model by about v Δ / 2.2, and the least residual over the steps exceeds the
-# true least by at most half of that: the steps are as many as keep that within the residual's
-# noise at the film's white (v = 255), at least two and at most MAX_FOLD_STEPS
-MAX_FOLD_STEPS = 64
-
-
-def fold_steps(lo: np.ndarray, hi: np.ndarray, noise: float) -> int:
-    """How many gains :func:`least_residual_under_light` tries: half a step at the film's white within ``noise``."""
-    span = float(np.log(np.maximum(hi, 1e-6) / np.maximum(lo, 1e-6)).max()) if len(lo) else 0.0
-    need = 255.0 * span / (2.2 * 2.0 * max(noise, 1e-3))
-    return int(min(max(np.ceil(need) + 1, 2), MAX_FOLD_STEPS))
+# The light on the path from the least light around a pixel to the largest, g(t) = lo^(1-t) hi^t
+# per channel, brightens each channel of the model steadily with t, so each channel's distance to
+# a target falls, then rises, and so does the largest of the three: one least, which a golden-
+# section search finds. FOLD_SEARCH_T is where it stops: the model moves by about v Δ(ln g) / 2.2
+# grey levels (v ≈ 255 lin^(1/2.2)), at most 255 ln(100) / 2.2 = 534 over the whole path (the
+# least light is floored at a hundredth of the largest, as :func:`light_range` floors it), so
+# 1e-3 of the path leaves the least within about half a grey level
+FOLD_SEARCH_T = 1e-3
+GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 
 
 def least_residual_under_light(
@@ -148,13 +144,13 @@ def least_residual_under_light(
     offset: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
-    steps: int,
 ) -> np.ndarray:
     """The least residual between ``target`` and the model of the photo under a light ``lo`` to ``hi`` times its own.
 
     The model is ``gain · grey(light · g) + offset`` (the exposure fit of the print as the
     shading shows it: ``light`` the print's linear light times the shading); g runs over the
-    geometric path from ``lo`` to ``hi`` per channel, in ``steps`` steps (:func:`fold_steps`).
+    geometric path from ``lo`` to ``hi`` per channel, searched by golden sections to
+    FOLD_SEARCH_T of the path (the residual has one least along it: see above).
 
     Parameters
     ----------
@@ -166,23 +162,62 @@ def least_residual_under_light(
         The exposure fit's gain over the shaded print and its offset (grey levels).
     lo, hi : (n, 3) float32
         The least and the largest light, relative to the model's (:func:`light_range`).
-    steps : int
-        Gains tried, both ends included.
 
     Returns
     -------
     (n,) float32
         Grey levels, the largest channel's (:func:`workbench.validate.dense.exposure._residual`).
     """
-    llo = np.log(np.maximum(lo, 1e-6))
-    lhi = np.log(np.maximum(hi, 1e-6))
+    llo = np.log(np.maximum(lo, 1e-6)).astype(np.float32)
+    lhi = np.log(np.maximum(hi, 1e-6)).astype(np.float32)
     target = target.astype(np.float32)
-    best = np.full(len(target), np.inf, np.float32)
-    for t in np.linspace(0.0, 1.0, max(2, steps)):
-        g = np.exp((1.0 - t) * llo + t * lhi).astype(np.float32)
-        model = gain * photometric.grey_levels(light * g) + offset
-        best = np.minimum(best, _residual(target, model.astype(np.float32)))
-    return best
+
+    def at(t: np.ndarray) -> np.ndarray:
+        g = np.exp((1.0 - t)[:, None] * llo + t[:, None] * lhi)
+        return _residual(target, (gain * photometric.grey_levels(light * g) + offset).astype(np.float32))
+
+    n = len(target)
+    a, b = np.zeros(n, np.float32), np.ones(n, np.float32)
+    c, d = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
+    fc, fd = at(c), at(d)
+    # (the ends too: where the least lies at one, the search closes on it from inside)
+    best = np.minimum(at(a), at(b))
+    while float((b - a).max(initial=0.0)) > FOLD_SEARCH_T:
+        left = fc <= fd
+        b = np.where(left, d, b)
+        a = np.where(left, a, c)
+        # (the kept point is the new interval's other golden point: one new residual a round)
+        c_new = np.where(left, b - GOLDEN * (b - a), d)
+        d_new = np.where(left, c, a + GOLDEN * (b - a))
+        fk = np.where(left, fc, fd)
+        t_new = np.where(left, c_new, d_new)
+        f_new = at(t_new)
+        fc, fd = np.where(left, f_new, fk), np.where(left, fk, f_new)
+        c, d = c_new, d_new
+    return np.minimum(best, np.minimum(fc, fd))
+
+
+def taken_along_fold(
+    explained: np.ndarray, may_be_film: np.ndarray, may_be_line: np.ndarray, thin: np.ndarray, gone: np.ndarray
+) -> np.ndarray:
+    """The pixels a fold's light may take for light: where it explains the photo and the stated maps find nothing.
+
+    A scratch's pixel only where a scratch is not found (``may_be_line``), a pixel of ink gone
+    only where ink gone is not (``may_be_film``), any other colour where the light explains it
+    (it hides no ink gone): so that the rule takes nothing the detection maps state they find.
+
+    Parameters
+    ----------
+    explained, may_be_film, may_be_line : (H, W) bool
+        :func:`workbench.validate.dense.pipeline._fold_light`'s answer.
+    thin, gone : (H, W) bool
+        A scratch's pixels, and the pixels stepped towards the bare film.
+
+    Returns
+    -------
+    (H, W) bool
+    """
+    return explained & np.where(thin, may_be_line, np.where(gone, may_be_film, True))
 
 
 # each test that takes a region for light, in the words validation.json gives it

@@ -26,7 +26,6 @@ from workbench.validate.dense.flow import dis_flow, flow_start, median_flow, ten
 from workbench.validate.dense.light import (
     LIGHT_RULES,
     along_fold,
-    fold_steps,
     grid_folds,
     lamp_cone,
     least_residual_under_light,
@@ -34,6 +33,7 @@ from workbench.validate.dense.light import (
     mirrors_highlights,
     not_counted_regions,
     regions_mostly_in,
+    taken_along_fold,
 )
 from workbench.validate.dense.lines import thin_told
 from workbench.validate.dense.options import (
@@ -113,6 +113,7 @@ def analyse(
     camera_center : (3,) float, optional
         The photo's camera centre, mm in the mesh frame: a colour region that mirrors the
         lamp like the photo's own highlights is one of them (:func:`mirrors_highlights`).
+
     Returns
     -------
     DenseResult
@@ -493,9 +494,9 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     explained, fold, fold_line = _fold_light(
         on, start, model, film_lit.film, colour_limit, colour_noise, folded, dropout_found | thin_found
     )
-    # (light only where the stated maps find nothing either: a scratch's pixels where a scratch is
-    # not found, the rest where ink gone is not; the region's other pixels stay what they are)
-    fold_lit = explained & np.where(thin, fold_line, fold)
+    # (light only where the stated maps find nothing either; the region's other pixels stay what
+    # they are)
+    fold_lit = taken_along_fold(explained, fold, fold_line, thin, gone)
     along = along_fold(folded, fold_lit) & fold_lit
     glossed |= along
     colour_bad &= ~glossed
@@ -574,7 +575,6 @@ def _fold_light(
     fold &= np.isfinite(grid.normal[..., 0]) & (asked | sought)
     ii, jj = np.nonzero(fold)
     lo, hi = light_range(grid.normal, grid.X, start.light, fold, reach)
-    steps = fold_steps(lo, hi, noise)
     shade = start.shade[ii, jj]
     # the print's light under the model's shading, and the exposure fit's own gain over it (the
     # model's is the print's, at the film's white)
@@ -584,11 +584,11 @@ def _fold_light(
     explains, may_be_film, may_be_line = (np.zeros(fold.shape, bool) for _ in range(3))
     a = asked[ii, jj]
     explains[ii[a], jj[a]] = (
-        least_residual_under_light(on.pho[ii[a], jj[a]], lit[a], gain[a], offset[a], lo[a], hi[a], steps) <= limit[a]
+        least_residual_under_light(on.pho[ii[a], jj[a]], lit[a], gain[a], offset[a], lo[a], hi[a]) <= limit[a]
     )
     # (the film as the ink around shows it, at least the model: ink only absorbs)
     film_lo = shaded(np.clip(film[ii, jj], model.pred[ii, jj], np.float32(255.0)), lo)
-    to_film = least_residual_under_light(film_lo, lit, gain, offset, lo, hi, steps)
+    to_film = least_residual_under_light(film_lo, lit, gain, offset, lo, hi)
     # (at the limit ink gone is found at, :func:`colour_residuals`'s; a scratch's is that less
     # COLOUR_TOL, the tolerance for what is broad)
     may_be_film[ii, jj] = to_film <= limit + DETECT_Z * noise
@@ -839,7 +839,7 @@ def _result(
         dropout_found &= ~colour.room
         thin_found &= ~colour.room
     dropout_found &= ~fold
-    thin_found &= ~colour.fold_line
+    thin_found &= ~(fold if colour.fold_line is None else colour.fold_line)
     ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
     limit = {
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),

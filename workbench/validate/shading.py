@@ -195,10 +195,9 @@ def shading_factor(normal: np.ndarray, coef: np.ndarray | None) -> np.ndarray:
     # gives a NaN light, replaced at the end): a 4 Mpx grid's (n, 9) basis in float64 would hold
     # 290 MB, and gathering the part's pixels and scattering them back took 0.4 s of 0.55
     flat = normal.reshape(-1, 3)
-    c = np.asarray(coef, np.float32).T
     E = np.empty((len(flat), 3), np.float32)
     for start in range(0, len(flat), SHADE_CHUNK):
-        E[start : start + SHADE_CHUNK] = sh_basis(flat[start : start + SHADE_CHUNK], np.float32) @ c
+        E[start : start + SHADE_CHUNK] = irradiance(flat[start : start + SHADE_CHUNK], coef)
     # (the median over an evenly thinned sample of the part: a normalisation the local exposure
     # fit takes over)
     sample = E[:: max(1, len(E) // MAX_SAMPLES)]

@@ -516,7 +516,7 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     missing = gone
     return _Colour(
         alpha, colour_limit, colour_noise, res_raw, res, colour, colour_bad, missing, inked, dropout_found, thin,
-        thin_found, verdicts, scored, cone, fold, not_counted, room, untold & missing, fold_line,
+        thin_found, verdicts, scored, cone, fold, fold_line, not_counted, room, untold & missing,
     )  # fmt: skip
 
 
@@ -537,7 +537,7 @@ def _fold_light(
     fitted light), while the model shades it by its smooth normal alone. The photo is explained
     by the fold's light where some light in that range brings the model within the colour test's
     limit. Ink that is gone shows the film under that light too: the film at its least light
-    against the ink at any light in the range; where even these come within the limit at which
+    against the ink at some light in the range; where even these come within the limit at which
     ink gone is found (the scratch test's, for a scratch), the fold's light may pass for it, and
     it is not found there. Over ink dark enough that no light around brightens it to the film, a
     fold hides nothing. Without a model of the light the fold may be anything, and all three are
@@ -839,7 +839,7 @@ def _result(
         dropout_found &= ~colour.room
         thin_found &= ~colour.room
     dropout_found &= ~fold
-    thin_found &= ~(fold if colour.fold_line is None else colour.fold_line)
+    thin_found &= ~colour.fold_line
     ink_step = float(np.median(colour_limit[stated])) if stated.any() else COLOUR_TOL
     limit = {
         "min_area_mm2": max(MIN_DEFECT_MM2, (3.0 * px_mm) ** 2 if px_mm else 0.0, (3.0 / grid.px_per_mm) ** 2),

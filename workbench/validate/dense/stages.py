@@ -244,6 +244,8 @@ class _Colour:
     fold : (H, W) bool
         Where the surface folds and its light may pass for ink that is gone (:func:`_fold_light`):
         ink gone is not found there.
+    fold_line : (H, W) bool
+        Where it may pass for a scratch: a scratch is not found there.
     not_counted : list of dict
         The regions taken for light (:func:`not_counted_regions`).
     room : (H, W) bool or None
@@ -252,8 +254,6 @@ class _Colour:
     untold : (H, W) bool
         Ink that is gone by default: no test told it from light (the photometric model's "not
         told", a line over uniform ink), and no lamp the photo shows is mirrored there.
-    fold_line : (H, W) bool or None
-        Where a fold's light may pass for a scratch: a scratch is not found there.
     """
 
     alpha: np.ndarray
@@ -272,10 +272,10 @@ class _Colour:
     scored: np.ndarray
     cone: object
     fold: np.ndarray
+    fold_line: np.ndarray
     not_counted: list
     room: np.ndarray | None = None
     untold: np.ndarray | None = None
-    fold_line: np.ndarray | None = None
 
 
 @dataclass

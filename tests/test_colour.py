@@ -75,7 +75,8 @@ def measure(scene, photo, chart="fixture", pose=True, **kw):
     if pose:
         cam = estimate_pose(cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY), d.fixture, cam.K, cam.dist).camera
     depth = print_warp.photo_buffers(cam, d.V, d.F)[1]
-    warped, state, _scale, _footprint = print_warp.warp_to_print(photo, cam, grid, d.V, d.F, depth)
+    pw = print_warp.warp_to_print(photo, cam, grid, d.V, d.F, depth)
+    warped, state = pw.warped, pw.state
     names = [v["name"] for v in d.info["views"]]
     regions = {f"view {n}": grid.owner == k for k, n in enumerate(names)}
     return col.measure_colour(

@@ -26,11 +26,11 @@ def test_a_surface_turned_away_from_the_camera_is_not_scored():
     # the same square seen from its decorated side is scored; turned over (its triangles
     # wound the other way), nothing of it is: it is the back of the part
     V, F, grid, cam, photo = quad_scene(flip=False)
-    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    state = print_warp.warp_to_print(photo, cam, grid, V, F).state
     on = np.isfinite(grid.X[..., 0])
     assert np.isin(state[on], (print_warp.FULL, print_warp.EDGE)).all() and (state == print_warp.FULL).mean() > 0.5
     V, F, grid, cam, photo = quad_scene(flip=True)
-    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    state = print_warp.warp_to_print(photo, cam, grid, V, F).state
     assert (state[on] == print_warp.OCCLUDED).all()
 
 
@@ -38,7 +38,8 @@ def test_points_next_to_the_outline_in_the_photo_are_not_scored():
     # the photo's pixels along the square's outline mix it with the background: print pixels
     # seen within the band (3 photo pixels, plus twice the pre-blur) are EDGE, the rest FULL
     V, F, grid, cam, photo = quad_scene(flip=False)
-    _, state, scale, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    pw = print_warp.warp_to_print(photo, cam, grid, V, F)
+    state, scale = pw.state, pw.scale
     xy, _ = cam.project(grid.X[np.isfinite(grid.X[..., 0])])
     lo, hi = cam.project(V)[0].min(axis=0), cam.project(V)[0].max(axis=0)
     to_outline = np.minimum(xy - lo, hi - xy).min(axis=1)
@@ -110,7 +111,7 @@ def test_a_scans_folded_over_triangles_open_no_hole_in_what_is_seen():
     # sheet turned over is the back of the part
     flipped = np.random.default_rng(2).choice(5000, 40, replace=False)
     V, F, grid, cam, photo = scan_scene(flipped)
-    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    state = print_warp.warp_to_print(photo, cam, grid, V, F).state
     on = np.isfinite(grid.X[..., 0])
     assert not (state[on] == print_warp.OCCLUDED).any()
     band = print_warp.rim_band(state)
@@ -118,7 +119,7 @@ def test_a_scans_folded_over_triangles_open_no_hole_in_what_is_seen():
     inner[30:-30, 30:-30] = True  # farther than the rim band and the outline's from the film's outline
     assert (band[inner] == print_warp.FULL).all()
     V, F, grid, cam, photo = scan_scene(np.arange(5000))
-    _, state, _, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    state = print_warp.warp_to_print(photo, cam, grid, V, F).state
     assert (state[on] == print_warp.OCCLUDED).all()
 
 
@@ -156,10 +157,11 @@ def test_the_smooth_surface_decides_what_faces_the_photo_and_its_contour_is_an_e
     normal = grid.normal.copy()
     normal[away] = np.array([0.6, 0.0, -0.8], np.float32)  # faces away from a camera 500 mm above
     # (by its triangles alone, as without a smooth normal: seen, and scored but at the outline)
-    _, before, _, _ = print_warp.warp_to_print(photo, cam, dataclasses.replace(grid, normal=None), V, F)
+    before = print_warp.warp_to_print(photo, cam, dataclasses.replace(grid, normal=None), V, F).state
     assert (before[away] == print_warp.FULL).mean() > 0.8
     grid = dataclasses.replace(grid, normal=normal)
-    _, state, scale, _ = print_warp.warp_to_print(photo, cam, grid, V, F)
+    pw = print_warp.warp_to_print(photo, cam, grid, V, F)
+    state, scale = pw.state, pw.scale
     assert (state[away] == print_warp.OCCLUDED).all()
     # the contour in the photo: the column where x = 10 mm projects
     xy, _ = cam.project(grid.X[on])

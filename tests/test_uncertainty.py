@@ -376,11 +376,12 @@ def _kappa2_of(design, photo_path, monkeypatch) -> float:
     prof = load_camera_profile(photo_path.with_suffix(".json"))
     cam = estimate_pose(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY), design.fixture, prof.K, prof.dist).camera
     grid = design_print_grid(design)
-    on_print, state, scale, footprint = print_warp.warp_to_print(image, cam, grid, design.V, design.F)
+    pw = print_warp.warp_to_print(image, cam, grid, design.V, design.F)
+    on_print, state, scale, footprint = pw.warped, pw.state, pw.scale, pw.footprint
     got = []
     real = pipeline.window_mismatch
     monkeypatch.setattr(pipeline, "window_mismatch", lambda *a, **k: got.append(real(*a, **k)) or got[-1])
-    dense.analyse(grid, on_print, state, 0.5, scale, footprint, cam.center)
+    dense.analyse(grid, on_print, state, 0.5, scale, footprint, cam.center, footprint_axes=pw.footprint_axes)
     return got[0]
 
 

@@ -78,8 +78,9 @@ def truth(design, photo_path, entry, shift):
     p = design.info["print"]
     grid = print_warp.print_grid(design.V, design.F, design.flat, p["height_mm"], design.rgb, p["dpi"], design.owner)
     depth = print_warp.photo_buffers(cam, design.V, design.F)[1]
-    on_print, state, scale, footprint = print_warp.warp_to_print(photo, cam, grid, design.V, design.F, depth)
-    dr = dense.analyse(grid, on_print, state, 0.5, scale, footprint)
+    pw = print_warp.warp_to_print(photo, cam, grid, design.V, design.F, depth)
+    on_print, state, scale, footprint = pw.warped, pw.state, pw.scale, pw.footprint
+    dr = dense.analyse(grid, on_print, state, 0.5, scale, footprint, footprint_axes=pw.footprint_axes)
     again, de_map, _ = col.photo_colour(photo, cam, design, grid, on_print, dr.state, footprint, depth)
     # nearly the same pixels as validate's: validate also seats the part on its plate (a hair's motion here)
     assert again["delta_e00"]["mean"] == pytest.approx(entry["colour"]["delta_e00"]["mean"], abs=0.05)

@@ -29,6 +29,7 @@ import pytest
 from conftest import ROOT
 
 from workbench.render.defects import Defect
+from workbench.validate.dense import SHIFT_EXPLAINS
 
 spec = importlib.util.spec_from_file_location("validate_corpus", ROOT / "benchmarks" / "validate_corpus.py")
 vc = importlib.util.module_from_spec(spec)
@@ -77,18 +78,22 @@ def check(photo, may_be_below: bool = True) -> None:
     states it cannot find it there (``may_be_below``; the issue's acceptance cases at 12 Mpx
     must be above the stated limit). On a glossy film a defect the photo cannot tell from a
     glint may be open instead (the photo INCOMPLETE, the defect located and sized among its open
-    regions: a second photo decides it), and a perfect photo INCOMPLETE alike, never FAIL."""
+    regions: a second photo decides it), and a perfect photo INCOMPLETE alike, never FAIL; on a
+    matte film so may a slide the photo cannot tell from a smooth light."""
     r = photo.result
     assert "verdict" in r, r  # rendered and validated
     glossy = vc.look_finish(photo.look) == "glossy"
     if photo.defect is None:
-        assert r["verdict"] == "PASS" or (glossy and r["verdict"] == "INCOMPLETE"), (r["reason"], r["defects_found"])
+        may_be_open = glossy or "a slide stays at its print position" in (r["reason"] or "")
+        why = (r["reason"], r["defects_found"])
+        assert r["verdict"] == "PASS" or (may_be_open and r["verdict"] == "INCOMPLETE"), why
         return
     assert r["stated"] is not None, "validate states no detection maps"
     if vc.below_stated_limit(r["truth"], r["detection_limit"], r["stated"]):
         assert may_be_below, f"{photo.defect}: validate states it cannot find it here: {r['stated']}"
         pytest.skip(f"{photo.defect} is below the detection limit validate states: {r['stated']}")
-    assert r["verdict"] == "FAIL" or (glossy and r["outcome"] == "open"), r["reason"]
+    slide_open = "a slide stays at its print position" in (r["reason"] or "")
+    assert r["verdict"] == "FAIL" or ((glossy or slide_open) and r["outcome"] == "open"), r["reason"]
     assert len(r["truth"]) == 1
     m = r["match"][0]
     assert m["found"] is not None, r["defects_found"]
@@ -200,3 +205,24 @@ def test_a_perfect_photo_of_artwork_stretched_into_streaks_shows_no_slide(tmp_pa
     assert result["verdict"] == "PASS", (result["reason"], result["defects_found"])
     report = json.loads((tmp_path / "photos" / photo.id / "validation" / "validation.json").read_text())
     assert not [d for d in report["photos"][0]["defects"] if d["kind"] == "shift" and d["area_mm2"] > 1.0]
+
+
+def test_a_slide_a_smooth_light_explains_as_well_is_open_on_a_matte_film_too(tmp_path):
+    """The scanned face seen from above, the lens look (matte, seed 4 of the full corpus), perfect.
+    With the print blurred as the photo is (an ellipse where the photo sees the surface obliquely),
+    the model's own error no longer hides a 0.48 mm "slide" over 61 mm² of the photograph's smooth
+    skin, where moving the print explains 10 % of what a smooth light leaves: a slide the photo
+    cannot tell from a light the matte film's shading model misses (interreflections, cast
+    shadows). It is open, as on a glossy film, not a slide that fails the part (it failed it as a
+    265 mm² shift)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    photo = vc.Photo("face", "top", "2000x1500", "lens", "workbench", seed=4)
+    designs = {"face": vc.design_part("face", tmp_path, env)}
+    result = vc.run_photo(photo, tmp_path, designs, env, env, Args).result
+    assert result["verdict"] in ("PASS", "INCOMPLETE"), (result["reason"], result["defects_found"])
+    report = json.loads((tmp_path / "photos" / photo.id / "validation" / "validation.json").read_text())
+    slides = [d for d in report["photos"][0]["defects"] if d["kind"] == "shift" and d["area_mm2"] > 4.0]
+    assert slides, report["photos"][0]["defects"]  # (the case: the region is there, and open)
+    for d in slides:
+        assert d["unresolved"] and d["decided_by"]["hypothesis"] == "the film slid or light", d
+        assert d["explained_under_light_share"] < SHIFT_EXPLAINS and not d["decided_by"]["fails"]

@@ -204,8 +204,8 @@ def defect_table(report: dict, shown: dict | None, width: float):
         rows.append(
             [
                 str(k + 1),
-                # (a region no photo told ink gone from light on: open, not failed)
-                "missing or light?" if d.get("unresolved") else d["kind"],
+                # (a region no photo told ink gone, or a slide, from light on: open, not failed)
+                f"{'shift' if d['kind'] == 'shift' else 'missing'} or light?" if d.get("unresolved") else d["kind"],
                 f"x {d['centre_mm'][0]:.1f}, y {d['centre_mm'][1]:.1f}",
                 f"{d['area_mm2']:.1f}",
                 d.get("view") or "-",

@@ -292,8 +292,8 @@ def page_data(
         defects.append(
             {
                 "number": n + 1,
-                # (a region no photo told ink gone from light on: open, not failed)
-                "kind": "missing or light? (open)" if d.get("unresolved") else d["kind"],
+                # (a region no photo told ink gone, or a slide, from light on: open, not failed)
+                "kind": f"{_open_kind(d)} or light? (open)" if d.get("unresolved") else d["kind"],
                 "area_mm2": round(float(d["area_mm2"]), 2),
                 "centre_mm": [round(float(v), 2) for v in d["centre_mm"]],
                 "view": d.get("view"),
@@ -465,3 +465,8 @@ def qa_report_html(
     }
     # one pass: what a placeholder brings in is not searched for placeholders
     return re.sub(r"\{\{\w+\}\}", lambda m: parts[m.group(0)], page).encode("utf-8")
+
+
+def _open_kind(d: dict) -> str:
+    """What an open region may be besides light: a slide (``shift``) or ink gone (``missing``)."""
+    return "shift" if d["kind"] == "shift" else "missing"

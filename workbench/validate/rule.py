@@ -30,6 +30,11 @@ OPEN_WORDS = (
     f"a photo from more than {dense.APART_DEG:g}° away (seen from the surface) tells: a defect stays at its print "
     "position in both, a glint does not (or --finish matte, if the film adds no light)"
 )
+# ... and a slide one photo cannot tell from a smooth light on, on either finish
+OPEN_SLIDE_WORDS = (
+    f"a photo from more than {dense.APART_DEG:g}° away (seen from the surface) tells: a slide stays at its print "
+    "position in both, a glint does not (a light the film's shading model misses, on a matte film, may not move)"
+)
 
 
 def verdict_rule(
@@ -57,7 +62,10 @@ def verdict_rule(
     """
     z = dense.SIGNIFICANCE_Z
     if finish == "matte":
-        untold = "elsewhere it is ink gone (the film is matte: it adds no light that looks like ink gone)"
+        untold = (
+            "elsewhere it is ink gone (the film is matte: it adds no light that looks like ink gone); a slide a "
+            "smooth light explains as well, there, is open (the matte film's shading model misses light too)"
+        )
     else:
         untold = (
             "elsewhere it is open (the film is glossy): the photo is INCOMPLETE, and the part decides it, ink gone "
@@ -173,7 +181,7 @@ def defect_decision(defect: dict, max_defect_mm2: float) -> dict:
             "its slide" + (f" (up to {peak:.2f} mm)" if peak is not None else "") + " exceeds the tolerance" + at_z
             + (f", but a smooth light explains the residual there as well ({100 * under:.0f} % with the light)"
                if under is not None else "")
-            + ", with no lamp the photo shows mirrored there: on a glossy film this photo cannot tell them"
+            + ", with no lamp the photo shows mirrored there: this photo cannot tell them"
         )  # fmt: skip
     elif kind == "shift":
         hyp = "the film slid"
@@ -199,7 +207,8 @@ def defect_decision(defect: dict, max_defect_mm2: float) -> dict:
         what = "the colour differs from the design's beyond the colour test's limit" + at_z
     big, sig = defect["area_mm2"] > max_defect_mm2, significant(defect)
     if big and sig and defect.get("unresolved"):
-        verdict = f"open: {defect['area_mm2']:.1f} mm² > {max_defect_mm2:g} mm², {OPEN_WORDS}"
+        words = OPEN_SLIDE_WORDS if kind == "shift" else OPEN_WORDS
+        verdict = f"open: {defect['area_mm2']:.1f} mm² > {max_defect_mm2:g} mm², {words}"
         return {"hypothesis": hyp, "z": z, "fails": False, "open": True, "words": f"{what}; {verdict}"}
     if big and sig:
         verdict = f"fails: {defect['area_mm2']:.1f} mm² > {max_defect_mm2:g} mm²"
@@ -460,8 +469,9 @@ def open_reason(undecided: list[dict], max_defect_mm2: float) -> str:
     """
     d = max(undecided, key=lambda x: x["area_mm2"])
     n = len(undecided)
+    words = OPEN_SLIDE_WORDS if all(x.get("kind") == "shift" for x in undecided) else OPEN_WORDS
     return (
         f"{n} region{'s' if n > 1 else ''} > {max_defect_mm2:g} mm² the photo cannot tell a defect from light on "
         f"(largest: {d['area_mm2']:.1f} mm² at ({d['centre_mm'][0]:.1f}, {d['centre_mm'][1]:.1f}) mm on the "
-        f"print): {OPEN_WORDS}"
+        f"print): {words}"
     )

@@ -17,6 +17,11 @@ PRINT_BLURS_PX = (0.0, PRINT_BLUR_PX)
 # design's broad shading and the exposure's slow changes, which no blur alters, do not weigh in
 DETAIL_SIGMA_PX = 1.5
 BLUR_SAMPLES = 500_000  # grid pixels the candidates are scored on, at most
+# the blur is measured where the photo samples the print's two axes alike, within this ratio: a
+# round candidate there is the blur the model applies along each axis (:func:`blur_locally_axes`)
+# to within 12 % of its sigma
+ROUND_FOOTPRINT = 1.25
+ROUND_MIN_SHARE = 0.1  # ... where that is at least this share of the compared pixels
 
 
 @dataclass(frozen=True)
@@ -65,7 +70,12 @@ class PhotoBlur:
 
 
 def estimate_blur(
-    ref_gray: np.ndarray, warped_gray: np.ndarray, mask: np.ndarray, footprint: np.ndarray, scale: float
+    ref_gray: np.ndarray,
+    warped_gray: np.ndarray,
+    mask: np.ndarray,
+    footprint: np.ndarray,
+    scale: float,
+    footprint_axes: np.ndarray | None = None,
 ) -> PhotoBlur:
     """The print's and the camera's blur that make the print look most like the warped photo.
 
@@ -89,11 +99,25 @@ def estimate_blur(
         Photo px per grid px (0: not seen).
     scale : float
         The median footprint, photo px per grid px.
+    footprint_axes : (H, W, 2) float32, optional
+        Photo px per grid px that the camera's blur sees along x and y
+        (:func:`workbench.validate.print_warp.footprint_axes`): the blur is measured where the
+        two agree within ROUND_FOOTPRINT, at their geometric mean (a round candidate there is
+        the model's blur along each axis), where that is at least ROUND_MIN_SHARE of ``mask``;
+        over all of it, at ``footprint``, otherwise.
 
     Returns
     -------
     PhotoBlur
     """
+    if footprint_axes is not None:
+        fx, fy = footprint_axes[..., 0], footprint_axes[..., 1]
+        round_ = mask & (np.maximum(fx, fy) <= ROUND_FOOTPRINT * np.minimum(fx, fy))
+        if round_.sum() >= ROUND_MIN_SHARE * mask.sum():
+            # (and the candidates there at the two axes' geometric mean: the spread the model then
+            # applies along each, to within the ratio's square root)
+            mask = round_
+            footprint = np.sqrt(fx * fy)
     at = np.flatnonzero(mask)  # (the masked pixels once: a boolean index finds them again each time)
     if len(at) < 100:
         return PhotoBlur(0.0, 0.0)
@@ -154,6 +178,48 @@ def blur_locally(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         b = cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
         if out is None:
             out = b.copy() if len(present) > 1 else b
+        else:
+            m = k == i
+            np.copyto(out, b, where=m[..., None] if img.ndim == 3 else m)
+    return out
+
+
+def blur_locally_axes(img: np.ndarray, sigma_x: np.ndarray, sigma_y: np.ndarray) -> np.ndarray:
+    """An image blurred by an axis-aligned Gaussian whose two sigmas vary over it (each rounded to BLUR_LEVELS).
+
+    A Gaussian of sigmas (sx, sy) is a blur along x by sx and then along y by sy; each pass
+    takes each pixel's level (where the levels do not change within a kernel's reach, the same
+    image as the two-dimensional Gaussian).
+
+    Parameters
+    ----------
+    img : (H, W) or (H, W, C) float32
+    sigma_x, sigma_y : (H, W) float
+        Per pixel, along x (axis 1) and y (axis 0), grid px.
+
+    Returns
+    -------
+    Same shape as ``img``.
+    """
+    return _blur_along(_blur_along(img, sigma_x, 1), sigma_y, 0)
+
+
+def _blur_along(img: np.ndarray, sigma: np.ndarray, axis: int) -> np.ndarray:
+    """``img`` blurred along one axis (1: x, 0: y) by a Gaussian of each pixel's level (:func:`blur_levels`)."""
+    k = blur_levels(sigma)
+    present = np.flatnonzero(np.bincount(k.ravel().view(np.uint8), minlength=len(BLUR_LEVELS)))
+    one = np.ones((1, 1), np.float32)
+    out = None
+    for i in present:
+        s = float(BLUR_LEVELS[i])
+        if s > 0:
+            # (the kernel OpenCV's GaussianBlur takes for floats: 4 sigma each side)
+            g = cv2.getGaussianKernel(int(round(s * 8 + 1)) | 1, s, cv2.CV_32F)
+            b = cv2.sepFilter2D(img, -1, g if axis == 1 else one, one if axis == 1 else g)
+        else:
+            b = img
+        if out is None:
+            out = b.copy() if len(present) > 1 or b is img else b
         else:
             m = k == i
             np.copyto(out, b, where=m[..., None] if img.ndim == 3 else m)

@@ -10,7 +10,7 @@ import numpy as np
 from workbench.validate import detection, photometric
 from workbench.validate.dense import reflection
 from workbench.validate.dense._channels import _cmax, _cmin
-from workbench.validate.dense.blur import blur_locally, estimate_blur, unresolved_detail
+from workbench.validate.dense.blur import blur_locally_axes, estimate_blur, unresolved_detail
 from workbench.validate.dense.defects import find_defects, shift_explained
 from workbench.validate.dense.exposure import (
     _residual,
@@ -90,6 +90,7 @@ def analyse(
     scale: float = 1.0,
     footprint: np.ndarray | None = None,
     camera_center: np.ndarray | None = None,
+    footprint_axes: np.ndarray | None = None,
 ) -> DenseResult:
     """Dense misregistration with its uncertainty, colour residuals, masks and defects of one photo on the print.
 
@@ -113,6 +114,10 @@ def analyse(
     camera_center : (3,) float, optional
         The photo's camera centre, mm in the mesh frame: a colour region that mirrors the
         lamp like the photo's own highlights is one of them (:func:`mirrors_highlights`).
+    footprint_axes : (rows, cols, 2) float, optional
+        Photo pixels per grid pixel that the camera's blur sees along the grid's columns and
+        rows (:func:`workbench.validate.print_warp.footprint_axes`): the model blurs the print
+        by an ellipse where the photo sees it obliquely. ``footprint`` both ways when not given.
 
     Returns
     -------
@@ -122,10 +127,10 @@ def analyse(
     # unresolved detail) is computed on a second thread meanwhile: numpy and OpenCV release the
     # GIL in their loops, so on two cores that work costs little wall time; the same numbers
     with ThreadPoolExecutor(max_workers=1) as later:
-        return _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later)
+        return _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later, footprint_axes)
 
 
-def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later) -> DenseResult:
+def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later, axes) -> DenseResult:
     """:func:`analyse`, with ``later`` the executor of the work that can run beside it."""
     state = rim_band(state)
     pho = warped.astype(np.float32)
@@ -134,7 +139,8 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     # (surface mm per grid px: print mm times the film's local stretch)
     mm_per_px = (grid.surface_per_print / grid.px_per_mm).astype(np.float32)
     fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
-    on = _Frame(grid, warped, pho, tolerance_mm, scale, fp, camera_center, later, jj, ii, mm_per_px)
+    fp_axes = axes if axes is not None else np.stack([fp, fp], axis=-1)
+    on = _Frame(grid, warped, pho, tolerance_mm, scale, fp, camera_center, later, jj, ii, mm_per_px, fp_axes)
     start = _placed_flow(on, state)
     model = _photo_model(on, start)
     light = _sure_light(on, start, model)
@@ -214,13 +220,21 @@ def _photo_model(on: _Frame, start: _Start) -> _Model:
     # obliquely or from farther): a photo pixel spans 1 / footprint grid pixels there, so its
     # blur on the grid grows in proportion (one blur for a whole photo of a deep part made
     # the creases seen at a slant "colour defects": the print's detail the photo cannot show)
-    photo_blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat, fp, scale)
+    photo_blur = estimate_blur(cv2.cvtColor(moved, cv2.COLOR_RGB2GRAY), pg, inner & ~sat, fp, scale, on.fp_axes)
     blur = float(photo_blur.on_grid(scale, scale))
     # (the median's where the photo is not scored: nothing there asks for more)
     local_blur = np.where(inner, photo_blur.on_grid(fp, scale), np.float32(blur))
     # detail the photo cannot resolve: its flow follows the photo's PSF, not the print
     detail = later.submit(unresolved_detail, rg, local_blur, MIN_EDGE)
-    moved = blur_locally(moved, local_blur)
+    # the model's blur is the photo's round blur as it lies on the grid: an ellipse, wider along
+    # the axis the photo samples coarser (a surface seen obliquely); as wide both ways as the
+    # coarser axis needs, it blurred a flank's text across its strokes, which the photo shows
+    # sharp, and the gaps between them read as lines of ink gone (:func:`footprint_axes`). (Its
+    # spread along each grid axis: an ellipse lying diagonally to the grid is taken as wide
+    # along both axes as its spread there, and stays wider across its narrow side than it is)
+    sx = np.where(inner, photo_blur.on_grid(on.fp_axes[..., 0], scale), np.float32(blur))
+    sy = np.where(inner, photo_blur.on_grid(on.fp_axes[..., 1], scale), np.float32(blur))
+    moved = blur_locally_axes(moved, sx, sy)
     weight = (inner & ~sat).astype(np.float32)
     shade = start.shade
     lit = shaded(moved, shade)
@@ -703,8 +717,9 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
                 if d["explained_under_light_share"] < SHIFT_EXPLAINS and in_lamp(labels == i + 1):
                     rule = "shift_as_light"
                 elif d["explained_under_light_share"] < SHIFT_EXPLAINS:
-                    # (out of the lamp's cone: a slide only where the film adds no light; on a
-                    # glossy one, open: the part's other photos may tell)
+                    # (out of the lamp's cone: open, on either finish; a glint moves between the
+                    # part's photos and a slide does not, but a light the matte film's shading
+                    # model misses may not move either)
                     d["told"] = False
             if rule is not None:
                 # (its ink that is gone is still gone: a scratch drags the flow around it over

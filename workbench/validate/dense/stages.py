@@ -33,6 +33,8 @@ class _Frame:
         Each grid pixel's column and row.
     mm_per_px : (H, W) float32
         Surface mm per grid px: print mm times the film's local stretch.
+    fp_axes : (H, W, 2) float32
+        Photo pixels per grid pixel that the camera's blur sees along x (axis 1) and y (axis 0).
     """
 
     grid: PrintGrid
@@ -46,6 +48,7 @@ class _Frame:
     jj: np.ndarray
     ii: np.ndarray
     mm_per_px: np.ndarray
+    fp_axes: np.ndarray
 
 
 @dataclass

@@ -110,14 +110,14 @@ def estimate_blur(
     -------
     PhotoBlur
     """
+    geometric = False
     if footprint_axes is not None:
         fx, fy = footprint_axes[..., 0], footprint_axes[..., 1]
         round_ = mask & (np.maximum(fx, fy) <= ROUND_FOOTPRINT * np.minimum(fx, fy))
         if round_.sum() >= ROUND_MIN_SHARE * mask.sum():
             # (and the candidates there at the two axes' geometric mean: the spread the model then
-            # applies along each, to within the ratio's square root)
-            mask = round_
-            footprint = np.sqrt(fx * fy)
+            # applies along each, to within the ratio's square root; taken at the sampled pixels)
+            mask, geometric = round_, True
     at = np.flatnonzero(mask)  # (the masked pixels once: a boolean index finds them again each time)
     if len(at) < 100:
         return PhotoBlur(0.0, 0.0)
@@ -136,7 +136,10 @@ def estimate_blur(
     stack = np.stack(
         [(cv2.GaussianBlur(ref_detail, (0, 0), s) if s > 0 else ref_detail).ravel()[at] for s in BLUR_LEVELS]
     )
-    fp = footprint.ravel()[at]
+    if geometric:
+        fp = np.sqrt(footprint_axes[..., 0].ravel()[at] * footprint_axes[..., 1].ravel()[at])
+    else:
+        fp = footprint.ravel()[at]
     best, best_blur = -2.0, PhotoBlur(0.0, 0.0)
     for b0 in PRINT_BLURS_PX:
         for c in CAMERA_BLURS_PX:

@@ -1,10 +1,10 @@
 """A perfect photo against a design that is not what was printed: the verdict must never be PASS.
 
     .venv/bin/python benchmarks/patched_design.py [--patches 20] [--renderer workbench|mitsuba|both]
-        [--size 4000x3000] [--seed 0] [--out DIR]
+        [--size 4000x3000] [--seed 0] [--finish glossy|matte] [--out DIR]
 
 Designs the default job, renders a perfect photo of it (the workbench renderer with --realistic
-and the lamp's gloss; or Mitsuba 3's path tracer), then validates that photo against copies of the
+and, on a glossy film, the lamp's gloss; or Mitsuba 3's path tracer), then validates that photo against copies of the
 design whose print carries one square patch each: 25 to 100 mm², a colour drawn uniformly from the
 RGB cube, its centre drawn uniformly over the film where the print is not background. That is the
 part without the patch, judged against a design with it ("a patch of the design that is not on
@@ -28,9 +28,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 WB = str(ROOT / ".venv" / "bin" / "workbench")
 LOOKS = {
-    "workbench": ["--orbit=10,55,330", "--realistic", "--gloss", "0.5"],
-    "mitsuba": ["--orbit=10,55,330", "--renderer", "mitsuba", "--spp", "8", "--gloss", "0.5", "--jpeg-quality", "90"],
+    "workbench": ["--orbit=10,55,330", "--realistic"],
+    "mitsuba": ["--orbit=10,55,330", "--renderer", "mitsuba", "--spp", "8", "--jpeg-quality", "90"],
 }
+GLOSS = {"glossy": "0.5", "matte": "0"}  # the film's --gloss for each --finish
 
 
 def patch_print(design: Path, out: Path, rng: np.random.Generator) -> dict:
@@ -61,6 +62,7 @@ def main() -> None:
     ap.add_argument("--renderer", choices=["workbench", "mitsuba", "both"], default="workbench")
     ap.add_argument("--size", default="4000x3000")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--finish", choices=sorted(GLOSS), default="glossy", help="the film rendered and validated")
     ap.add_argument("--out", type=Path, default=None, help="keep the folders here (default: a temporary one)")
     args = ap.parse_args()
     renderers = ["workbench", "mitsuba"] if args.renderer == "both" else [args.renderer]
@@ -74,9 +76,10 @@ def main() -> None:
             )
         photos = {}
         for renderer in renderers:
-            photo = root / f"perfect-{renderer}.jpg"
+            photo = root / f"perfect-{renderer}-{args.finish}.jpg"
             if not photo.exists():
-                cmd = [WB, "render", str(design), *LOOKS[renderer], "--size", args.size, "-o", str(photo), "-q"]
+                look = [*LOOKS[renderer], "--gloss", GLOSS[args.finish]]
+                cmd = [WB, "render", str(design), *look, "--size", args.size, "-o", str(photo), "-q"]
                 subprocess.run(cmd, check=True)
             photos[renderer] = photo
         rng = np.random.default_rng(args.seed)
@@ -91,7 +94,7 @@ def main() -> None:
                 out = root / f"v-{k}-{renderer}"
                 shutil.rmtree(out, ignore_errors=True)
                 cmd = [WB, "validate", str(patched), str(photo), "--camera", str(photo.with_suffix(".json"))]
-                subprocess.run([*cmd, "--out", str(out), "-q"], check=False)
+                subprocess.run([*cmd, "--finish", args.finish, "--out", str(out), "-q"], check=False)
                 rep = json.loads((out / "validation.json").read_text())
                 verdict = rep["part"]["verdict"] if "part" in rep else rep["photos"][0]["verdict"]
                 counts[verdict] = counts.get(verdict, 0) + 1

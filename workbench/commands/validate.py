@@ -160,7 +160,8 @@ def add_parser(sub) -> None:
         default="glossy",
         help="the film's surface. glossy (default): it may mirror a lamp, and a region a photo cannot tell ink gone "
         "from a glint on is open, decided by another photo from elsewhere (the part is INCOMPLETE until one does); "
-        "matte: it adds no light that looks like ink gone, and such a region is ink gone",
+        "matte: it adds no light of its own (the light on its ink scales the ink, texture and all), and such a "
+        "region is ink gone",
     )
     p.add_argument(
         "--jobs",

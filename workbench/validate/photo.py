@@ -315,7 +315,9 @@ def _validate_photo(
     pw = print_warp.warp_to_print(photo, pose.camera, grid, design.V, design.F, depth)
     on_print, state, scale, footprint = pw.warped, pw.state, pw.scale, pw.footprint
     tick(clock, path.name)  # print warp
-    dr = dense.analyse(grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center, pw.footprint_axes)
+    dr = dense.analyse(
+        grid, on_print, state, tolerance_mm, scale, footprint, pose.camera.center, pw.footprint_axes, finish
+    )
     sc, tiles_s = tiles.result()
     px_mag = np.linalg.norm(sc.shift_px, axis=1) if len(sc.shift_px) else np.zeros(0)
     entry.update(
@@ -418,8 +420,7 @@ def _validate_photo(
     # gone on a glossy film (its colour is the ink's with a glint added as well as the film's);
     # on a matte one, which adds no light, it is ink gone (what the model of its diffuse light
     # misses, interreflections and cast shadows, scales the ink, and dark ink never reaches the
-    # film's white; but a region under a petal, lit by the petal above it, stepped 9 to 22 % of
-    # the way: the room's bound holds such regions back for now, docs/validation.md). A slide
+    # film's white: the photometric model weighs that gain, docs/validation.md). A slide
     # on either: its residual is a smooth light's as well, and a smooth light is what the matte
     # film's shading model misses too (the scanned face's perfect photo, the lens look: a
     # 0.48 mm "slide" over 61 mm² of skin-smooth artwork, where moving the print explained 10 %

@@ -9,13 +9,16 @@ film adds:
 with A the design's colour (linear sRGB, the film's white 1), F the bare film's colour as the
 photo shows it there (the lamp's colour and the shading, vignetting and exposure of the photo:
 :func:`film_level`), s ≥ 0 the light added and L its colour. Ink that is gone shows F itself.
+A matte film adds no light of its own (s = 0): what light reaches its ink beyond the model's
+(the part's own interreflection, a shading the model misses) scales the ink, ``P = k A ⊙ F``.
 
 A region of the colour residual is judged by which hypothesis explains its photo better, as a
 log-likelihood ratio with the photo's own noise (:func:`judge_region`):
 
 - **ink gone**: ``P = α b F + (1 - α) D`` (D the design as the local exposure fit shows it,
   α in [0, 1] one share for the region, b the film's brightness within its uncertainty);
-- **light added**: ``P = k D + s L`` (k within the colour test's shading allowance, s ≥ 0).
+- **light added**: ``P = k D + s L`` (k within the colour test's shading allowance, s ≥ 0); on a
+  matte film ``P = k D``, k smooth over the region, within the same allowance.
 
 Ink gone cannot exceed the bare film and takes the design's texture with it; light keeps the
 texture and may go on beyond the film. Over uniform neutral ink the two predict the same photo
@@ -326,6 +329,8 @@ class Judgement:
     separation : float
         How far apart the two hypotheses' photos are, RMS in standard deviations per pixel and
         channel: below 1 the photo cannot tell them, whatever the ratio.
+    gain : float
+        The light hypothesis' gain of the ink (k; its median over the region on a matte film).
     """
 
     hypothesis: str
@@ -334,6 +339,7 @@ class Judgement:
     added: float
     pixels: int
     separation: float = 0.0
+    gain: float = 1.0
 
     def as_dict(self) -> dict:
         return {
@@ -343,6 +349,7 @@ class Judgement:
             "light_added_grey_levels": round(self.added, 1),
             "pixels": self.pixels,
             "separation_sigma": round(self.separation, 2),
+            "light_gain": round(self.gain, 3),
         }
 
 
@@ -351,6 +358,32 @@ def _chi2(P: np.ndarray, M: np.ndarray, var: np.ndarray, clipped: np.ndarray) ->
     r = P - M
     r = np.where(clipped & (r < 0), 0.0, r)
     return float((r * r / var).sum())
+
+
+def smooth_scale(P: np.ndarray, X: np.ndarray, var: np.ndarray, Q: np.ndarray | None) -> np.ndarray:
+    """The scale of ``X`` that fits ``P`` at each pixel, smooth over the pixels (one scale without ``Q``).
+
+    Per pixel by least squares over the channels, ŝ = Σ_c P X / var / Σ_c X² / var, of weight
+    Σ_c X² / var; then the weighted least-squares surface ``Q`` coef through them, or their
+    weighted mean.
+
+    Parameters
+    ----------
+    P, X, var : (n, 3) float
+        The photo, what is scaled, and each value's variance (linear light).
+    Q : (n, k) float or None
+        The surface's terms at each pixel (a second-order surface of position: 1, x, y, x², xy, y²).
+
+    Returns
+    -------
+    (n,) float
+        The scale at each pixel.
+    """
+    w = (X * X / var).sum(axis=1)
+    s = (P * X / var).sum(axis=1) / np.maximum(w, 1e-12)
+    if Q is not None:
+        return Q @ np.linalg.lstsq(Q * np.sqrt(w)[:, None], s * np.sqrt(w), rcond=None)[0]
+    return np.full(len(P), float((s * w).sum() / max(float(w.sum()), 1e-12)))
 
 
 def judge_region(
@@ -364,6 +397,7 @@ def judge_region(
     n_eff: float,
     z: float,
     xy: np.ndarray | None = None,
+    additive: bool = True,
 ) -> Judgement:
     """Light added against ink gone over one region's pixels, as a log-likelihood ratio.
 
@@ -376,7 +410,12 @@ def judge_region(
       region's core (``whole``: there the photo shows the bare film alone; a region stepped only a
       part of the way there, as a sheen steps it, is no ink gone), in [0, 1] on a region narrower
       than the photo's blur (a thin scratch never reaches the film's colour);
-    - light: ``P = k D + s L``, k in [1 / SHADING, SHADING], s ≥ 0.
+    - light: ``P = k D + s L``, k in [1 / SHADING, SHADING], s ≥ 0, on a film that adds light
+      of its own (``additive``: a glossy film mirrors the lamp and the room); on one that adds
+      none (a matte film) ``P = k D``: whatever light reaches the ink (the lamp's shading, the
+      part's own interreflection) is scattered back in the ink's colour, so it scales the ink and
+      its texture, k in [1 / SHADING, SHADING] varying smoothly over a region's core, one k over
+      a region narrower than the blur (a gain follows no blurred step's profile: a scratch's does).
 
     log LR = (χ²_gone - χ²_light) / 2, the pixels' terms scaled by the region's independent
     samples over its pixels (the photo's noise is correlated over its blur). The region is light
@@ -404,6 +443,8 @@ def judge_region(
         The pixels' positions (grid px) where they are a region's core, clear of its blurred rim:
         there ink gone shows the film alone (α = 1) and light added varies smoothly; without it
         (a region narrower than the blur) each pixel has its own α and light.
+    additive : bool
+        The film adds light of its own (glossy), or only scatters what reaches its ink (matte).
 
     Returns
     -------
@@ -443,12 +484,7 @@ def judge_region(
         # ink gone on the core: the bare film alone, P = b(x) F; b per pixel by least squares
         # (b̂ = Σ_c P F / var / Σ_c F² / var, weight Σ_c F² / var), then the smooth b(x) through them;
         # that, and the same scaled to the prior's bounds (±3 sigma), weighed with the prior
-        wf = (F * F / var).sum(axis=1)
-        b_px = (P * F / var).sum(axis=1) / np.maximum(wf, 1e-12)
-        if Q is not None:
-            b_px = Q @ np.linalg.lstsq(Q * np.sqrt(wf)[:, None], b_px * np.sqrt(wf), rcond=None)[0]
-        else:
-            b_px = np.full(n, float((b_px * wf).sum() / max(float(wf.sum()), 1e-12)))
+        b_px = smooth_scale(P, F, var, Q)
         mean_b = max(float(np.mean(b_px)), 1e-6)
         u_ls = float(np.log(mean_b))
         u_in = float(np.clip(u_ls, -3.0 * fs, 3.0 * fs))
@@ -479,7 +515,19 @@ def judge_region(
     # and light keeps it), from each pixel's own estimate ŝ = Σ_c (P - kD) L / var / Σ_c L² / var
     # weighted by Σ_c L² / var
     Lc = linear(255.0 * np.asarray(light, np.float32))[None, :]
-    best_l, added = np.inf, 0.0
+    best_l, added, gain = np.inf, 0.0, 1.0
+    if not additive:
+        # a matte film: P = k D. k per pixel by least squares (k̂ = Σ_c P D / var / Σ_c D² / var,
+        # weight Σ_c D² / var), then the smooth k(x) through them over a core; no light of its own,
+        # so a region stepped to the film over textured ink needs the texture scaled with it, which
+        # the film's flat colour does not show
+        k_px = smooth_scale(P, D, var, Q)
+        # (within the colour test's shading allowance, as light added's k: more light than that on
+        # a region's ink, sharp-edged, is another ink, not light)
+        k_px = np.clip(k_px, 1.0 / SHADING, SHADING)
+        model_l = D * k_px[:, None]
+        best_l = _chi2(P, model_l, var, clipped) * scale
+        added, gain = max(float(np.median(np.max(model_l - D, axis=1))), 0.0), float(np.median(k_px))
     wl = (Lc * Lc / var).sum(axis=1)
     if Q is not None:
         Qw = Q * np.sqrt(wl)[:, None]
@@ -487,7 +535,7 @@ def judge_region(
     # surroundings' shading, which the model already holds, k = 1: with a gain of its own, white
     # light over ink dimmed by k mimics a blurred scratch's partial step to the film)
     gains = np.exp(np.linspace(-np.log(SHADING), np.log(SHADING), 21)) if whole else np.ones(1)
-    for k in gains:
+    for k in gains if additive else ():
         s_px = ((P - k * D) * Lc / var).sum(axis=1) / np.maximum(wl, 1e-12)
         if Q is not None:
             coef = np.linalg.lstsq(Qw, s_px * np.sqrt(wl), rcond=None)[0]
@@ -496,7 +544,7 @@ def judge_region(
         model = k * D + s_px[:, None] * Lc
         chi = _chi2(P, model, var, clipped) * scale
         if chi < best_l:
-            best_l, added, model_l = chi, float(np.median(s_px)), model
+            best_l, added, model_l, gain = chi, float(np.median(s_px)), model, float(k)
     log_lr = 0.5 * (best_g - best_l)
     added_grey = float(grey_levels(np.float32(added)))
     # the two explanations must predict photos that differ: by at least one standard deviation per
@@ -509,7 +557,7 @@ def judge_region(
         hypothesis = "not told"
     else:
         hypothesis = "light" if log_lr > cut else ("ink gone" if log_lr < -cut else "not told")
-    return Judgement(hypothesis, float(log_lr), share, added_grey, n, separation)
+    return Judgement(hypothesis, float(log_lr), share, added_grey, n, separation, gain)
 
 
 INNER_SHARE = 0.4  # a broad region is judged on its pixels at least this share of its largest depth inside
@@ -634,6 +682,7 @@ def judge_regions(
     blur_px: np.ndarray,
     samples_per_px: np.ndarray | float,
     z: float,
+    additive: bool = True,
 ) -> RegionVerdicts:
     """Every region of the colour residual judged by the photometric model (:func:`judge_region`).
 
@@ -667,6 +716,9 @@ def judge_regions(
         Independent noise samples per grid pixel (1 / the area the noise is correlated over).
     z : float
         Significance.
+    additive : bool
+        The film adds light of its own (glossy) or only scatters what reaches its ink (matte):
+        :func:`judge_region`.
 
     Returns
     -------
@@ -690,13 +742,18 @@ def judge_regions(
         j = judge_region(
             P, D, F, Lc, noise, model_error(photo, pred, measured, region, box, noise),
             float(np.median(film_sigma[box][core])), float(spp[box][core].sum()), z,
-            np.argwhere(core).astype(np.float64) if (core != region).any() else None,
+            np.argwhere(core).astype(np.float64) if (core != region).any() else None, additive,
         )  # fmt: skip
-        # how much of the region light added brings within the colour limit (its own fit per pixel)
+        # how much of the region light brings within the colour limit (its own fit per pixel: light
+        # added, or on a matte film the gain)
         Pl, Dl = linear(photo[box][region]), linear(pred[box][region])
-        Ll = linear(255.0 * Lg)
-        s = np.maximum(((Pl - Dl) * Ll).sum(axis=1) / max(float((Ll * Ll).sum()), 1e-9), 0.0)
-        fit = grey_levels(Dl + s[:, None] * Ll)
+        if additive:
+            Ll = linear(255.0 * Lg)
+            s = np.maximum(((Pl - Dl) * Ll).sum(axis=1) / max(float((Ll * Ll).sum()), 1e-9), 0.0)
+            fit = grey_levels(Dl + s[:, None] * Ll)
+        else:
+            k = (Pl * Dl).sum(axis=1) / np.maximum((Dl * Dl).sum(axis=1), 1e-12)
+            fit = grey_levels(Dl * np.clip(k, 1.0 / SHADING, SHADING)[:, None])
         ph = photo[box][region]
         res = np.abs(np.where((ph >= SATURATED) & (fit >= ph), 0.0, ph - fit)).max(axis=1)
         explained = float(np.mean(res <= colour_limit[box][region]))

@@ -63,14 +63,16 @@ def verdict_rule(
     z = dense.SIGNIFICANCE_Z
     if finish == "matte":
         untold = (
-            "elsewhere it is ink gone (the film is matte: it adds no light that looks like ink gone); a slide a "
-            "smooth light explains as well, there, is open (the matte film's shading model misses light too)"
+            "one the photo cannot tell is ink gone: a matte film adds no light of its own and mirrors no lamp "
+            "(light on its ink is a gain of the ink, within the shading allowance); a slide a smooth light explains "
+            "as well is open (the matte film's shading model misses light too)"
         )
     else:
         untold = (
-            "elsewhere it is open (the film is glossy): the photo is INCOMPLETE, and the part decides it, ink gone "
-            f"where another photo from more than {dense.APART_DEG:g}° away finds it at the same print position, "
-            "light where another photo sees the ink intact"
+            "one the photo cannot tell is light only where the surface mirrors the photo's lamp, and not measured "
+            "there; elsewhere it is open (the film is glossy): the photo is INCOMPLETE, and the part decides it, "
+            f"ink gone where another photo from more than {dense.APART_DEG:g}° away finds it at the same print "
+            "position, light where another photo sees the ink intact"
         )
     part = (
         ""
@@ -118,8 +120,7 @@ def verdict_rule(
             "channel; each defect carries its significance and confidence, and one whose significance as a "
             f"region is below {z:g} does not fail the part. A colour region is ink gone or light by a "
             "photometric model (a likelihood ratio with the photo's noise: light keeps the ink's texture or goes "
-            "beyond the bare film, ink gone shows the film); one the photo cannot tell is light only where the "
-            f"surface mirrors the photo's lamp, and not measured there; {untold}. Light beyond the bare film, deep "
+            f"beyond the bare film, ink gone shows the film); {untold}. Light beyond the bare film, deep "
             "shadows, surface turned away from the camera, the photo's pixels along the part's outline and its folds, "
             "and detail finer than the photo resolves are masked, not scored for misregistration." + part
         ),

@@ -223,8 +223,9 @@ def taken_along_fold(
 # each test that takes a region for light, in the words validation.json gives it
 LIGHT_RULES = {
     "beyond_film": "brighter than the bare film could be there (as the ink around shows the film): light added",
-    "photometric": "light added over the ink explains the region significantly better than ink gone (the "
-    "photometric model's likelihood ratio: the photo keeps the ink's texture, or goes beyond the film)",
+    "photometric": "light added over the ink (on a matte film: a gain of the ink) explains the region "
+    "significantly better than ink gone (the photometric model's likelihood ratio: the photo keeps the ink's "
+    "texture, or goes beyond the film)",
     "beyond_film_line": "a thin line brighter than the bare film could be: light, not a scratch",
     "thin_told": "a thin line that keeps the ink's variation along it: a glint, not a scratch",
     "mirrors_highlights": "ink gone and light look alike here (the photometric model tells neither) and the surface "

@@ -109,6 +109,10 @@ MAX_NOT_COUNTED = 50  # regions listed at most (the largest); all of them are in
 
 # scratches: thin lines of ink gone (lines.py)
 SCRATCH_MM = 1.5  # ink gone along a line narrower than about half this is a scratch (thin_ink_loss)
+# the thin test's noise is also taken per block of this many grid px (thin_ink_loss): as wide as
+# the exposure fit's window (EXPOSURE_SIGMA_PX), where the light and the photo's sampling change
+# little, and about 25 times a scratch's width, so that a scratch is a small share of its blocks
+NOISE_BLOCK_PX = 40
 # the scratch the detection map states: a line of ink gone this wide on the print (print mm), the
 # corpus's scratches (20 x 0.5 mm); a wider one steps further towards the film through the same
 # blur, so it is found wherever this one is

@@ -51,6 +51,7 @@ from workbench.validate.dense.options import (
     SHIFT_EXPLAINS,
     SIGNIFICANCE_Z,
     THIN_MAX_STRETCH,
+    WINDOW_TWO_WAY_STATED,
 )
 from workbench.validate.dense.result import DenseResult
 from workbench.validate.dense.stages import _Colour, _Found, _Frame, _Measures, _Model, _Start, _SureLight
@@ -91,6 +92,7 @@ def analyse(
     footprint: np.ndarray | None = None,
     camera_center: np.ndarray | None = None,
     footprint_axes: np.ndarray | None = None,
+    finish: str = "glossy",
 ) -> DenseResult:
     """Dense misregistration with its uncertainty, colour residuals, masks and defects of one photo on the print.
 
@@ -112,12 +114,17 @@ def analyse(
         Photo pixels per grid pixel at each grid pixel (:func:`warp_to_print`); ``scale``
         everywhere when not given.
     camera_center : (3,) float, optional
-        The photo's camera centre, mm in the mesh frame: a colour region that mirrors the
-        lamp like the photo's own highlights is one of them (:func:`mirrors_highlights`).
+        The photo's camera centre, mm in the mesh frame: on a glossy film a colour region that
+        mirrors the lamp like the photo's own highlights is one of them (:func:`mirrors_highlights`).
     footprint_axes : (rows, cols, 2) float, optional
         Photo pixels per grid pixel that the camera's blur sees along the grid's columns and
         rows (:func:`workbench.validate.print_warp.footprint_axes`): the model blurs the print
         by an ellipse where the photo sees it obliquely. ``footprint`` both ways when not given.
+    finish : str
+        The film's surface, ``"glossy"`` or ``"matte"``. A glossy film adds light of its own (the
+        lamp's and the room's reflections); a matte film adds none, and the light that reaches its
+        ink (shading, the part's own interreflection) scales the ink's colour
+        (:func:`workbench.validate.photometric.judge_region`).
 
     Returns
     -------
@@ -126,11 +133,24 @@ def analyse(
     # what needs neither the flow nor the photo's fit (the flow back, the print's own texture, its
     # unresolved detail) is computed on a second thread meanwhile: numpy and OpenCV release the
     # GIL in their loops, so on two cores that work costs little wall time; the same numbers
+    if finish not in ("glossy", "matte"):
+        raise ValueError(f"finish {finish!r}: glossy or matte")
     with ThreadPoolExecutor(max_workers=1) as later:
-        return _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later, footprint_axes)
+        return _analyse(
+            grid,
+            warped,
+            state,
+            tolerance_mm,
+            scale,
+            footprint,
+            camera_center,
+            later,
+            footprint_axes,
+            finish == "glossy",
+        )
 
 
-def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later, axes) -> DenseResult:
+def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center, later, axes, glossy) -> DenseResult:
     """:func:`analyse`, with ``later`` the executor of the work that can run beside it."""
     state = rim_band(state)
     pho = warped.astype(np.float32)
@@ -140,7 +160,7 @@ def _analyse(grid, warped, state, tolerance_mm, scale, footprint, camera_center,
     mm_per_px = (grid.surface_per_print / grid.px_per_mm).astype(np.float32)
     fp = footprint if footprint is not None else np.full((H, W), scale, np.float32)
     fp_axes = axes if axes is not None else np.stack([fp, fp], axis=-1)
-    on = _Frame(grid, warped, pho, tolerance_mm, scale, fp, camera_center, later, jj, ii, mm_per_px, fp_axes)
+    on = _Frame(grid, warped, pho, tolerance_mm, scale, fp, camera_center, later, jj, ii, mm_per_px, fp_axes, glossy)
     start = _placed_flow(on, state)
     model = _photo_model(on, start)
     light = _sure_light(on, start, model)
@@ -384,9 +404,10 @@ def _flow_measures(on: _Frame, start: _Start, model: _Model, light: _SureLight) 
     sigma_mm = np.full((H, W), np.nan, np.float32)
     np.copyto(sigma_mm, weak * mm_per_px, where=full)
     np.copyto(sigma_mm, strong * mm_per_px, where=normal)
+    two_way_window = (l2_wide > 0) & (l2_wide >= WINDOW_TWO_WAY_STATED * l1_wide)
     return _Measures(
         lit_disc, lit_now, slide, shift_limit, noise, e1, usable, full, normal, unresolved, needed_blur, stated,
-        wide_sigma, m_total, shift, texture, shift_mm, sigma_mm,
+        wide_sigma, two_way_window, m_total, shift, texture, shift_mm, sigma_mm,
     )  # fmt: skip
 
 
@@ -420,7 +441,7 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
     light_rgb = np.maximum(light_rgb, 1.0) / max(float(light_rgb.max()), 1.0)
     verdicts = photometric.judge_regions(
         colour_bad, gone, pho, pred, film_lit.film, light_rgb, colour_limit, colour_noise, film_lit.sigma,
-        colour_scored & ~colour_bad, local_blur, np.minimum(fp * fp, 1.0), SIGNIFICANCE_Z,
+        colour_scored & ~colour_bad, local_blur, np.minimum(fp * fp, 1.0), SIGNIFICANCE_Z, on.glossy,
     )  # fmt: skip
     glossed = verdicts.light.copy()
     gone = gone & ~glossed
@@ -454,6 +475,12 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
         # variation, a scratch shows the film; one over uniform ink is not told, and like a
         # region the photometric model cannot tell, is left to the lamp (below)
         told = thin_told(thin, pho, pred, alpha >= 0.5, int(round(0.5 * MISSING_GAP_MM * grid.px_per_mm)))
+        if not on.glossy:
+            # (a matte film shows no glint: a line that keeps some of the ink's variation is not
+            # told by it (a scratch's blurred flanks keep it too; light along a fold is judged
+            # below). The camel's 20 mm scratch over pale ink, lens look: found, told ink gone by the
+            # photometric model, then taken for a glint, and the photo passed)
+            told = np.where(told == 1, np.uint8(3), told).astype(told.dtype)
         # (a line told ink gone stays ink gone where the model took the region it joins for
         # light: a scratch across a glossy sheen is one region with it)
         told_ink = told == 2
@@ -471,20 +498,24 @@ def _light_or_ink(on: _Frame, start: _Start, model: _Model, light: _SureLight, m
         sure = highlight | glossed
         # the stated limit, honestly: where the surface mirrors the lamp of the photo's sure
         # highlights, ink that is gone is not told from light (a line over uniform ink neither)
-        # (needed only for the result: beside the rest, applied below)
-        cone = later.submit(lamp_cone, sure, grid.X, camera_center, rg, grid.px_per_mm)
+        # (needed only for the result: beside the rest, applied below) (a matte film mirrors no
+        # lamp: the light on its ink is the gain the photometric model weighed, and on Mitsuba's
+        # matte lily the cone of the lamps the regions it took for light would mirror hid 5.4 % of
+        # the film's ink from the ink-gone map over six photos)
+        if on.glossy:
+            cone = later.submit(lamp_cone, sure, grid.X, camera_center, rg, grid.px_per_mm)
         # a region the photo cannot tell (ink gone or light) is taken for light only where the
         # surface mirrors that lamp: elsewhere no light the photo shows reaches the camera from it,
         # and it stays ink gone by default (``untold``: ink gone on a matte film, open on a glossy
         # one, whose lamps the photo may show nowhere else)
         not_told = (verdicts.not_told | (told == 3)) & colour_bad & ~glossed & ~told_ink
         untold = not_told
-        mirrored = mirrors_highlights(not_told, sure, grid.X, camera_center)
+        mirrored = mirrors_highlights(not_told, sure, grid.X, camera_center) if on.glossy else np.zeros_like(not_told)
         why_light["mirrors_highlights"] = mirrored
         glossed |= mirrored
         colour_bad &= ~glossed
         gone &= ~glossed
-        if grid.normal is not None:
+        if grid.normal is not None and on.glossy:
             # ink gone, or the room mirrored: a region no brighter than a glossy film's reflection of
             # the room could make it there (the fixture's white squares near the silhouette of
             # Mitsuba's glossy face, 1 to 10 mm² of "missing" in every photo) is explained by either
@@ -633,14 +664,29 @@ def _defects(on: _Frame, start: _Start, measures: _Measures, colour: _Colour) ->
     # pixel's (no gate on the texture's grey levels: a photograph's soft edges measure well)
     # (light, not ink, moves an edge for the flow too: DIS follows a glint along a ridge as if
     # the print had slid under it, 0.5 mm on a glossy photo's perfect part; the windows leave
-    # out what light covers and the reach of the flow's patches around it)
-    lit = cv2.dilate(((state == HIGHLIGHT) | sat).astype(np.uint8), lit_disc).astype(bool)
+    # out what light covers and the reach of the flow's patches around it). On a matte film the
+    # light the photometric model takes a region for is a gain of the ink, which the flow's local
+    # normalisation divides away: it moves no edge, and only the light the photo shows for sure
+    # (clipped, beyond the film) is left out. (A 12 mm bubble slid 1 mm on the fandisk's matte
+    # photo: the edges it moved, stepped towards the film, were taken for light over 71 px, and
+    # the windows' evidence of the slide went with them over most of the bubble)
+    lit = cv2.dilate(((state == HIGHLIGHT) | sat).astype(np.uint8), lit_disc).astype(bool) if on.glossy else lit_now
     # (the slide computed beside the rest where the light is the same: the same numbers)
     m_wide = slide.result() if np.array_equal(lit, lit_now) else tensor_weighted_flow(rgb_, m, 4 * win, ~lit)
     # (local defects in the flow from the placed print; the misregistration reported is the whole of it)
     local_shift = np.where(normal[..., None], _csum(m * e1)[..., None] * e1, m)
     local_mm = np.where(full | normal, np.hypot(local_shift[..., 0], local_shift[..., 1]) * mm_per_px, np.nan)
-    wide_ok = scored & ~unresolved & ~lit & (wide_sigma <= usable)
+    # (and where the window's texture has two directions: along an edge that barely turns over the
+    # window its slide along the edge is what the detection limit states it answers only
+    # WINDOW_GAIN_ALONG_EDGE of, and its errors there are not its noise's: on a path tracer's
+    # perfect photo a pale lobe's rim, an arc of uniform ink against white, slid "0.46 mm" in
+    # three windows' regions of 24 to 52 mm², z 11 to 26, where the pixels' own flow said 0.01)
+    # (on a matte film over the pixels scored before light was told from ink, as the detection limit
+    # is stated: a gain moves no edge, and the edges a slide moves, stepped towards the film, are
+    # what the photometric model may take for light; a 6 mm bubble slid 0.5 mm on the bunny's matte
+    # photo, stated found over 98 % of it, lost its windows' evidence to 29 such pixels and passed)
+    windowed = scored if on.glossy else measures.stated
+    wide_ok = windowed & ~unresolved & ~lit & (wide_sigma <= usable) & measures.window_two_way
     wide_mm = np.hypot(m_wide[..., 0], m_wide[..., 1]) * mm_per_px
     z_wide = np.where(wide_ok, (wide_mm - tolerance_mm) / wide_sigma, np.nan)
     # the honest measures (the full vector, the component across an edge, a window's slide)
@@ -841,9 +887,12 @@ def _result(
     # and closing in find_defects work on 3 x 3 grid pixels) to be found
     px_mm = (1.0 / median_res) if median_res else None
     limit_mm, stated_sigma_mm, window_sigma_mm = measures.shift_limit.result()
-    limit_mm[lit] = np.nan  # (the flow near light is not the print's: see lit above)
-    stated_sigma_mm[lit] = np.nan
-    window_sigma_mm[lit] = np.nan
+    # (the flow near light is not the print's: see lit above; and what was taken for light is not
+    # scored, which on a matte film lit leaves in)
+    unmeasured = lit | (state == HIGHLIGHT)
+    limit_mm[unmeasured] = np.nan
+    stated_sigma_mm[unmeasured] = np.nan
+    window_sigma_mm[unmeasured] = np.nan
     in_cone = None
     if colour.cone is not None:
         in_cone, flat_in_cone = colour.cone.result()
@@ -868,7 +917,8 @@ def _result(
             "found where the print has texture the photo resolves (min_shift_mm_*: over the pixels that find one), "
             "ink that is gone where its step to the bare film exceeds min_ink_step_grey_levels, a scratch (a line of "
             "ink gone, thinner than about 0.7 mm) wherever the ink differs from the film by twice the noise and "
-            "placement (but over uniform ink within the lamp's reflection, where a glint looks the same); the maps "
+            "placement (the noise the photo shows around it), but on a glossy film not over uniform ink within the "
+            "lamp's reflection, where a glint looks the same; the maps "
             "are in detection.npz"
         ),
     }

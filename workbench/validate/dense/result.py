@@ -74,7 +74,8 @@ class DenseResult:
         (``rule``, the test that decided, and ``words``).
     lamp_cone : (rows, cols) bool or None
         Where the surface mirrors the lamp of the photo's sure light towards the camera
-        (:func:`mirror_cone`): a glossy film's sheen may add light there below any glint.
+        (:func:`mirror_cone`): a glossy film's sheen may add light there below any glint. None
+        on a matte film.
     placement_px : (rows, cols, 2) float32 or None
         The films' fitted placement (:func:`workbench.validate.placement.placement_field`) where
         the analysis started again from the print placed so, grid px (x, y); None where it did not.

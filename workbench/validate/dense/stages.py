@@ -35,6 +35,8 @@ class _Frame:
         Surface mm per grid px: print mm times the film's local stretch.
     fp_axes : (H, W, 2) float32
         Photo pixels per grid pixel that the camera's blur sees along x (axis 1) and y (axis 0).
+    glossy : bool
+        The film adds light of its own (:func:`analyse`'s ``finish``).
     """
 
     grid: PrintGrid
@@ -49,6 +51,7 @@ class _Frame:
     ii: np.ndarray
     mm_per_px: np.ndarray
     fp_axes: np.ndarray
+    glossy: bool = True
 
 
 @dataclass
@@ -193,6 +196,9 @@ class _Measures:
         The pixels the detection limit is stated over.
     wide_sigma : (H, W) float32
         The window's slide's uncertainty, mm on the surface.
+    window_two_way : (H, W) bool
+        The window's texture has two directions (its weaker eigenvalue at least
+        WINDOW_TWO_WAY_STATED of its stronger): its slide is measured in any direction.
     m_total : (H, W, 2) float32
         The whole misregistration: the placement's and the rest, grid px.
     shift : (H, W, 2) float32
@@ -216,6 +222,7 @@ class _Measures:
     needed_blur: np.ndarray
     stated: np.ndarray
     wide_sigma: np.ndarray
+    window_two_way: np.ndarray
     m_total: np.ndarray
     shift: np.ndarray
     texture: np.ndarray
@@ -243,7 +250,8 @@ class _Colour:
     scored : (H, W) bool
         The pixels scored, light taken out.
     cone : Future or None
-        The lamp's mirror cone (:func:`lamp_cone`), with a camera centre.
+        The lamp's mirror cone (:func:`lamp_cone`), with a camera centre, on a glossy film
+        (None on a matte one: it mirrors no lamp).
     fold : (H, W) bool
         Where the surface folds and its light may pass for ink that is gone (:func:`_fold_light`):
         ink gone is not found there.
@@ -254,6 +262,7 @@ class _Colour:
     room : (H, W) bool or None
         Where ink that is gone would brighten the ink by no more than a glossy film's reflection
         of the room may (:func:`reflection.within_room_reflection`): ink gone is not found there.
+        None on a matte film, which mirrors nothing.
     untold : (H, W) bool
         Ink that is gone by default: no test told it from light (the photometric model's "not
         told", a line over uniform ink), and no lamp the photo shows is mirrored there.

@@ -288,7 +288,8 @@ def stated_shift_limit(
     The photo's noise through the texture it resolves (the mismatch and the flow back, which a
     defect itself raises, left out: :func:`workbench.validate.detection.expected_flow_sigma`),
     and the window's slide's uncertainty ``wide_sigma``, of which the window answers
-    :func:`window_gain` of its eigenvalues ``l1_wide``, ``l2_wide``;
+    :func:`window_gain` of its eigenvalues ``l1_wide``, ``l2_wide`` where its texture has two
+    directions (elsewhere it states nothing: the defect search takes no evidence from it);
     :func:`workbench.validate.detection.shift_limit` at SIGNIFICANCE_Z + DETECT_Z.
 
     Returns
@@ -307,9 +308,13 @@ def stated_shift_limit(
     weak_e, _ = detection.expected_flow_sigma(noise, l1, l2, n_eff, floor)
     weak_mm = weak_e * mm_per_px
     gain = window_gain(l1_wide, l2_wide)
+    # (a window along an edge that barely turns is no evidence of a slide (the defect search
+    # takes a window's only where its texture has two directions: it answers a twentieth of a
+    # slide along the edge, WINDOW_GAIN_ALONG_EDGE), so the limit is not stated from it either)
     limit = detection.shift_limit(
-        tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_mm, wide_sigma, two_way, measurable, usable, gain
-    )
+        tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_mm, wide_sigma, two_way,
+        measurable & (gain == np.float32(WINDOW_GAIN)), usable, gain,
+    )  # fmt: skip
     own = np.where(two_way & (weak_mm <= usable), weak_mm, np.nan).astype(np.float32)
     window = measurable & (wide_sigma <= usable) & (gain == np.float32(WINDOW_GAIN))
     return limit, own, np.where(window, wide_sigma, np.nan).astype(np.float32)

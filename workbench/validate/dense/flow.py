@@ -288,6 +288,23 @@ def print_texture(ref_gray: np.ndarray, window_px: float, factor: int = 1):
     return l1, l2, l1_wide, l2_wide
 
 
+def window_two_way(l1_wide: np.ndarray, l2_wide: np.ndarray) -> np.ndarray:
+    """Where the wide window's texture has two directions: weaker eigenvalue > 0, ≥ WINDOW_TWO_WAY_STATED of the other.
+
+    Parameters
+    ----------
+    l1_wide, l2_wide : (H, W) float32
+        The wide window's structure tensor eigenvalues (:func:`print_texture`).
+
+    Returns
+    -------
+    (H, W) bool
+        There its slide is measured in any direction: it is evidence of a slide, and the
+        detection limit is stated from it.
+    """
+    return (l2_wide > 0) & (l2_wide >= WINDOW_TWO_WAY_STATED * l1_wide)
+
+
 def window_gain(l1_wide: np.ndarray, l2_wide: np.ndarray) -> np.ndarray:
     """The share of a slide the wide window's slide answers, as the detection limit states it.
 
@@ -302,7 +319,7 @@ def window_gain(l1_wide: np.ndarray, l2_wide: np.ndarray) -> np.ndarray:
         WINDOW_GAIN where the window's texture has two directions within WINDOW_TWO_WAY_STATED,
         WINDOW_GAIN_ALONG_EDGE where not.
     """
-    return np.where(l2_wide >= WINDOW_TWO_WAY_STATED * l1_wide, WINDOW_GAIN, WINDOW_GAIN_ALONG_EDGE).astype(np.float32)
+    return np.where(window_two_way(l1_wide, l2_wide), WINDOW_GAIN, WINDOW_GAIN_ALONG_EDGE).astype(np.float32)
 
 
 def dense_flow(

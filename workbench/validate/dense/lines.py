@@ -183,6 +183,27 @@ def thin_ink_loss(
     return found, findable, alpha.astype(np.float32)
 
 
+def _row_median(a: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """The median of each row's finite values, (k, m) float32 with n (k,) finite each; (k,) float32.
+
+    NaN sorts last, so the middle of a row's n finite values is at (n - 1) / 2 of its sorted row;
+    rows with every value finite, most of them, by a partition about their common middle, in
+    linear time.
+    """
+    out = np.empty(len(a), np.float32)
+    full = n == a.shape[1]
+    mid = [(a.shape[1] - 1) // 2, a.shape[1] // 2]
+    if full.any():
+        part = np.partition(a[full], mid, axis=1)
+        out[full] = 0.5 * (part[:, mid[0]] + part[:, mid[1]])
+    if (~full).any():
+        s, k = np.sort(a[~full], axis=1), n[~full]
+        lo = np.take_along_axis(s, ((k - 1) // 2)[:, None], axis=1)[:, 0]
+        hi = np.take_along_axis(s, (k // 2)[:, None], axis=1)[:, 0]
+        out[~full] = 0.5 * (lo + hi)
+    return out
+
+
 def block_median_spread(
     values: np.ndarray, where: np.ndarray, block: int, fill_median: float, fill_spread: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -221,27 +242,10 @@ def block_median_spread(
     med = np.full(ny * nx, fill_median, np.float32)
     spread = np.full(ny * nx, fill_spread, np.float32)
     if enough.any():
-        # (a median of each row's finite values without a loop: NaN sorts last, so the middle of a
-        # row's n finite values is at (n - 1) / 2 of its sorted row; rows with every value finite,
-        # most of them, by a partition about their common middle, in linear time)
-        def row_median(a: np.ndarray, n: np.ndarray) -> np.ndarray:
-            out = np.empty(len(a), np.float32)
-            full = n == a.shape[1]
-            mid = [(a.shape[1] - 1) // 2, a.shape[1] // 2]
-            if full.any():
-                part = np.partition(a[full], mid, axis=1)
-                out[full] = 0.5 * (part[:, mid[0]] + part[:, mid[1]])
-            if (~full).any():
-                s, k = np.sort(a[~full], axis=1), n[~full]
-                lo = np.take_along_axis(s, ((k - 1) // 2)[:, None], axis=1)[:, 0]
-                hi = np.take_along_axis(s, (k // 2)[:, None], axis=1)[:, 0]
-                out[~full] = 0.5 * (lo + hi)
-            return out
-
         rows, n = v[enough], count[enough]
-        m = row_median(rows, n)
+        m = _row_median(rows, n)
         med[enough] = m
-        spread[enough] = 1.4826 * row_median(np.abs(rows - m[:, None]), n)
+        spread[enough] = 1.4826 * _row_median(np.abs(rows - m[:, None]), n)
     kernel = np.ones((3, 3), np.uint8)
     med = cv2.dilate(med.reshape(ny, nx), kernel)
     spread = cv2.dilate(spread.reshape(ny, nx), kernel)

@@ -22,7 +22,7 @@ from workbench.validate.dense.exposure import (
     texture_lost,
     window_ratio,
 )
-from workbench.validate.dense.flow import dis_flow, flow_start, median_flow, tensor_weighted_flow
+from workbench.validate.dense.flow import dis_flow, flow_start, median_flow, tensor_weighted_flow, window_two_way
 from workbench.validate.dense.light import (
     LIGHT_RULES,
     along_fold,
@@ -51,7 +51,6 @@ from workbench.validate.dense.options import (
     SHIFT_EXPLAINS,
     SIGNIFICANCE_Z,
     THIN_MAX_STRETCH,
-    WINDOW_TWO_WAY_STATED,
 )
 from workbench.validate.dense.result import DenseResult
 from workbench.validate.dense.stages import _Colour, _Found, _Frame, _Measures, _Model, _Start, _SureLight
@@ -404,7 +403,7 @@ def _flow_measures(on: _Frame, start: _Start, model: _Model, light: _SureLight) 
     sigma_mm = np.full((H, W), np.nan, np.float32)
     np.copyto(sigma_mm, weak * mm_per_px, where=full)
     np.copyto(sigma_mm, strong * mm_per_px, where=normal)
-    two_way_window = (l2_wide > 0) & (l2_wide >= WINDOW_TWO_WAY_STATED * l1_wide)
+    two_way_window = window_two_way(l1_wide, l2_wide)
     return _Measures(
         lit_disc, lit_now, slide, shift_limit, noise, e1, usable, full, normal, unresolved, needed_blur, stated,
         wide_sigma, two_way_window, m_total, shift, texture, shift_mm, sigma_mm,

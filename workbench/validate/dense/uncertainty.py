@@ -13,6 +13,7 @@ from workbench.validate.dense.flow import (
     tensor_components,
     two_directions,
     window_gain,
+    window_two_way,
 )
 from workbench.validate.dense.options import (
     DETECT_Z,
@@ -20,7 +21,6 @@ from workbench.validate.dense.options import (
     NOISE_FLOOR,
     PHOTO_FLOOR_PX,
     SIGNIFICANCE_Z,
-    WINDOW_GAIN,
 )
 
 # the median of χ² of one and of two degrees of freedom: 0.4549 and 2 ln 2
@@ -308,13 +308,14 @@ def stated_shift_limit(
     weak_e, _ = detection.expected_flow_sigma(noise, l1, l2, n_eff, floor)
     weak_mm = weak_e * mm_per_px
     gain = window_gain(l1_wide, l2_wide)
+    two_way_window = window_two_way(l1_wide, l2_wide)
     # (a window along an edge that barely turns is no evidence of a slide (the defect search
     # takes a window's only where its texture has two directions: it answers a twentieth of a
     # slide along the edge, WINDOW_GAIN_ALONG_EDGE), so the limit is not stated from it either)
     limit = detection.shift_limit(
         tolerance_mm, SIGNIFICANCE_Z + DETECT_Z, weak_mm, wide_sigma, two_way,
-        measurable & (gain == np.float32(WINDOW_GAIN)), usable, gain,
+        measurable & two_way_window, usable, gain,
     )  # fmt: skip
     own = np.where(two_way & (weak_mm <= usable), weak_mm, np.nan).astype(np.float32)
-    window = measurable & (wide_sigma <= usable) & (gain == np.float32(WINDOW_GAIN))
+    window = measurable & (wide_sigma <= usable) & two_way_window
     return limit, own, np.where(window, wide_sigma, np.nan).astype(np.float32)
